@@ -1,0 +1,52 @@
+"""``rowtrack bench``: run the registered benchmarks and report measured figures."""
+
+import json
+import sys
+from pathlib import Path
+
+from emulator.cli import UsageError
+
+NAME = "bench"
+HELP = "run benchmarks (simulation, synthesis) and report the measured figures"
+
+
+def add_arguments(parser):
+    parser.add_argument("--only", action="append", metavar="NAME",
+                        help="run only this benchmark (repeatable); see --list")
+    parser.add_argument("--json", action="store_true",
+                        help="print one flat JSON object of figures with dotted keys")
+    parser.add_argument("--write-docs", type=Path, metavar="DIR",
+                        help="also write DIR/<name>.md and DIR/figures.json")
+    parser.add_argument("--list", action="store_true", help="list the benchmarks and exit")
+
+
+def run(args):
+    from emulator import bench
+    if args.list:
+        print("\n".join(bench.names()))
+        return 0
+    selected = args.only or bench.names()
+    unknown = [name for name in selected if name not in bench.BENCHES]
+    if unknown:
+        raise UsageError(f"unknown benchmark {unknown[0]!r}; "
+                         f"benchmarks are: {', '.join(bench.names())}")
+    figures = {}
+    for name in selected:
+        print(f"[bench] {name} ...", file=sys.stderr, flush=True)
+        figures.update(bench.measure(name))
+    if args.write_docs:
+        args.write_docs.mkdir(parents=True, exist_ok=True)
+        for name in selected:
+            (args.write_docs / f"{name}.md").write_text(bench.report(name, figures))
+        merged_path = args.write_docs / "figures.json"
+        merged = json.loads(merged_path.read_text()) if merged_path.exists() else {}
+        merged.update(figures)
+        merged_path.write_text(json.dumps(dict(sorted(merged.items())), indent=2) + "\n")
+        print(f"[bench] wrote {args.write_docs}/", file=sys.stderr)
+    if args.json:
+        print(json.dumps(figures, sort_keys=True))
+    else:
+        width = max((len(k) for k in figures), default=0)
+        for key, value in sorted(figures.items()):
+            print(f"{key:<{width}}  {value}")
+    return 0

@@ -1,0 +1,25 @@
+"""Every block that can be written out as Verilog on its own, with its default build.
+
+``rowtrack verilog NAME`` and ``make run`` read this table; each entry names a factory
+that returns a ready-to-elaborate component with its default parameters. To add a block,
+add a line here.
+"""
+
+import importlib
+
+#: name -> "module:factory"
+BLOCKS = {
+    "mac": "hdl.mac:MultiplyAccumulate",
+}
+
+
+def names():
+    return sorted(BLOCKS)
+
+
+def build(name):
+    """Instantiate block ``name`` with its default parameters."""
+    if name not in BLOCKS:
+        raise ValueError(f"block must be one of {', '.join(names())}, not {name!r}")
+    module_name, factory = BLOCKS[name].split(":")
+    return getattr(importlib.import_module(module_name), factory)()

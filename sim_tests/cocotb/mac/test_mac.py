@@ -1,0 +1,21 @@
+"""Runs the MAC cocotb bench on both simulators."""
+
+import pytest
+
+from hdl.mac import MacParams, MultiplyAccumulate
+from hdl.fixed import Overflow, Rounding, SQ, UQ
+from sim_tests.common.cocotb_runner import run_cocotb
+
+CASES = {
+    "default": MacParams(),
+    "unsigned_wrap_floor": MacParams(a_fmt=UQ(4, 4), b_fmt=SQ(3, 5), acc_fmt=SQ(8, 9),
+                                     out_fmt=SQ(6, 2), rounding=Rounding.FLOOR,
+                                     overflow=Overflow.WRAP),
+}
+
+
+@pytest.mark.parametrize("sim", ["verilator", "icarus"])
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_mac_cocotb(sim, case):
+    run_cocotb(MultiplyAccumulate(CASES[case]), name="mac", tag=case, sim=sim,
+               test_module="sim_tests.cocotb.mac.mac_bench")

