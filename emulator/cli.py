@@ -10,16 +10,16 @@ import importlib
 import sys
 from importlib.metadata import PackageNotFoundError, version
 
+from emulator.errors import UsageError  # re-exported: commands raise it
+
+__all__ = ["main", "build_parser", "UsageError"]
+
 #: Subcommand modules, in the order ``--help`` lists them.
 COMMANDS = (
     "emulator.commands.run",
     "emulator.commands.verilog",
     "emulator.commands.bench",
 )
-
-
-class UsageError(Exception):
-    """Bad input found before any long work starts; printed without a traceback."""
 
 
 def _version():
