@@ -49,14 +49,19 @@ def _cell_counts(stat_json):
 
 def synth_verilog(verilog_path, top, work_dir):
     """Run ``synth_xilinx`` on ``verilog_path``; returns the figures dict."""
-    work_dir = Path(work_dir)
+    work_dir = Path(work_dir).resolve()
     work_dir.mkdir(parents=True, exist_ok=True)
+    source = Path(verilog_path).resolve()
+    if source.parent != work_dir:
+        shutil.copy(source, work_dir / source.name)
+    # Paths relative to the working directory: the WebAssembly Yosys cannot see every
+    # absolute host path (e.g. some of /tmp), but always sees its working directory.
     stat_path = work_dir / "stat.json"
     netlist_path = work_dir / "netlist.json"
-    script = (f"read_verilog -sv {Path(verilog_path).resolve()}; "
+    script = (f"read_verilog -sv {source.name}; "
               f"synth_xilinx -family xc7 -top {top} -flatten; "
-              f"tee -q -o {stat_path} stat -json; "
-              f"write_json {netlist_path}")
+              f"tee -q -o {stat_path.name} stat -json; "
+              f"write_json {netlist_path.name}")
     result = subprocess.run([_yosys_command(), "-q", "-p", script], capture_output=True,
                             text=True, cwd=work_dir)
     if result.returncode != 0:
