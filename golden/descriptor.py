@@ -1,0 +1,238 @@
+"""Row descriptors and shift matching, in float64: the specification of the hardware's
+per-camera measurement engine (``hdl/row_descriptor.py``).
+
+Descriptor (TVCG 2016 §3.3): convolve the row with the second derivative of a Gaussian
+and keep the sign, one bit per pixel. Matching: Hamming distance between the current
+row's bits and a reference row's bits over integer shifts, the best shift refined to
+sub-pixel by a parabola through the three costs around the minimum, and the peak ratio
+(second-best / best cost) as confidence.
+
+Conventions shared with the emulator and the HDL
+------------------------------------------------
+* Kernel: ``g''(u) = (u²/σ⁴ − 1/σ²)·exp(−u²/2σ²)`` sampled at ``u = −R..R`` with
+  ``R = ceil(3σ)``, made zero-sum (a constant row gives a zero response) and scaled so
+  the largest magnitude is 1.
+* Borders: the response is defined only where the whole kernel lies on the row,
+  ``x ∈ [R, W − R)``; no padding. Border bits are never compared.
+* Bit: ``1`` where the response is ``> 0``, else ``0``.
+* Shift ``d``: the current row's content sits ``d`` pixels to the right of where it was
+  in the reference, ``cur[x] ≈ ref[x − d]``. ``cost(d) = Σₓ [cur[x] ≠ ref[x − d]]`` over a
+  column range that is the same for every ``d`` in the window, so costs are comparable:
+  ``x ∈ [R + max(d_max, 0), W − R + min(d_min, 0))``. That range is split into K equal
+  segments (the radial formulation's virtual cameras), each matched on its own.
+* Argmin: the smallest ``d`` with the lowest cost. Second minimum: the lowest cost at
+  ``|d − d*| ≥ 2`` (the minimum's own slopes are not a rival peak).
+* Sub-pixel: ``δ = (C₋₁ − C₊₁) / (2 (C₋₁ − 2 C₀ + C₊₁))``; ``δ = 0`` when ``d*`` is on the
+  window edge (flagged) or the denominator is zero.
+* Peak ratio: ``min(C₂ / C₁, cap)``, ``cap`` when ``C₁ = 0`` and ``C₂ > 0``; a segment with
+  fewer than ``min_transitions`` bit changes in the current row is flagged textureless
+  and gets confidence 0.
+"""
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+__all__ = ["DescriptorParams", "MatchParams", "MatchResult", "dog2_kernel", "describe",
+           "match", "compare_range", "segment_bounds"]
+
+
+def _check_positive_int(name, value, minimum=1):
+    if not isinstance(value, int) or isinstance(value, bool):
+        raise TypeError(f"{name} must be an integer, not {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name} must be an integer ≥ {minimum}, not {value}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DescriptorParams:
+    """Parameters of the row descriptor.
+
+    Parameters
+    ----------
+    sigma : float
+        Standard deviation of the Gaussian, pixels (0.5 to 8).
+    """
+    sigma: float = 2.0
+
+    def __post_init__(self):
+        if not isinstance(self.sigma, (int, float)) or isinstance(self.sigma, bool):
+            raise TypeError(f"sigma must be a number, not {self.sigma!r}")
+        if not 0.5 <= self.sigma <= 8.0:
+            raise ValueError(f"sigma must be between 0.5 and 8 pixels, not {self.sigma}")
+
+    replace = replace
+
+    @property
+    def radius(self):
+        """Kernel half-width ``R = ceil(3σ)``; the kernel has ``2R + 1`` taps."""
+        return math.ceil(3 * self.sigma)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MatchParams:
+    """Parameters of the shift matcher.
+
+    Parameters
+    ----------
+    shift_min, shift_max : int
+        Search window relative to the run-time centre (temporal default [−20, 20];
+        stereo disparity [10, 70] with centre 0).
+    segments : int
+        Segments per row (virtual cameras), each giving its own measurement.
+    peak_ratio_cap : float
+        Upper bound of the peak-ratio confidence.
+    min_transitions : int
+        Fewer bit changes than this in a segment of the current row: textureless.
+    """
+    shift_min: int = -20
+    shift_max: int = 20
+    segments: int = 1
+    peak_ratio_cap: float = 2.0
+    min_transitions: int = 4
+
+    def __post_init__(self):
+        for name in ("shift_min", "shift_max"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool):
+                raise TypeError(f"{name} must be an integer, not {value!r}")
+        if self.shift_max - self.shift_min < 2:
+            raise ValueError(f"shift window [{self.shift_min}, {self.shift_max}] must hold at "
+                             f"least 3 shifts (parabola fit)")
+        _check_positive_int("segments", self.segments)
+        _check_positive_int("min_transitions", self.min_transitions, minimum=0)
+        if not isinstance(self.peak_ratio_cap, (int, float)) or not self.peak_ratio_cap > 1:
+            raise ValueError(f"peak_ratio_cap must be a number > 1, not {self.peak_ratio_cap!r}")
+
+    replace = replace
+
+    @property
+    def n_shifts(self):
+        return self.shift_max - self.shift_min + 1
+
+
+#: Matcher preset for the stereo disparity of a camera pair (TVCG 2016).
+STEREO_MATCH = MatchParams(shift_min=10, shift_max=70)
+
+
+def dog2_kernel(params):
+    """The float64 second-derivative-of-Gaussian kernel (zero-sum, peak magnitude 1)."""
+    r = params.radius
+    u = np.arange(-r, r + 1, dtype=np.float64)
+    s2 = params.sigma ** 2
+    k = (u * u / (s2 * s2) - 1.0 / s2) * np.exp(-u * u / (2 * s2))
+    k -= k.mean()
+    return k / np.abs(k).max()
+
+
+def response(rows, params):
+    """Filter response on the interior ``[R, W − R)`` of each row; shape ``(..., W − 2R)``."""
+    rows = np.asarray(rows, dtype=np.float64)
+    k = dog2_kernel(params)
+    width = rows.shape[-1]
+    interior = width - 2 * params.radius
+    if interior < 1:
+        raise ValueError(f"rows of width {width} are too short for sigma {params.sigma}")
+    # correlation with the (symmetric) kernel over the valid part only
+    out = np.zeros(rows.shape[:-1] + (interior,))
+    for j, coeff in enumerate(k):
+        out += coeff * rows[..., j:j + interior]
+    return out
+
+
+def describe(rows, params):
+    """Descriptor bits of ``rows`` (``(..., W)``), as a bool array of the same shape.
+
+    Border bits (``x < R`` or ``x ≥ W − R``) are ``False`` and never compared.
+    """
+    rows = np.asarray(rows)
+    bits = np.zeros(rows.shape, dtype=bool)
+    r = params.radius
+    bits[..., r:rows.shape[-1] - r] = response(rows, params) > 0
+    return bits
+
+
+def compare_range(width, desc, match_params, centre=0):
+    """Columns ``[lo, hi)`` of the current row compared for every shift of the window."""
+    r = desc.radius
+    d_min, d_max = centre + match_params.shift_min, centre + match_params.shift_max
+    lo, hi = r + max(d_max, 0), width - r + min(d_min, 0)
+    if hi - lo < match_params.segments * 2:
+        raise ValueError(f"window [{d_min}, {d_max}] leaves {max(hi - lo, 0)} columns of a "
+                         f"{width}-pixel row to compare, too few for "
+                         f"{match_params.segments} segment(s)")
+    return lo, hi
+
+
+def segment_bounds(width, desc, match_params, centre=0):
+    """``[(lo, hi), ...]`` of each segment, equal parts of :func:`compare_range`."""
+    lo, hi = compare_range(width, desc, match_params, centre)
+    k = match_params.segments
+    edges = [lo + (hi - lo) * i // k for i in range(k + 1)]
+    return list(zip(edges[:-1], edges[1:]))
+
+
+@dataclass
+class MatchResult:
+    """Per-row (and per-segment) matching outcome; arrays of shape ``(..., K)``."""
+    shift: np.ndarray            # d* + δ, pixels (float)
+    int_shift: np.ndarray        # d*
+    subpixel: np.ndarray         # δ in (−0.5, 0.5]
+    peak_ratio: np.ndarray       # confidence, [0, cap]
+    cost_min: np.ndarray
+    cost_second: np.ndarray
+    edge_hit: np.ndarray         # d* on the window edge
+    textureless: np.ndarray
+    costs: np.ndarray = field(repr=False)  # (..., K, n_shifts)
+
+
+def hamming_costs(cur_bits, ref_bits, desc, match_params, centre=0):
+    """Costs ``(..., K, n_shifts)`` for shifts ``centre + shift_min .. centre + shift_max``."""
+    cur_bits = np.asarray(cur_bits, dtype=bool)
+    ref_bits = np.asarray(ref_bits, dtype=bool)
+    if cur_bits.shape != ref_bits.shape:
+        raise ValueError(f"current {cur_bits.shape} and reference {ref_bits.shape} rows differ")
+    width = cur_bits.shape[-1]
+    bounds = segment_bounds(width, desc, match_params, centre)
+    shifts = centre + np.arange(match_params.shift_min, match_params.shift_max + 1)
+    costs = np.empty(cur_bits.shape[:-1] + (len(bounds), len(shifts)), dtype=np.int64)
+    for i, d in enumerate(shifts):
+        diff = cur_bits[..., :] != np.roll(ref_bits, d, axis=-1)  # ref[x − d] at x
+        for k, (lo, hi) in enumerate(bounds):
+            costs[..., k, i] = diff[..., lo:hi].sum(axis=-1)
+    return costs
+
+
+def transitions(cur_bits, desc, match_params, centre=0):
+    """Bit changes of the current row inside each segment, ``(..., K)``."""
+    cur_bits = np.asarray(cur_bits, dtype=bool)
+    bounds = segment_bounds(cur_bits.shape[-1], desc, match_params, centre)
+    change = cur_bits[..., 1:] != cur_bits[..., :-1]   # change[x-1]: between x-1 and x
+    return np.stack([change[..., lo:hi - 1].sum(axis=-1) for lo, hi in bounds], axis=-1)
+
+
+def match(cur_bits, ref_bits, desc, match_params, centre=0):
+    """Match descriptor rows; returns a :class:`MatchResult` with one entry per segment."""
+    costs = hamming_costs(cur_bits, ref_bits, desc, match_params, centre)
+    n = costs.shape[-1]
+    best = np.argmin(costs, axis=-1)                      # first minimum
+    c0 = np.take_along_axis(costs, best[..., None], -1)[..., 0]
+    idx = np.arange(n)
+    far = np.abs(idx - best[..., None]) >= 2
+    c2 = np.where(far, costs, np.iinfo(np.int64).max).min(axis=-1)
+    edge = (best == 0) | (best == n - 1)
+    cm = np.take_along_axis(costs, np.clip(best - 1, 0, n - 1)[..., None], -1)[..., 0]
+    cp = np.take_along_axis(costs, np.clip(best + 1, 0, n - 1)[..., None], -1)[..., 0]
+    denom = cm - 2 * c0 + cp
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta = np.where(edge | (denom == 0), 0.0, (cm - cp) / (2.0 * denom))
+    cap = float(match_params.peak_ratio_cap)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(c0 == 0, np.where(c2 > 0, cap, 0.0), np.minimum(c2 / c0, cap))
+    textureless = transitions(cur_bits, desc, match_params, centre) < match_params.min_transitions
+    ratio = np.where(textureless, 0.0, ratio)
+    int_shift = centre + match_params.shift_min + best
+    return MatchResult(shift=int_shift + delta, int_shift=int_shift, subpixel=delta,
+                       peak_ratio=ratio, cost_min=c0, cost_second=c2, edge_hit=edge,
+                       textureless=textureless, costs=costs)

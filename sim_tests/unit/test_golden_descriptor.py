@@ -1,0 +1,108 @@
+"""golden.descriptor: the float specification of row descriptors and shift matching."""
+
+import numpy as np
+import pytest
+
+from golden.descriptor import (STEREO_MATCH, DescriptorParams, MatchParams, compare_range,
+                               describe, dog2_kernel, match, segment_bounds)
+
+SEED = 20261123
+
+
+def textured_row(rng, width, shift=0.0, blur=3.0):
+    """A smooth random texture sampled at ``x − shift`` (content moved right by ``shift``)."""
+    from scipy.ndimage import gaussian_filter1d
+    base = gaussian_filter1d(rng.uniform(0, 255, width + 200), blur)
+    return np.interp(np.arange(width) + 100 - shift, np.arange(width + 200), base)
+
+
+def test_kernel_is_zero_sum_symmetric_and_normalised():
+    for sigma in (0.5, 1.3, 2.0, 4.0):
+        k = dog2_kernel(DescriptorParams(sigma=sigma))
+        assert len(k) == 2 * DescriptorParams(sigma=sigma).radius + 1
+        assert abs(k.sum()) < 1e-12 and np.allclose(k, k[::-1]) and np.abs(k).max() == 1.0
+        assert k[len(k) // 2] == -1.0  # g'' is most negative at the centre
+
+
+def test_borders_are_never_set():
+    p = DescriptorParams(sigma=2.0)
+    bits = describe(np.random.default_rng(SEED).uniform(0, 255, (3, 100)), p)
+    assert not bits[:, :p.radius].any() and not bits[:, 100 - p.radius:].any()
+
+
+@pytest.mark.parametrize("shift", [-17.3, -4.5, -0.25, 0.0, 1.75, 9.6, 19.0])
+def test_known_shifts_are_recovered(shift):
+    rng = np.random.default_rng(SEED)
+    desc, m = DescriptorParams(), MatchParams(segments=4)
+    ref, cur = textured_row(rng, 640), None
+    rng = np.random.default_rng(SEED)
+    cur = textured_row(rng, 640, shift)
+    r = match(describe(cur, desc), describe(ref, desc), desc, m)
+    assert np.all(np.abs(r.shift - shift) < 0.35), r.shift
+    assert np.all(r.peak_ratio > 1.3) and not r.textureless.any() and not r.edge_hit.any()
+
+
+def test_centre_offset_moves_the_window():
+    rng = np.random.default_rng(SEED)
+    ref = textured_row(rng, 640)
+    cur = textured_row(np.random.default_rng(SEED), 640, 33.2)
+    desc = DescriptorParams()
+    plain = match(describe(cur, desc), describe(ref, desc), desc, MatchParams())
+    assert plain.peak_ratio[0] < 1.2  # 33 px is outside [-20, 20]: no confident match
+    centred = match(describe(cur, desc), describe(ref, desc), desc, MatchParams(), centre=30)
+    assert abs(centred.shift[0] - 33.2) < 0.35 and not centred.edge_hit.any()
+
+
+def test_stereo_window():
+    rng = np.random.default_rng(SEED)
+    ref = textured_row(rng, 640)
+    cur = textured_row(np.random.default_rng(SEED), 640, 42.4)
+    desc = DescriptorParams()
+    r = match(describe(cur, desc), describe(ref, desc), desc, STEREO_MATCH)
+    assert abs(r.shift[0] - 42.4) < 0.35
+
+
+def test_textureless_and_periodic_rows_are_never_confident():
+    desc, m = DescriptorParams(), MatchParams(segments=2)
+    flat = np.full(640, 97.0)
+    r = match(describe(flat, desc), describe(flat, desc), desc, m)
+    assert r.textureless.all() and (r.peak_ratio == 0).all()
+    x = np.arange(640)
+    periodic = 128 + 90 * np.sin(2 * np.pi * x / 9)
+    r = match(describe(periodic, desc), describe(np.roll(periodic, 3), desc), desc, m)
+    assert (r.peak_ratio < 1.2).all()
+
+
+def test_segments_split_the_compared_range():
+    desc = DescriptorParams(sigma=2.0)
+    m = MatchParams(segments=3)
+    lo, hi = compare_range(640, desc, m)
+    assert (lo, hi) == (desc.radius + 20, 640 - desc.radius - 20)
+    bounds = segment_bounds(640, desc, m)
+    assert bounds[0][0] == lo and bounds[-1][1] == hi
+    assert all(a[1] == b[0] for a, b in zip(bounds, bounds[1:]))
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    ({"sigma": 0.1}, ValueError, "sigma must be between 0.5 and 8 pixels, not 0.1"),
+    ({"sigma": "2"}, TypeError, "sigma must be a number"),
+])
+def test_bad_descriptor_params(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        DescriptorParams(**kwargs)
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    ({"shift_min": 0, "shift_max": 1}, ValueError, "must hold at least 3 shifts"),
+    ({"segments": 0}, ValueError, "segments must be an integer ≥ 1, not 0"),
+    ({"shift_min": 1.5}, TypeError, "shift_min must be an integer"),
+    ({"peak_ratio_cap": 1.0}, ValueError, "peak_ratio_cap must be a number > 1"),
+])
+def test_bad_match_params(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        MatchParams(**kwargs)
+
+
+def test_window_too_wide_for_the_row():
+    with pytest.raises(ValueError, match="too few for 4 segment"):
+        compare_range(50, DescriptorParams(), MatchParams(segments=4))
