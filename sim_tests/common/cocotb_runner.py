@@ -66,6 +66,16 @@ def _prepare_icarus():
             raise SimulatorSetupError(f"SIM=icarus needs '{tool}' on PATH (apt-get install iverilog)")
 
 
+def _icarus_dump_module(build_dir, toplevel):
+    path = build_dir / "rowtrack_dump.v"
+    path.write_text("module rowtrack_dump();\n"
+                    "initial begin\n"
+                    f"  $dumpfile(\"{build_dir / (toplevel + '.fst')}\");\n"
+                    f"  $dumpvars(0, {toplevel});\n"
+                    "end\nendmodule\n")
+    return path
+
+
 def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
                testcase=None, extra_env=None, tag=""):
     """Elaborate ``component`` and run cocotb ``test_module`` (a dotted module name) on it.
@@ -90,10 +100,25 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     with open(build_dir / "params.pkl", "wb") as f:
         pickle.dump(getattr(component, "params", None), f)
 
-    build_args = list(VERILATOR_WAIVERS) if sim == "verilator" else ["-g2005"]
+    sources = [verilog_path]
+    if sim == "verilator":
+        build_args, build_waves = list(VERILATOR_WAIVERS), waves
+    else:
+        # Yosys output needs -g2005 (DESIGN.md §4); cocotb's own dump module is
+        # SystemVerilog, so Icarus waveforms come from a Verilog-2005 one of ours.
+        build_args, build_waves = ["-g2005"], False
+        if waves:
+            sources.append(_icarus_dump_module(build_dir, name))
+            build_args += ["-s", "rowtrack_dump"]
     runner = get_runner(sim)
-    runner.build(sources=[verilog_path], hdl_toplevel=name, build_dir=build_dir,
-                 build_args=build_args, timescale=("1ns", "1ps"), waves=waves)
+    # cocotb lets the WAVES variable override the argument; ours decides.
+    saved_waves = os.environ.pop("WAVES", None)
+    try:
+        runner.build(sources=sources, hdl_toplevel=name, build_dir=build_dir,
+                     build_args=build_args, timescale=("1ns", "1ps"), waves=build_waves)
+    finally:
+        if saved_waves is not None:
+            os.environ["WAVES"] = saved_waves
     env = {"ROWTRACK_BUILD_DIR": str(build_dir), "ROWTRACK_TOPLEVEL": name}
     env.update(extra_env or {})
     results = runner.test(hdl_toplevel=name, test_module=test_module, build_dir=build_dir,

@@ -19,3 +19,12 @@ CASES = {
 def test_mac_cocotb(sim, case):
     run_cocotb(MultiplyAccumulate(CASES[case]), name="mac", tag=case, sim=sim,
                test_module="sim_tests.cocotb.mac.mac_bench")
+
+
+@pytest.mark.parametrize("sim, waveform", [("verilator", "dump.vcd"), ("icarus", "mac.fst")])
+def test_waveforms_on_request(sim, waveform):
+    """WAVES=1 (here: waves=True) leaves a GTKWave-readable file in the build directory."""
+    results = run_cocotb(MultiplyAccumulate(), name="mac", tag="waves", sim=sim, waves=True,
+                         test_module="sim_tests.cocotb.mac.mac_bench")
+    path = results.parent / waveform
+    assert path.exists() and path.stat().st_size > 0
