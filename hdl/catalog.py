@@ -10,6 +10,7 @@ import importlib
 #: name -> "module:factory"
 BLOCKS = {
     "mac": "hdl.mac:MultiplyAccumulate",
+    "dt_filter": "hdl.dt_filter:DomainTransformFilter",
 }
 
 
