@@ -423,7 +423,7 @@ class DomainTransformFilter(wiring.Component):
         out_stall = Signal()
         m.d.comb += [
             out_stall.eq(self.o.valid & ~self.o.ready),
-            filler.eq(in_filler | ((k_in == 0) & ~self.i.valid & (pending != 0))),
+            filler.eq(in_filler | ((k_in == 0) & frame_first & ~self.i.valid & (pending != 0))),
             advance.eq((filler | self.i.valid) & ~out_stall),
             self.i.ready.eq(~out_stall & ~filler),
         ]
