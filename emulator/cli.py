@@ -19,6 +19,7 @@ COMMANDS = (
     "emulator.commands.run",
     "emulator.commands.verilog",
     "emulator.commands.bench",
+    "emulator.commands.simulate",
 )
 
 

@@ -24,6 +24,7 @@ __all__ = ["Renderer"]
 #: Rows per chunk: float32 temporaries of 64×640 stay in the L2 cache.
 CHUNK_ROWS = 64
 
+
 #: OpenCV's remap takes maps of at most 32766 columns.
 _REMAP_COLS = 4096
 
@@ -45,29 +46,24 @@ def sample_trilinear(pyramid, x, y, level):
     """Texture values at level-0 atlas positions ``x``, ``y`` blended between the mip
     levels around ``level`` (all float32, 1-D).
 
-    Pixels are bucketed by ``ceil(level)`` (one radix sort), so each bucket is one pair
-    of remaps: bucket 0 reads level 0 only, bucket l blends levels l−1 and l.
+    Pixels are bucketed by ``ceil(level)``: bucket 0 reads level 0 only, bucket l blends
+    levels l−1 and l, one pair of remaps per bucket.
     """
     top = len(pyramid) - 1
     level = np.clip(level, 0, top)
     bucket = np.ceil(level).astype(np.int8)
-    order = np.argsort(bucket, kind="stable")
-    bounds = np.concatenate([[0], np.cumsum(np.bincount(bucket, minlength=top + 1))])
-    xs, ys, ls = x[order], y[order], level[order]
-    values = np.empty_like(xs)
-    for l in range(top + 1):
-        part = slice(bounds[l], bounds[l + 1])
-        if part.start == part.stop:
-            continue
+    counts = np.bincount(bucket, minlength=top + 1)
+    out = np.empty_like(x)
+    for l in np.flatnonzero(counts):
+        idx = np.flatnonzero(bucket == l) if counts[l] < len(x) else slice(None)
         scale = np.float32(0.5**l)
-        coarse = _remap(pyramid[l], xs[part] * scale, ys[part] * scale)
+        xs, ys = x[idx], y[idx]
+        coarse = _remap(pyramid[l], xs * scale, ys * scale)
         if l == 0:
-            values[part] = coarse
+            out[idx] = coarse
             continue
-        fine = _remap(pyramid[l - 1], xs[part] * (2 * scale), ys[part] * (2 * scale))
-        values[part] = fine + (ls[part] - np.float32(l - 1)) * (coarse - fine)
-    out = np.empty_like(values)
-    out[order] = values
+        fine = _remap(pyramid[l - 1], xs * (2 * scale), ys * (2 * scale))
+        out[idx] = fine + (level[idx] - np.float32(l - 1)) * (coarse - fine)
     return out
 
 
@@ -85,11 +81,15 @@ class Renderer:
         rays = camera.rays
         self._ray = [np.ascontiguousarray(rays[..., k], dtype=np.float32) for k in range(3)]
         self._pitch = (camera.pixel_pitch * scene.scale).astype(np.float32)
+        self._bounds = [b.astype(np.float32) for b in (scene.room_lo, scene.room_hi,
+                                                       scene.box_lo, scene.box_hi)]
         unit = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
         axis = unit.mean(axis=1)
         self._row_axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
         self._row_spread = np.arccos(np.clip(
             np.einsum("hwk,hk->hw", unit, self._row_axis), -1, 1)).max(axis=1)
+        elevation = np.arcsin(unit[..., 1])  # angle above/below the camera's x–z plane
+        self._row_elevation = np.stack([elevation.min(axis=1), elevation.max(axis=1)], axis=1)
 
     def render(self, rotations, origins, rows=None):
         """Radiance (gray levels, float32) of ``rows`` seen from per-row poses.
@@ -109,89 +109,99 @@ class Renderer:
         """
         rotations = np.asarray(rotations, dtype=float)
         origins = np.asarray(origins, dtype=float)
-        rows = np.arange(self.camera.height) if rows is None else np.asarray(rows)
-        if rotations.shape != (len(rows), 3, 3) or origins.shape != (len(rows), 3):
-            raise ValueError(f"rotations and origins must have shapes ({len(rows)}, 3, 3) and "
-                             f"({len(rows)}, 3), not {rotations.shape} and {origins.shape}")
-        out = np.empty((len(rows), self.camera.width), np.float32)
-        for start in range(0, len(rows), CHUNK_ROWS):
-            part = slice(start, start + CHUNK_ROWS)
-            out[part] = self._render_chunk(rotations[part], origins[part], rows[part])
+        count = self.camera.height if rows is None else len(rows)
+        if rotations.shape != (count, 3, 3) or origins.shape != (count, 3):
+            raise ValueError(f"rotations and origins must have shapes ({count}, 3, 3) and "
+                             f"({count}, 3), not {rotations.shape} and {origins.shape}")
+        out = np.empty((count, self.camera.width), np.float32)
+        for start in range(0, count, CHUNK_ROWS):
+            part = slice(start, min(start + CHUNK_ROWS, count))
+            # Whole-image chunks index the camera tables with slices (views, not copies).
+            chunk_rows = part if rows is None else np.asarray(rows)[part]
+            out[part] = self._render_chunk(rotations[part], origins[part], chunk_rows)
         return out
 
     def _visible_boxes(self, rotations, origins, rows):
         """Indices of boxes that a ray of these rows could hit.
 
-        Conservative cone test: the cone holds every ray of the rows at the middle pose,
-        widened by the rows' rotation spread; the boxes' bounding spheres are widened by
-        the spread of the camera centres.
+        Conservative tests at the middle pose, widened by the rows' rotation spread, on
+        the boxes' bounding spheres widened by the spread of the camera centres: the
+        sphere must meet the cone that holds the rows' rays, and its elevation range (in
+        the camera frame) must meet the rows' — a chunk of rows is a thin horizontal band,
+        which the cone alone would not see.
         """
         scene = self.scene
         if not len(scene.box_lo):
-            return np.array([], dtype=int)
+            return ()
         mid = len(rotations) // 2
         centre = origins.mean(axis=0)
-        reach = np.linalg.norm(origins - centre, axis=1).max()
-        turn = rotation_angle(rotations[mid].T @ rotations).max()
+        reach = np.sqrt(np.max(np.sum(np.square(origins - centre), axis=1)))
+        turn = np.max(rotation_angle(rotations[mid].T @ rotations))
         row_axes = self._row_axis[rows]
         cam_axis = row_axes.sum(axis=0)
-        cam_axis /= np.linalg.norm(cam_axis)
-        spread = (np.arccos(np.clip(row_axes @ cam_axis, -1, 1))
-                  + self._row_spread[rows]).max() + turn
+        cam_axis /= np.sqrt(cam_axis @ cam_axis)
+        spread = np.max(np.arccos(np.clip(row_axes @ cam_axis, -1, 1))
+                        + self._row_spread[rows]) + turn
         to_box = scene.box_centre - centre
-        dist = np.linalg.norm(to_box, axis=1)
+        dist = np.maximum(np.sqrt(np.sum(np.square(to_box), axis=1)), 1e-12)
         radius = scene.box_radius + reach
-        cos_angle = np.clip(to_box @ (rotations[mid] @ cam_axis) / np.maximum(dist, 1e-12), -1, 1)
-        margin = np.arcsin(np.clip(radius / np.maximum(dist, 1e-12), 0, 1))
-        visible = (dist <= radius) | (np.arccos(cos_angle) - margin <= spread)
-        return np.flatnonzero(visible)
+        angle = np.arccos(np.clip(to_box @ (rotations[mid] @ cam_axis) / dist, -1, 1))
+        margin = np.arcsin(np.clip(radius / dist, 0, 1))
+        elevation = np.arcsin(np.clip(to_box @ rotations[mid][:, 1] / dist, -1, 1))
+        band = self._row_elevation[rows]
+        in_band = ((elevation + margin + turn >= band[:, 0].min())
+                   & (elevation - margin - turn <= band[:, 1].max()))
+        return np.flatnonzero((dist <= radius) | ((angle - margin <= spread) & in_band))
 
     def _render_chunk(self, rotations, origins, rows):
         scene = self.scene
-        if len(rows) and rows[-1] - rows[0] == len(rows) - 1 and np.all(np.diff(rows) == 1):
-            rows = slice(int(rows[0]), int(rows[-1]) + 1)  # views instead of copies
+        room_lo, room_hi, _, _ = self._bounds
         ray = [r[rows] for r in self._ray]
+        rot = rotations.astype(np.float32)
         # World directions: d_k = Σ_j R[k, j] ray_j, one rotation per row.
-        d = [sum(rotations[:, k, j, None].astype(np.float32) * ray[j] for j in range(3))
-             for k in range(3)]
-        positive = [dk > 0 for dk in d]
+        d = []
+        for k in range(3):
+            dk = rot[:, k, 0, None] * ray[0]
+            dk += rot[:, k, 1, None] * ray[1]
+            dk += rot[:, k, 2, None] * ray[2]
+            d.append(dk)
+        o = origins.astype(np.float32)
         with np.errstate(divide="ignore", invalid="ignore"):
             inv = [np.float32(1) / dk for dk in d]
-            t, face = None, None
-            for a in range(3):  # leave the room through the nearest wall
-                lo = (scene.room_lo[a] - origins[:, a, None]).astype(np.float32)
-                hi = (scene.room_hi[a] - origins[:, a, None]).astype(np.float32)
-                t_a = np.where(positive[a], hi, lo) * inv[a]
-                face_a = np.where(positive[a], np.int16(3 + a), np.int16(a))
-                if t is None:
-                    t, face = t_a, face_a
-                else:
-                    closer = t_a < t
-                    np.copyto(t, t_a, where=closer)
-                    np.copyto(face, face_a, where=closer)
+            # Leave the room: per axis the exit is the positive one of the two slab
+            # distances (the centre is inside); the nearest axis wins.
+            t_axis = [np.fmax((room_lo[a] - o[:, a, None]) * inv[a],
+                              (room_hi[a] - o[:, a, None]) * inv[a]) for a in range(3)]
+            to_y = t_axis[1] < t_axis[0]
+            t = np.minimum(t_axis[0], t_axis[1])
+            to_z = t_axis[2] < t
+            np.minimum(t, t_axis[2], out=t)
+            axis = (to_y & ~to_z).view(np.int8) + 2 * to_z.view(np.int8)
+            positive = [dk > 0 for dk in d]
+            high = (positive[0] & (axis == 0)) | (positive[1] & to_y & ~to_z) | (positive[2] & to_z)
+            face = axis + 3 * high.view(np.int8)  # room surface 1 is the high side
             for b in self._visible_boxes(rotations, origins, rows):
-                self._enter_box(b, origins, positive, inv, t, face)
-        axis = face % 3
+                self._enter_box(b, o, positive, inv, t, face, axis)
         on_x, on_z = axis == 0, axis == 2
-        point = [origins[:, k, None].astype(np.float32) + t * d[k] for k in range(3)]
-        u = np.where(on_x, point[1], point[0])
-        v = np.where(on_z, point[1], point[2])
+        point = [o[:, k, None] + t * d[k] for k in range(3)]
+        u = point[0] + on_x * (point[1] - point[0])
+        v = point[2] + on_z * (point[1] - point[2])
+        face = face.astype(np.intp)
         scale = np.float32(scene.scale)
         x = u * scale + scene.face_x[face]
         y = scene.face_y[face] - v * scale
-        normal = np.abs(np.where(on_x, d[0], np.where(on_z, d[2], d[1])))
+        normal = np.abs(d[1] + on_x * (d[0] - d[1]) + on_z * (d[2] - d[1]))
         level = np.log2(t * self._pitch[rows] / normal)
-        shape = x.shape
         return sample_trilinear(scene.atlas.pyramid, x.ravel(), y.ravel(),
-                                level.ravel()).reshape(shape)
+                                level.ravel()).reshape(x.shape)
 
-    def _enter_box(self, b, origins, positive, inv, t, face):
-        """Where rays enter box ``b`` before ``t``, update ``t`` and ``face`` in place."""
-        scene = self.scene
+    def _enter_box(self, b, o, positive, inv, t, face, axis):
+        """Where rays enter box ``b`` before ``t``, update ``t``, ``face`` and ``axis``."""
+        _, _, box_lo, box_hi = self._bounds
         near, t_near, t_far = [], None, None
         for a in range(3):
-            lo = (scene.box_lo[b, a] - origins[:, a, None]).astype(np.float32) * inv[a]
-            hi = (scene.box_hi[b, a] - origins[:, a, None]).astype(np.float32) * inv[a]
+            lo = (box_lo[b, a] - o[:, a, None]) * inv[a]
+            hi = (box_hi[b, a] - o[:, a, None]) * inv[a]
             near.append(np.fmin(lo, hi))
             far = np.fmax(lo, hi)
             t_near = near[a] if t_near is None else np.fmax(t_near, near[a])
@@ -199,9 +209,10 @@ class Renderer:
         hit = np.flatnonzero((t_near <= t_far) & (t_near > 0) & (t_near < t))
         if not hit.size:
             return
-        entry_axis = np.argmax(np.stack([n.ravel()[hit] for n in near]), axis=0)
+        entry_axis = np.argmax(np.stack([n.ravel()[hit] for n in near]), axis=0).astype(np.int8)
         # Entering along +axis crosses the low side (surface 2 + 2b), else the high side.
-        entering_low = np.choose(entry_axis, [p.ravel()[hit] for p in positive])
-        surface = 2 + 2 * b + (~entering_low).astype(np.int16)
+        entering_low = np.stack([p.ravel()[hit] for p in positive])[entry_axis, np.arange(hit.size)]
+        surface = 2 + 2 * b + (~entering_low).view(np.int8)
         t.ravel()[hit] = t_near.ravel()[hit]
+        axis.ravel()[hit] = entry_axis
         face.ravel()[hit] = 3 * surface + entry_axis
