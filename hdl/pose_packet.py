@@ -1,0 +1,407 @@
+"""Pose output: pose records, framed packets with CRC-16, decimation and the PS FIFO.
+
+The tracker emits one pose per image row (tens to hundreds of kHz); a UART carries a few
+thousand packets per second. :class:`PoseOutput` therefore
+
+1. *decimates*: keeps one pose in ``decimation`` and numbers the kept ones (``seq``);
+2. hands every kept record to two sinks, each with a one-record slot that drops (and
+   counts) a record when it is still full: the packet :class:`Framer` feeding the UART,
+   and a FIFO the PS drains through registers. A record tells how many its sink dropped
+   just before it (``skipped``), so a receiver can tell poses skipped by the hardware
+   from packets lost on the wire;
+3. counts everything (poses in, kept, decimated away, dropped per sink, packets) and
+   measures the pose rate over a programmable window.
+
+It never stalls the tracker: ``pose.ready`` is always high.
+
+The packet layout is declared once in :class:`PacketParams` and shared with the
+bit-accurate model (:mod:`emulator.packets`) and the host tool (:mod:`emulator.host`).
+"""
+
+from dataclasses import dataclass, replace
+
+from amaranth.hdl import Cat, Const, Module, Mux, Signal, Value
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.fifo import SyncFIFOBuffered
+from amaranth.lib.wiring import In, Out
+
+from .fixed import QFormat, SQ
+
+__all__ = ["PacketField", "PacketParams", "PoseOutputParams", "crc16_step",
+           "Framer", "PoseOutput", "CRC16_POLY", "CRC16_INIT"]
+
+#: CRC-16/CCITT-FALSE: polynomial x^16 + x^12 + x^5 + 1, initial value 0xFFFF, no
+#: reflection, no final XOR (Python's ``binascii.crc_hqx(data, 0xFFFF)``).
+CRC16_POLY = 0x1021
+CRC16_INIT = 0xFFFF
+
+
+def _check_bits(name, value, multiple_of=8, high=64):
+    if not isinstance(value, int) or isinstance(value, bool):
+        raise TypeError(f"{name} must be an integer, not {value!r}")
+    if value <= 0 or value % multiple_of or value > high:
+        raise ValueError(f"{name} must be a positive multiple of {multiple_of} up to {high}, "
+                         f"not {value}")
+
+
+@dataclass(frozen=True)
+class PacketField:
+    """One payload field: ``count`` little-endian integers of ``bits`` bits each."""
+    name: str
+    bits: int
+    signed: bool
+    count: int
+    doc: str
+
+    @property
+    def bytes(self):
+        return self.bits // 8 * self.count
+
+
+@dataclass(frozen=True, kw_only=True)
+class PacketParams:
+    """The pose packet (no Amaranth here: the emulator and the host tool use it too).
+
+    A packet is ``sync`` (two bytes, high first), ``length`` (one byte: the payload
+    bytes), the payload (fields of :meth:`fields`, each little-endian) and the CRC-16 of
+    ``length`` and payload (high byte first, so the CRC over everything after the sync
+    word, CRC included, is zero).
+
+    Parameters
+    ----------
+    sync : int
+        The 16-bit sync word.
+    timestamp_bits, row_bits, seq_bits, skipped_bits, flag_bits : int
+        Widths of the row time stamp (system clocks, wraps), row index, packet sequence
+        number (wraps), skipped-record count (saturates) and pose flags; multiples of 8.
+    position_fmt : QFormat
+        Position, metres (a multiple of 8 bits wide, signed).
+    quaternion_fmt : QFormat
+        Orientation quaternion components (w, x, y, z), signed, a multiple of 8 bits.
+    """
+    sync: int = 0xA55A
+    timestamp_bits: int = 32
+    row_bits: int = 16
+    seq_bits: int = 16
+    skipped_bits: int = 16
+    flag_bits: int = 8
+    position_fmt: QFormat = SQ(8, 24)
+    quaternion_fmt: QFormat = SQ(2, 14)
+
+    def __post_init__(self):
+        if not isinstance(self.sync, int) or isinstance(self.sync, bool):
+            raise TypeError(f"sync must be an integer, not {self.sync!r}")
+        if not 0 <= self.sync <= 0xFFFF or (self.sync >> 8) == (self.sync & 0xFF):
+            raise ValueError(f"sync must be a 16-bit word with two different bytes, "
+                             f"not {self.sync:#x}")
+        for name in ("timestamp_bits", "row_bits", "seq_bits", "skipped_bits", "flag_bits"):
+            _check_bits(name, getattr(self, name))
+        for name in ("position_fmt", "quaternion_fmt"):
+            fmt = getattr(self, name)
+            if not isinstance(fmt, QFormat):
+                raise TypeError(f"{name} must be a QFormat, not {fmt!r}")
+            if not fmt.signed:
+                raise ValueError(f"{name} must be signed, not {fmt}")
+            _check_bits(f"{name} width", fmt.width, high=32)
+        if self.payload_bytes > 255:
+            raise ValueError(f"the payload must fit a one-byte length, not {self.payload_bytes} "
+                             f"bytes")
+
+    replace = replace
+
+    def fields(self):
+        """Payload fields in wire order."""
+        return (
+            PacketField("seq", self.seq_bits, False, 1,
+                        "record number (wraps); consecutive records differ by one"),
+            PacketField("skipped", self.skipped_bits, False, 1,
+                        "records this sink dropped just before this one (saturates)"),
+            PacketField("t_row", self.timestamp_bits, False, 1,
+                        "row time stamp, system clocks (wraps)"),
+            PacketField("row", self.row_bits, False, 1, "row index within the frame"),
+            PacketField("position", self.position_fmt.width, True, 3,
+                        f"x, y, z in metres, raw {self.position_fmt}"),
+            PacketField("quaternion", self.quaternion_fmt.width, True, 4,
+                        f"w, x, y, z, raw {self.quaternion_fmt}"),
+            PacketField("flags", self.flag_bits, False, 1, "pose flags from the tracker"),
+        )
+
+    @property
+    def payload_bytes(self):
+        return sum(field.bytes for field in self.fields())
+
+    @property
+    def packet_bytes(self):
+        """Sync (2) + length (1) + payload + CRC (2)."""
+        return 5 + self.payload_bytes
+
+    def record_layout(self):
+        """A kept pose as it travels in a packet or sits in the PS FIFO."""
+        return data.StructLayout({f.name: self._field_shape(f) for f in self.fields()})
+
+    def pose_layout(self):
+        """A pose as the tracker hands it over (the record without ``seq``/``skipped``)."""
+        return data.StructLayout({f.name: self._field_shape(f) for f in self.fields()
+                                  if f.name not in ("seq", "skipped")})
+
+    def _field_shape(self, field):
+        from amaranth.hdl import signed, unsigned
+        element = signed(field.bits) if field.signed else unsigned(field.bits)
+        return element if field.count == 1 else data.ArrayLayout(element, field.count)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PoseOutputParams:
+    """Parameters of :class:`PoseOutput`.
+
+    Parameters
+    ----------
+    packet : PacketParams
+    fifo_depth : int
+        Records the PS FIFO holds (a power of two, at least 2).
+    count_bits : int
+        Width of the event counters (they wrap) and of the rate window.
+    decimation_bits : int
+        Width of the ``decimation`` register.
+    """
+    packet: PacketParams = PacketParams()
+    fifo_depth: int = 256
+    count_bits: int = 32
+    decimation_bits: int = 16
+
+    def __post_init__(self):
+        if not isinstance(self.packet, PacketParams):
+            raise TypeError(f"packet must be a PacketParams, not {self.packet!r}")
+        for name, low, high in (("fifo_depth", 2, 1 << 16), ("count_bits", 8, 64),
+                                ("decimation_bits", 1, 32)):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool):
+                raise TypeError(f"{name} must be an integer, not {value!r}")
+            if not low <= value <= high:
+                raise ValueError(f"{name} must be between {low} and {high}, not {value}")
+        if self.fifo_depth & (self.fifo_depth - 1):
+            raise ValueError(f"fifo_depth must be a power of two, not {self.fifo_depth}")
+
+    replace = replace
+
+    def config_layout(self):
+        """Run-time control: ``uart_enable``, ``fifo_enable`` (a disabled sink takes no
+        records and counts none as dropped), ``decimation`` (keep one pose in this many;
+        0 and 1 keep every pose), ``rate_window`` (system clocks per pose-rate window;
+        0 stops the measurement)."""
+        return data.StructLayout({"uart_enable": 1, "fifo_enable": 1,
+                                  "decimation": self.decimation_bits,
+                                  "rate_window": self.count_bits})
+
+    def status_layout(self):
+        """Counters (wrapping): ``poses`` in, ``records`` kept, ``decimated`` away,
+        ``uart_dropped`` / ``fifo_dropped`` (a sink was still full), ``packets`` framed;
+        ``pose_rate``: poses in the last complete ``rate_window``; ``fifo_level``."""
+        c = self.count_bits
+        return data.StructLayout({
+            "poses": c, "records": c, "decimated": c, "uart_dropped": c,
+            "fifo_dropped": c, "packets": c, "pose_rate": c,
+            "fifo_level": (self.fifo_depth).bit_length(),
+        })
+
+
+def crc16_step(crc, byte):
+    """Gateware: the CRC-16/CCITT-FALSE register after shifting in ``byte`` (MSB first).
+
+    Combinational, eight unrolled steps of the bitwise algorithm (about one LUT level
+    per output bit after synthesis); the model is :func:`emulator.packets.crc16`.
+    """
+    for i in range(8):
+        feedback = crc[15] ^ byte[7 - i]
+        crc = Cat(Const(0, 1), crc[:15]) ^ Mux(feedback, CRC16_POLY, 0)
+        crc = crc[:16]
+    return crc
+
+
+class Framer(wiring.Component):
+    """Serializes pose records into packets, one byte per transfer, with the CRC.
+
+    Parameters
+    ----------
+    params : PacketParams
+
+    Members
+    -------
+    i : In(stream.Signature(params.record_layout()))
+        Records to frame; taken only between packets.
+    o : Out(stream.Signature(8))
+        Packet bytes in wire order (:class:`PacketParams`).
+
+    Latency: the first byte is valid the clock after a record is taken; bytes follow
+    back to back as ``o`` takes them. Throughput: one packet per ``packet_bytes``
+    transfers plus one idle clock. Reset: drops a packet in flight.
+    """
+
+    def __init__(self, params=PacketParams()):
+        if not isinstance(params, PacketParams):
+            raise TypeError(f"params must be a PacketParams, not {params!r}")
+        self.params = params
+        super().__init__({
+            "i": In(stream.Signature(params.record_layout())),
+            "o": Out(stream.Signature(8)),
+        })
+
+    def _record_bytes(self, record):
+        """The payload bytes of ``record`` in wire order (little-endian fields)."""
+        out = []
+        for field in self.params.fields():
+            value = record[field.name]
+            elements = [value] if field.count == 1 else [value[k] for k in range(field.count)]
+            for element in elements:
+                bits = Value.cast(element)
+                out += [bits[8 * k:8 * k + 8] for k in range(field.bits // 8)]
+        return out
+
+    def elaborate(self, platform):
+        p = self.params
+        m = Module()
+        record = Signal(p.record_layout())
+        busy = Signal()
+        index = Signal(range(p.packet_bytes))
+        crc = Signal(16, init=CRC16_INIT)
+
+        crc_at = p.packet_bytes - 2
+        body = [Const(p.sync >> 8, 8), Const(p.sync & 0xFF, 8), Const(p.payload_bytes, 8),
+                *self._record_bytes(record), crc[8:16], crc[0:8]]
+        byte = Cat(*body).word_select(index, 8)
+
+        m.d.comb += [self.i.ready.eq(~busy), self.o.valid.eq(busy), self.o.payload.eq(byte)]
+        with m.If(self.i.valid & self.i.ready):
+            m.d.sync += [record.eq(self.i.payload), busy.eq(1), index.eq(0),
+                         crc.eq(CRC16_INIT)]
+        with m.If(self.o.valid & self.o.ready):
+            m.d.sync += index.eq(index + 1)
+            with m.If((index >= 2) & (index < crc_at)):
+                m.d.sync += crc.eq(crc16_step(crc, byte))
+            with m.If(index == p.packet_bytes - 1):
+                m.d.sync += busy.eq(0)
+        return m
+
+
+class PoseOutput(wiring.Component):
+    """Decimates poses into numbered records and feeds the UART framer and the PS FIFO.
+
+    Parameters
+    ----------
+    params : PoseOutputParams
+
+    Members
+    -------
+    pose : In(stream.Signature(packet.pose_layout()))
+        Poses from the tracker; ``ready`` is always high (the output never stalls it).
+    cfg : In(params.config_layout())
+        Run-time control (registers).
+    uart : Out(stream.Signature(8))
+        Packet bytes for :class:`hdl.uart.UartTx`.
+    fifo : Out(stream.Signature(packet.record_layout()))
+        The head of the PS FIFO; a register write pops it (``ready``).
+    status : Out(params.status_layout())
+        Counters.
+
+    Latency: a kept pose reaches the framer slot and the FIFO one clock after its
+    transfer. Throughput: one pose per clock. Reset: clears counters, the FIFO and both
+    slots.
+    """
+
+    def __init__(self, params=PoseOutputParams()):
+        if not isinstance(params, PoseOutputParams):
+            raise TypeError(f"params must be a PoseOutputParams, not {params!r}")
+        self.params = params
+        packet = params.packet
+        super().__init__({
+            "pose": In(stream.Signature(packet.pose_layout())),
+            "cfg": In(params.config_layout()),
+            "uart": Out(stream.Signature(8)),
+            "fifo": Out(stream.Signature(packet.record_layout())),
+            "status": Out(params.status_layout()),
+        })
+
+    def elaborate(self, platform):
+        p = self.params
+        packet = p.packet
+        m = Module()
+        m.submodules.framer = framer = Framer(packet)
+        m.submodules.fifo = fifo = SyncFIFOBuffered(width=packet.record_layout().size,
+                                                    depth=p.fifo_depth)
+        count = Signal(p.status_layout())            # every field but fifo_level: sync
+        m.d.comb += [self.status.eq(count), self.status.fifo_level.eq(fifo.level),
+                     self.pose.ready.eq(1)]
+
+        def increment(name):
+            return getattr(count, name).eq(getattr(count, name) + 1)
+
+        # 1. Decimation and numbering: `record` holds the newest kept pose while `kept`.
+        phase = Signal(p.decimation_bits)
+        seq = Signal(packet.seq_bits)
+        kept = Signal()
+        record = Signal(packet.record_layout())
+        m.d.sync += kept.eq(self.pose.valid & (phase == 0))
+        with m.If(self.pose.valid):
+            m.d.sync += [increment("poses"),
+                         phase.eq(Mux(phase + 1 >= self.cfg.decimation, 0, phase + 1))]
+            with m.If(phase == 0):
+                m.d.sync += [increment("records"), seq.eq(seq + 1), record.seq.eq(seq)]
+                m.d.sync += [getattr(record, name).eq(getattr(self.pose.payload, name))
+                             for name, _ in packet.pose_layout()]
+            with m.Else():
+                m.d.sync += increment("decimated")
+
+        # 2. Two sinks that drop (and count) a record when they are still full.
+        uart_slot = Signal(packet.record_layout())
+        uart_full = Signal()
+        uart_take, uart_skipped = self._sink(m, kept, enable=self.cfg.uart_enable,
+                                             room=~uart_full | framer.i.ready,
+                                             dropped=increment("uart_dropped"))
+        with m.If(uart_take):
+            m.d.sync += [uart_slot.eq(record), uart_slot.skipped.eq(uart_skipped),
+                         uart_full.eq(1), increment("packets")]
+        with m.Elif(framer.i.ready):
+            m.d.sync += uart_full.eq(0)
+        m.d.comb += [framer.i.valid.eq(uart_full), framer.i.payload.eq(uart_slot)]
+        wiring.connect(m, framer.o, wiring.flipped(self.uart))
+
+        fifo_take, fifo_skipped = self._sink(m, kept, enable=self.cfg.fifo_enable,
+                                             room=fifo.w_rdy, dropped=increment("fifo_dropped"))
+        fifo_record = Signal(packet.record_layout())
+        m.d.comb += [fifo_record.eq(record), fifo_record.skipped.eq(fifo_skipped),
+                     fifo.w_data.eq(fifo_record), fifo.w_en.eq(fifo_take),
+                     self.fifo.valid.eq(fifo.r_rdy), self.fifo.payload.eq(fifo.r_data),
+                     fifo.r_en.eq(self.fifo.ready)]
+
+        # 3. Pose rate: poses in the last complete window of `rate_window` clocks.
+        window_clock = Signal(p.count_bits)
+        window_poses = Signal(p.count_bits)
+        with m.If(self.cfg.rate_window == 0):
+            m.d.sync += [window_clock.eq(0), window_poses.eq(0)]
+        with m.Elif(window_clock + 1 >= self.cfg.rate_window):
+            m.d.sync += [window_clock.eq(0), window_poses.eq(self.pose.valid),
+                         count.pose_rate.eq(window_poses + self.pose.valid)]
+        with m.Else():
+            m.d.sync += [window_clock.eq(window_clock + 1),
+                         window_poses.eq(window_poses + self.pose.valid)]
+        return m
+
+    def _sink(self, m, kept, *, enable, room, dropped):
+        """Drop-when-full bookkeeping of one sink.
+
+        Returns ``(take, skipped)``: ``take`` strobes when the sink takes the kept
+        record; ``skipped`` is how many kept records it dropped since the last one it
+        took (saturating), to be stored with the record it takes. A disabled sink
+        neither takes nor counts.
+        """
+        bits = self.params.packet.skipped_bits
+        skipped = Signal(bits)
+        take = Signal()
+        m.d.comb += take.eq(kept & enable & room)
+        with m.If(take):
+            m.d.sync += skipped.eq(0)
+        with m.Elif(kept & enable):
+            m.d.sync += dropped
+            with m.If(skipped != (1 << bits) - 1):
+                m.d.sync += skipped.eq(skipped + 1)
+        return take, skipped

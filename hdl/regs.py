@@ -1,0 +1,523 @@
+"""AXI4-Lite register file generated from a register map declared as data.
+
+A :class:`RegisterMap` is a list of :class:`RegisterGroup` (one per block, at a fixed
+offset) of :class:`Register` (a name, a shape — an integer width or an Amaranth layout,
+usually the block's own ``config_layout()``/``status_layout()`` — an access kind, and a
+count for per-camera arrays). From it come
+
+* the AXI4-Lite decoder (:class:`RegisterFile`: one port per register),
+* the documentation table (:meth:`RegisterMap.markdown`, ``docs/register_map.md``), and
+* the register tests (they walk :meth:`RegisterMap.words`).
+
+A block adds a register by adding a line to its group (rowtrack's map is declared in
+:mod:`hdl.regmap`); no decoder changes.
+
+Values wider than 32 bits take consecutive words, low bits first; a value is read word
+by word, not atomically (a write-only value is delivered when its highest word is
+written). Array elements follow each other.
+"""
+
+import enum
+import keyword
+import zlib
+from dataclasses import dataclass, field, replace
+
+from amaranth.hdl import Const, Module, Shape, Signal, Value
+from amaranth.lib import data, wiring
+from amaranth.lib.wiring import In, Out
+
+__all__ = ["Access", "Register", "RegisterGroup", "RegisterMap", "Word", "WORD_BYTES",
+           "AXI4LiteSignature", "RegisterFile", "RESP_OKAY", "RESP_SLVERR"]
+
+#: AXI response codes.
+RESP_OKAY = 0b00
+RESP_SLVERR = 0b10
+
+WORD_BYTES = 4
+WORD_BITS = 32
+
+
+class Access(enum.Enum):
+    """Who writes a register."""
+    #: Control: written (and read back) by the PS, drives the block.
+    RW = "rw"
+    #: Status: driven by the block, read by the PS; writes are errors.
+    RO = "ro"
+    #: Command: a write delivers the value with a one-clock strobe; reads are errors.
+    WO = "wo"
+    #: Constant known at build time (identification); writes are errors.
+    CONST = "const"
+
+
+def _check_name(what, name):
+    if not isinstance(name, str):
+        raise TypeError(f"{what} must be a string, not {name!r}")
+    if not name.isidentifier() or keyword.iskeyword(name) or name.startswith("_") \
+            or "__" in name:
+        raise ValueError(f"{what} must be an identifier without leading or double "
+                         f"underscores, not {name!r}")
+
+
+def _flat_fields(shape, prefix=""):
+    """``(name, offset, width)`` of every leaf field of ``shape`` (nested names dotted)."""
+    if isinstance(shape, data.ArrayLayout):
+        step = Shape.cast(shape.elem_shape).width
+        return [(sub, k * step + offset, width)
+                for k in range(shape.length)
+                for sub, offset, width in _flat_fields(shape.elem_shape,
+                                                       f"{prefix[:-1]}[{k}].")]
+    if isinstance(shape, data.Layout):
+        return [(sub, fld.offset + offset, width)
+                for name, fld in shape
+                for sub, offset, width in _flat_fields(fld.shape, f"{prefix}{name}.")]
+    return [(prefix[:-1] or "value", 0, Shape.cast(shape).width)]
+
+
+@dataclass(frozen=True)
+class Register:
+    """One register (or an array of ``count`` identical ones).
+
+    Parameters
+    ----------
+    name : str
+    shape : int or amaranth.lib.data.Layout
+        Width in bits, or a layout whose fields are documented bit by bit.
+    access : Access
+    doc : str
+    count : int
+        Elements (e.g. one per camera); the port is an ``ArrayLayout`` when above 1.
+    reset : int or dict
+        Value after reset of an ``RW`` register (a dict for a layout's fields).
+    value : int
+        The value of a ``CONST`` register.
+    """
+    name: str
+    shape: object
+    access: Access
+    doc: str
+    count: int = 1
+    reset: object = 0
+    value: int = 0
+
+    def __post_init__(self):
+        _check_name("name", self.name)
+        if isinstance(self.shape, bool) or not isinstance(self.shape, (int, data.Layout)):
+            raise TypeError(f"shape of {self.name} must be a width or a Layout, "
+                            f"not {self.shape!r}")
+        if self.width < 1:
+            raise ValueError(f"shape of {self.name} must be at least one bit wide")
+        if not isinstance(self.access, Access):
+            raise TypeError(f"access of {self.name} must be an Access, not {self.access!r}")
+        if not isinstance(self.count, int) or isinstance(self.count, bool) or self.count < 1:
+            raise ValueError(f"count of {self.name} must be a positive integer, "
+                             f"not {self.count!r}")
+        if self.reset and self.access is not Access.RW:
+            raise ValueError(f"reset of {self.name} applies to RW registers only")
+        if self.value and self.access is not Access.CONST:
+            raise ValueError(f"value of {self.name} applies to CONST registers only")
+        if self.access is Access.CONST and not 0 <= self.value < (1 << self.width):
+            raise ValueError(f"value of {self.name} must fit {self.width} bits, "
+                             f"not {self.value}")
+        if not 0 <= self.reset_raw < (1 << self.width):
+            raise ValueError(f"reset of {self.name} must fit {self.width} bits")
+
+    @property
+    def width(self):
+        """Bits of one element."""
+        return self.shape if isinstance(self.shape, int) else Shape.cast(self.shape).width
+
+    @property
+    def words(self):
+        """32-bit words of one element."""
+        return -(-self.width // WORD_BITS)
+
+    @property
+    def reset_raw(self):
+        """The reset value as an integer."""
+        if isinstance(self.reset, dict):
+            if not isinstance(self.shape, data.Layout):
+                raise TypeError(f"reset of {self.name} is a dict but its shape has no fields")
+            return self.shape.const(self.reset).as_value().value & ((1 << self.width) - 1)
+        if not isinstance(self.reset, int) or isinstance(self.reset, bool):
+            raise TypeError(f"reset of {self.name} must be an integer or a dict, "
+                            f"not {self.reset!r}")
+        return self.reset
+
+    def port_shape(self):
+        """The Amaranth shape of this register's port (an array when ``count > 1``)."""
+        return self.shape if self.count == 1 else data.ArrayLayout(self.shape, self.count)
+
+    def fields(self):
+        """``(name, offset, width)`` of the fields of one element."""
+        if isinstance(self.shape, int):
+            return [("value", 0, self.shape)]
+        return _flat_fields(self.shape)
+
+
+@dataclass(frozen=True)
+class RegisterGroup:
+    """The registers of one block, placed from byte offset ``offset`` in order."""
+    name: str
+    offset: int
+    doc: str
+    registers: tuple = field(default_factory=tuple)
+
+    def __post_init__(self):
+        _check_name("group name", self.name)
+        if not isinstance(self.offset, int) or self.offset < 0 or self.offset % WORD_BYTES:
+            raise ValueError(f"offset of group {self.name} must be a non-negative multiple "
+                             f"of {WORD_BYTES}, not {self.offset!r}")
+        object.__setattr__(self, "registers", tuple(self.registers))
+        names = [r.name for r in self.registers]
+        for reg in self.registers:
+            if not isinstance(reg, Register):
+                raise TypeError(f"group {self.name} must hold Registers, not {reg!r}")
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"group {self.name} declares {sorted(dup)[0]!r} twice")
+
+    @property
+    def size(self):
+        """Bytes the group occupies."""
+        return WORD_BYTES * sum(r.words * r.count for r in self.registers)
+
+
+@dataclass(frozen=True)
+class Word:
+    """One mapped 32-bit word: ``bits`` ``[lo, lo + width)`` of element ``index``."""
+    offset: int
+    group: RegisterGroup
+    register: Register
+    index: int
+    word: int
+
+    @property
+    def lo(self):
+        return self.word * WORD_BITS
+
+    @property
+    def width(self):
+        return min(WORD_BITS, self.register.width - self.lo)
+
+    @property
+    def last(self):
+        """The highest word of its element (a write-only value is delivered here)."""
+        return self.word == self.register.words - 1
+
+
+@dataclass(frozen=True)
+class RegisterMap:
+    """Groups of registers in an address window on the AXI bus.
+
+    Parameters
+    ----------
+    groups : tuple of RegisterGroup
+    base : int
+        Bus address of offset 0 (a multiple of ``size``).
+    size : int
+        Bytes in the window (a power of two); every other address answers SLVERR.
+    """
+    groups: tuple
+    base: int = 0x4000_0000
+    size: int = 0x1000
+
+    def __post_init__(self):
+        object.__setattr__(self, "groups", tuple(self.groups))
+        if not isinstance(self.size, int) or self.size < WORD_BYTES or self.size & (self.size - 1):
+            raise ValueError(f"size must be a power of two of at least {WORD_BYTES} bytes, "
+                             f"not {self.size!r}")
+        if not isinstance(self.base, int) or self.base < 0 or self.base % self.size:
+            raise ValueError(f"base must be a non-negative multiple of size ({self.size:#x}), "
+                             f"not {self.base!r}")
+        names = [g.name for g in self.groups]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"group {sorted(dup)[0]!r} is declared twice")
+        spans = sorted((g.offset, g.offset + g.size, g.name) for g in self.groups)
+        for (a_lo, a_hi, a), (b_lo, _, b) in zip(spans, spans[1:]):
+            if b_lo < a_hi:
+                raise ValueError(f"group {b} at {b_lo:#x} overlaps group {a} "
+                                 f"({a_lo:#x}..{a_hi - 1:#x})")
+        for lo, hi, name in spans:
+            if hi > self.size:
+                raise ValueError(f"group {name} ends at {hi:#x}, beyond the window of "
+                                 f"{self.size:#x} bytes")
+
+    replace = replace
+
+    @property
+    def addr_bits(self):
+        """Bits of a byte offset inside the window."""
+        return self.size.bit_length() - 1
+
+    def group(self, name):
+        for g in self.groups:
+            if g.name == name:
+                return g
+        raise KeyError(f"no register group {name!r}")
+
+    def words(self):
+        """Every mapped word, in address order."""
+        out = []
+        for g in self.groups:
+            offset = g.offset
+            for reg in g.registers:
+                for index in range(reg.count):
+                    for word in range(reg.words):
+                        out.append(Word(offset, g, reg, index, word))
+                        offset += WORD_BYTES
+        return sorted(out, key=lambda w: w.offset)
+
+    def find(self, group, name):
+        """The first word of register ``group.name`` (its address is ``base + offset``)."""
+        for w in self.words():
+            if w.group.name == group and w.register.name == name:
+                return w
+        raise KeyError(f"no register {group}.{name}")
+
+    def layout_crc(self):
+        """CRC-32 of the map's shape (offsets, names, widths, access, fields), not of
+        constant values: software compares it with the ``ident.map_crc`` register."""
+        text = "\n".join(
+            f"{w.offset}:{w.group.name}.{w.register.name}[{w.index}].{w.word}:"
+            f"{w.register.access.value}:{w.register.fields()}" for w in self.words())
+        return zlib.crc32(text.encode())
+
+    def with_value(self, group, name, value):
+        """A copy with CONST register ``group.name`` set to ``value``."""
+        groups = []
+        for g in self.groups:
+            if g.name == group:
+                regs = tuple(replace(r, value=value) if r.name == name else r
+                             for r in g.registers)
+                g = replace(g, registers=regs)
+            groups.append(g)
+        return replace(self, groups=tuple(groups))
+
+    def markdown(self, title="Register map"):
+        """The documentation page: one table per group, one row per field."""
+        lines = [f"# {title}", "",
+                 f"AXI4-Lite, 32-bit words, window `{self.base:#010x}`–"
+                 f"`{self.base + self.size - 1:#010x}` on the PS7 M_AXI_GP0 port. Any other "
+                 "address, a misaligned address, a write to an `ro`/`const` register, a "
+                 "read of a `wo` register or a partial (byte-strobed) write to a `wo` "
+                 "register answers **SLVERR**; the bus never hangs.",
+                 "",
+                 "Access: `rw` control (reads back), `ro` status, `wo` command (the write "
+                 "is delivered to the block with a one-clock strobe when the element's "
+                 "highest word is written), `const` build-time constant. Values wider "
+                 "than 32 bits take consecutive words, low bits first, and are read word "
+                 "by word (not atomically). Counters wrap.",
+                 "", f"Map CRC-32 (`ident.map_crc`): `{self.layout_crc():#010x}`.", ""]
+        for g in self.groups:
+            lines += [f"## `{g.name}` (offset `{g.offset:#05x}`)", "", g.doc, "",
+                      "| address | register | access | bits | field | reset/value | description |",
+                      "|---|---|---|---|---|---|---|"]
+            for w in (w for w in self.words() if w.group is g):
+                reg = w.register
+                label = reg.name + (f"[{w.index}]" if reg.count > 1 else "") + (
+                    f" (word {w.word})" if reg.words > 1 else "")
+                known = reg.reset_raw if reg.access is Access.RW else (
+                    reg.value if reg.access is Access.CONST else None)
+                first = True
+                for fname, offset, width in reg.fields():
+                    lo, hi = max(offset, w.lo), min(offset + width, w.lo + w.width)
+                    if lo >= hi:
+                        continue
+                    bits = f"{hi - 1 - w.lo}:{lo - w.lo}" if hi - lo > 1 else f"{lo - w.lo}"
+                    value = "" if known is None else \
+                        f"`{(known >> lo) & ((1 << (hi - lo)) - 1):#x}`"
+                    part = "" if (lo, hi) == (offset, offset + width) else \
+                        f" (bits {hi - 1 - offset}:{lo - offset})"
+                    lines.append(f"| `{self.base + w.offset:#010x}` | {label if first else ''} | "
+                                 f"{reg.access.value if first else ''} | {bits} | "
+                                 f"{fname}{part} | {value} | {reg.doc if first else ''} |")
+                    first = False
+            lines.append("")
+        return "\n".join(lines)
+
+
+class AXI4LiteSignature(wiring.Signature):
+    """AXI4-Lite with 32-bit data, seen from the master (``In`` members are driven by the
+    slave). Ports flatten to ``<name>__awaddr`` etc. (cocotbext-axi:
+    ``AxiLiteBus.from_prefix(dut, name, bus_separator="__")``)."""
+
+    def __init__(self, addr_width):
+        if not isinstance(addr_width, int) or isinstance(addr_width, bool) \
+                or not 3 <= addr_width <= 64:
+            raise ValueError(f"addr_width must be an integer between 3 and 64, "
+                             f"not {addr_width!r}")
+        self.addr_width = addr_width
+        super().__init__({
+            "awaddr": Out(addr_width), "awprot": Out(3), "awvalid": Out(1), "awready": In(1),
+            "wdata": Out(32), "wstrb": Out(4), "wvalid": Out(1), "wready": In(1),
+            "bresp": In(2), "bvalid": In(1), "bready": Out(1),
+            "araddr": Out(addr_width), "arprot": Out(3), "arvalid": Out(1), "arready": In(1),
+            "rdata": In(32), "rresp": In(2), "rvalid": In(1), "rready": Out(1),
+        })
+
+    def __eq__(self, other):
+        return isinstance(other, AXI4LiteSignature) and other.addr_width == self.addr_width
+
+    def __repr__(self):
+        return f"AXI4LiteSignature({self.addr_width})"
+
+
+class RegisterFile(wiring.Component):
+    """AXI4-Lite slave that decodes a :class:`RegisterMap` into one port per register.
+
+    Parameters
+    ----------
+    regmap : RegisterMap
+    addr_width : int
+        Width of the bus address; addresses outside ``[base, base + size)`` answer
+        SLVERR.
+
+    Members
+    -------
+    axi : In(AXI4LiteSignature(addr_width))
+    <group> : Out(Signature)
+        One member per group, and in it one per register: ``rw`` → ``Out(shape)`` (the
+        stored value), ``ro`` → ``In(shape)`` (sampled when the read address is taken),
+        ``wo`` → ``Out(Signature(data: shape, stb: count))`` (``stb[k]`` high for one
+        clock when element ``k`` was written), ``const`` → no port. ``shape`` is the
+        register's shape, or an ``ArrayLayout`` of it when ``count > 1``.
+
+    Latency: a read answers the clock after its address is taken; a write is accepted
+    when address and data are both valid and answers the next clock. One read and one
+    write can be in flight at once. Reset: ``rw`` registers return to their reset
+    values.
+    """
+
+    def __init__(self, regmap, *, addr_width=32):
+        if not isinstance(regmap, RegisterMap):
+            raise TypeError(f"regmap must be a RegisterMap, not {regmap!r}")
+        if not isinstance(addr_width, int) or not regmap.addr_bits <= addr_width <= 64:
+            raise ValueError(f"addr_width must be an integer between {regmap.addr_bits} and "
+                             f"64, not {addr_width!r}")
+        if regmap.base >> addr_width:
+            raise ValueError(f"base {regmap.base:#x} does not fit addr_width {addr_width}")
+        self.params = regmap
+        self.addr_width = addr_width
+        members = {"axi": In(AXI4LiteSignature(addr_width))}
+        for group in regmap.groups:
+            if group.name == "axi" or hasattr(wiring.Component, group.name):
+                raise ValueError(f"group name {group.name!r} is reserved")
+            members[group.name] = Out(self._group_signature(group))
+        super().__init__(members)
+
+    @staticmethod
+    def _group_signature(group):
+        members = {}
+        for reg in group.registers:
+            if reg.access is Access.RW:
+                members[reg.name] = Out(reg.port_shape())
+            elif reg.access is Access.RO:
+                members[reg.name] = In(reg.port_shape())
+            elif reg.access is Access.WO:
+                members[reg.name] = Out(wiring.Signature({
+                    "data": Out(reg.port_shape()), "stb": Out(reg.count)}))
+        return wiring.Signature(members)
+
+    def _decode(self, addr):
+        """``(hit, word_index)``: ``hit`` when ``addr`` is an aligned address in the window."""
+        regmap = self.params
+        hit = addr[:2] == 0
+        if self.addr_width > regmap.addr_bits:
+            hit &= addr[regmap.addr_bits:] == (regmap.base >> regmap.addr_bits)
+        return hit, addr[2:regmap.addr_bits]
+
+    def elaborate(self, platform):
+        regmap = self.params
+        axi = self.axi
+        m = Module()
+
+        stored, commands = {}, {}
+        for group in regmap.groups:
+            port = getattr(self, group.name)
+            for reg in group.registers:
+                key = (group.name, reg.name)
+                if reg.access is Access.RW:
+                    init = sum(reg.reset_raw << (k * reg.width) for k in range(reg.count))
+                    stored[key] = Signal(reg.width * reg.count, init=init,
+                                         name=f"{group.name}_{reg.name}")
+                    m.d.comb += Value.cast(getattr(port, reg.name)).eq(stored[key])
+                elif reg.access is Access.WO:
+                    cmd = getattr(port, reg.name)
+                    data_sig = Signal(reg.width * reg.count, name=f"{group.name}_{reg.name}")
+                    stb = Signal(reg.count, name=f"{group.name}_{reg.name}_stb")
+                    commands[key] = (data_sig, stb)
+                    m.d.comb += [Value.cast(cmd.data).eq(data_sig), cmd.stb.eq(stb)]
+                    m.d.sync += stb.eq(0)
+
+        def bits(w, value):
+            lo = w.index * w.register.width + w.lo
+            return value[lo:lo + w.width]
+
+        # Writes: take address and data together, answer on B.
+        b_valid = Signal()
+        b_resp = Signal(2)
+        take_write = axi.awvalid & axi.wvalid & ~b_valid
+        m.d.comb += [axi.awready.eq(take_write), axi.wready.eq(take_write),
+                     axi.bvalid.eq(b_valid), axi.bresp.eq(b_resp)]
+        with m.If(axi.bvalid & axi.bready):
+            m.d.sync += b_valid.eq(0)
+        with m.If(take_write):
+            m.d.sync += [b_valid.eq(1), b_resp.eq(RESP_SLVERR)]
+            hit, index = self._decode(axi.awaddr)
+            with m.If(hit):
+                with m.Switch(index):
+                    for w in regmap.words():
+                        key = (w.group.name, w.register.name)
+                        access = w.register.access
+                        if access not in (Access.RW, Access.WO):
+                            continue
+                        with m.Case(w.offset // WORD_BYTES):
+                            if access is Access.RW:
+                                self._write_bytes(m, bits(w, stored[key]), axi.wdata, axi.wstrb)
+                                m.d.sync += b_resp.eq(RESP_OKAY)
+                            else:
+                                data_sig, stb = commands[key]
+                                with m.If(axi.wstrb == 0b1111):
+                                    m.d.sync += [bits(w, data_sig).eq(axi.wdata),
+                                                 b_resp.eq(RESP_OKAY)]
+                                    if w.last:
+                                        m.d.sync += stb[w.index].eq(1)
+
+        # Reads: one at a time, answered the clock after the address is taken.
+        r_valid = Signal()
+        r_resp = Signal(2)
+        r_data = Signal(32)
+        m.d.comb += [axi.arready.eq(~r_valid), axi.rvalid.eq(r_valid),
+                     axi.rresp.eq(r_resp), axi.rdata.eq(r_data)]
+        with m.If(axi.arvalid & axi.arready):
+            m.d.sync += [r_valid.eq(1), r_resp.eq(RESP_SLVERR), r_data.eq(0)]
+            hit, index = self._decode(axi.araddr)
+            with m.If(hit):
+                with m.Switch(index):
+                    for w in regmap.words():
+                        reg = w.register
+                        if reg.access is Access.WO:
+                            continue
+                        if reg.access is Access.RW:
+                            source = stored[(w.group.name, reg.name)]
+                        elif reg.access is Access.RO:
+                            source = Value.cast(getattr(getattr(self, w.group.name), reg.name))
+                        else:
+                            source = Const(reg.value << (w.index * reg.width),
+                                           reg.width * reg.count)
+                        with m.Case(w.offset // WORD_BYTES):
+                            m.d.sync += [r_data.eq(bits(w, source)), r_resp.eq(RESP_OKAY)]
+        with m.Elif(axi.rvalid & axi.rready):
+            m.d.sync += r_valid.eq(0)
+        return m
+
+    @staticmethod
+    def _write_bytes(m, target, wdata, wstrb):
+        """Byte-strobed write of ``wdata`` into ``target`` (at most 32 bits)."""
+        for lane in range(4):
+            lo, hi = 8 * lane, min(8 * lane + 8, len(target))
+            if lo >= hi:
+                break
+            with m.If(wstrb[lane]):
+                m.d.sync += target[lo:hi].eq(wdata[lo:hi])
