@@ -17,6 +17,7 @@ import platform
 #: name -> module
 BENCHES = {
     "fixed": "emulator.benches.fixed",
+    "simulator": "emulator.benches.simulator",
 }
 
 

@@ -72,6 +72,20 @@ def describe_direction(vector):
     return text
 
 
+def describe_subspace(basis):
+    """Names for an unobservable subspace (rows of ``basis`` orthonormal): first every
+    single unknown that lies in it (e.g. ``Ty``), then combinations for what remains."""
+    if not len(basis):
+        return ()
+    inside = np.linalg.norm(basis, axis=0)  # length of each unknown's axis in the subspace
+    pure = [i for i in range(6) if inside[i] > 0.99]
+    rest = basis.copy()
+    rest[:, pure] = 0  # the subspace without the pure axes
+    _, sigma, vt = np.linalg.svd(rest)
+    extra = vt[:len(basis) - len(pure)][sigma[:len(basis) - len(pure)] > 1e-6]
+    return tuple(UNKNOWNS[i] for i in pure) + tuple(describe_direction(v) for v in extra)
+
+
 @dataclass(frozen=True)
 class Observability:
     """Worst case over the evaluated rows of the per-row stacked constraints.
@@ -122,7 +136,6 @@ def analyze(cameras, row_points=1, depth=2.0):
             worst = (condition, fraction, sigma, vt)
     condition, fraction, sigma, vt = worst
     rank = int(np.sum(sigma > sigma[0] * 1e-12))
-    lost = tuple(describe_direction(vt[i]) for i in range(6)
-                 if sigma[i] < sigma[0] / MAX_CONDITION)
+    lost = describe_subspace(vt[sigma < sigma[0] / MAX_CONDITION])
     return Observability(rank=rank, condition=float(condition),
                          worst_row_fraction=float(fraction), unobservable=lost)
