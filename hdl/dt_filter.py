@@ -32,7 +32,7 @@ import functools
 import math
 from dataclasses import dataclass, replace
 
-from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
+from amaranth.hdl import Cat, Module, Mux, ResetSignal, Signal, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
@@ -183,6 +183,12 @@ def lookup_fmt():
     return UQ(exponent_fmt().int_bits, 2 * TABLE_ADDR_BITS)
 
 
+def _read_enable(advance):
+    """Read-port enable: on every advance, and during reset too, so that the ports' data
+    registers hold initialized memory contents (not X in simulation) from the start."""
+    return advance | ResetSignal()
+
+
 class Reciprocal(wiring.Component):
     """``k = COEF_NUMERATOR // max(sigma, 1.0)`` by restoring division, over and over.
 
@@ -293,7 +299,7 @@ class WeightUnit(wiring.Component):
                                  Rounding.HALF_UP, Overflow.ERROR)
             shifted = (rounded << p.weight_fmt.frac_bits) >> whole_d
             m.d.comb += [
-                rd_high.en.eq(self.en), rd_low.en.eq(self.en),
+                rd_high.en.eq(_read_enable(self.en)), rd_low.en.eq(_read_enable(self.en)),
                 rd_high.addr.eq(exponent[frac - TABLE_ADDR_BITS:frac]),
                 rd_low.addr.eq(exponent[frac - 2 * TABLE_ADDR_BITS:frac - TABLE_ADDR_BITS]),
             ]
@@ -395,10 +401,8 @@ class DomainTransformFilter(wiring.Component):
         """Filler rows that push a frame's tail out when no further input comes."""
         return self.params.window + 2
 
-    @property
-    def coefficient_settle_clocks(self):
-        """Clocks after a sigma register change before a new frame is sure to use it."""
-        return 2 * Reciprocal.cycles
+    #: Clocks after a sigma register change before a new frame is sure to use it.
+    coefficient_settle_clocks = 2 * Reciprocal.cycles
 
     def elaborate(self, platform):
         p = self.params
@@ -457,7 +461,7 @@ class DomainTransformFilter(wiring.Component):
         # Stage 1..4: weights from the guide's change to the left and upward.
         m.submodules.guide_line = guide_line = Memory(shape=GUIDE_BITS, depth=width, init=[])
         gl_rd, gl_wr = guide_line.read_port(), guide_line.write_port()
-        m.d.comb += [gl_rd.addr.eq(k_in), gl_rd.en.eq(advance), gl_wr.addr.eq(k_in),
+        m.d.comb += [gl_rd.addr.eq(k_in), gl_rd.en.eq(_read_enable(advance)), gl_wr.addr.eq(k_in),
                      gl_wr.data.eq(Mux(filler, 0, self.i.p.guide)), gl_wr.en.eq(advance)]
         guide_left = Signal(GUIDE_BITS)
         with m.If(advance):
@@ -486,7 +490,7 @@ class DomainTransformFilter(wiring.Component):
         m.submodules.row_buffer = row_buffer = Memory(shape=row_entry, depth=width, init=[])
         rb_rd, rb_wr = row_buffer.read_port(), row_buffer.write_port()
         rb_addr = Mux(t4.dir, width - 1 - t4.k, t4.k)
-        m.d.comb += [rb_rd.addr.eq(rb_addr), rb_rd.en.eq(advance), rb_wr.addr.eq(rb_addr),
+        m.d.comb += [rb_rd.addr.eq(rb_addr), rb_rd.en.eq(_read_enable(advance)), rb_wr.addr.eq(rb_addr),
                      rb_wr.en.eq(advance), rb_wr.data.j.eq(causal_next),
                      rb_wr.data.wh.eq(w_h), rb_wr.data.wv.eq(w_v)]
         with m.If(advance):
@@ -510,7 +514,7 @@ class DomainTransformFilter(wiring.Component):
         t6 = tags[self._CAUSAL_STAGE + 1]
         vertical = Signal(vf.shape())
         vertical_next = hdl_rf_step(anti, cs_rd.data, wv6, p)
-        m.d.comb += [cs_rd.addr.eq(t5.k), cs_rd.en.eq(advance), cs_wr.addr.eq(t6.k),
+        m.d.comb += [cs_rd.addr.eq(t5.k), cs_rd.en.eq(_read_enable(advance)), cs_wr.addr.eq(t6.k),
                      cs_wr.en.eq(advance), cs_wr.data.eq(vertical_next)]
         with m.If(advance):
             m.d.sync += vertical.eq(vertical_next)
@@ -528,7 +532,7 @@ class DomainTransformFilter(wiring.Component):
             m.submodules[f"line{step}"] = line
             rd, wr = line.read_port(), line.write_port()
             addr = tags[self._VERTICAL_CAUSAL_STAGE + step - 2].k
-            m.d.comb += [rd.addr.eq(addr), rd.en.eq(advance), wr.addr.eq(addr),
+            m.d.comb += [rd.addr.eq(addr), rd.en.eq(_read_enable(advance)), wr.addr.eq(addr),
                          wr.en.eq(advance), wr.data.eq(incoming)]
             nxt, nxt_w = Signal(vf.shape(), name=f"acc{step}"), Signal(p.weight_fmt.width,
                                                                         name=f"acc{step}_w")
@@ -544,7 +548,7 @@ class DomainTransformFilter(wiring.Component):
         ob_rd, ob_wr = out_buffer.read_port(), out_buffer.write_port()
         ob_addr = Mux(t_last.dir, width - 1 - t_last.k, t_last.k)
         m.d.comb += [
-            ob_rd.addr.eq(ob_addr), ob_rd.en.eq(advance), ob_wr.addr.eq(ob_addr),
+            ob_rd.addr.eq(ob_addr), ob_rd.en.eq(_read_enable(advance)), ob_wr.addr.eq(ob_addr),
             ob_wr.en.eq(advance),
             ob_wr.data.eq(hdl_resize(acc, vf, p.output_fmt, Rounding.HALF_UP, Overflow.ERROR)),
             self.o.p.value.eq(ob_rd.data),
