@@ -191,10 +191,6 @@ class Camera:
         """Camera centre in the rig frame (3-array)."""
         return np.array(self.position)
 
-    @property
-    def frame_period(self):
-        return 1.0 / self.fps
-
     def pixel_to_normalized(self, px, py):
         """Undistorted normalized coordinates (x/z, y/z) of pixel positions."""
         return undistort((np.asarray(px) - self.cx) / self.fx,

@@ -7,13 +7,11 @@ set, and the verdict travels with the rig (``rig.observability``) into every dat
 Rig frame: x right, y down, z forward (a head looking ahead).
 """
 
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-import yaml
-
 from .camera import Camera, focal_for_vfov
+from .config_files import check_keys, read_config_file
 from .lens import LENS_PRESETS
 from .observability import Observability, analyze
 from .rotations import orientation_ypr
@@ -161,18 +159,9 @@ _CONVENIENCE = {"vfov_deg", "lens", "yaw_deg", "pitch_deg", "roll_deg"}
 _RIG_KEYS = {"name", "row_points", "nominal_depth", "allow_unobservable", "defaults", "cameras"}
 
 
-def _check_keys(mapping, known, where):
-    if not isinstance(mapping, dict):
-        raise ValueError(f"{where} must be a mapping, not {mapping!r}")
-    unknown = sorted(set(mapping) - known)
-    if unknown:
-        raise ValueError(f"unknown key {unknown[0]!r} in {where}; known keys: "
-                         f"{', '.join(sorted(known))}")
-
-
 def _camera_from_config(entry, where):
     """A Camera from one config entry (camera fields plus vfov_deg, lens, yaw/pitch/roll)."""
-    _check_keys(entry, _CAMERA_FIELDS | _CONVENIENCE, where)
+    check_keys(entry, _CAMERA_FIELDS | _CONVENIENCE, where)
     entry = dict(entry)
     lens = entry.pop("lens", None)
     if lens is not None:
@@ -211,9 +200,9 @@ def _camera_from_config(entry, where):
 
 def rig_from_config(config, source="config", allow_unobservable=None):
     """A Rig from plain data (see ``docs/simulator.md`` for the keys)."""
-    _check_keys(config, _RIG_KEYS, source)
+    check_keys(config, _RIG_KEYS, source)
     defaults = config.get("defaults", {})
-    _check_keys(defaults, _CAMERA_FIELDS | _CONVENIENCE, f"defaults of {source}")
+    check_keys(defaults, _CAMERA_FIELDS | _CONVENIENCE, f"defaults of {source}")
     entries = config.get("cameras")
     if not isinstance(entries, list) or not entries:
         raise ValueError(f"cameras in {source} must be a non-empty list")
@@ -228,21 +217,6 @@ def rig_from_config(config, source="config", allow_unobservable=None):
     return Rig(name=config.get("name", Path(source).stem), cameras=tuple(cameras),
                row_points=config.get("row_points", 1),
                nominal_depth=config.get("nominal_depth", 2.0), allow_unobservable=allow)
-
-
-def read_config_file(path):
-    """Plain data of a ``.yaml``/``.yml`` or ``.toml`` file."""
-    path = Path(path)
-    if path.suffix.lower() not in (".yaml", ".yml", ".toml"):
-        raise ValueError(f"config file must end in .yaml, .yml or .toml, not {path.name!r}")
-    if not path.is_file():
-        raise ValueError(f"config file {str(path)!r} does not exist")
-    text = path.read_text()
-    try:
-        data = tomllib.loads(text) if path.suffix.lower() == ".toml" else yaml.safe_load(text)
-    except (tomllib.TOMLDecodeError, yaml.YAMLError) as exc:
-        raise ValueError(f"cannot parse {path}: {exc}") from None
-    return data
 
 
 def load_rig(spec, lens=None, allow_unobservable=None):

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .config_files import check_keys, read_config_file
 from .textures import TextureAtlas, image_texture, procedural_texture
 
 __all__ = ["Box", "SceneSpec", "Scene", "default_scene_spec", "scene_from_config",
@@ -153,12 +154,7 @@ _SCENE_KEYS = {"room", "boxes", "texel", "seed", "room_texture", "mip_levels"}
 
 def scene_from_config(config, source="scene config", base_dir=None):
     """A SceneSpec from plain data; relative texture paths are taken from ``base_dir``."""
-    if not isinstance(config, dict):
-        raise ValueError(f"{source} must be a mapping, not {config!r}")
-    unknown = sorted(set(config) - _SCENE_KEYS)
-    if unknown:
-        raise ValueError(f"unknown key {unknown[0]!r} in {source}; known keys: "
-                         f"{', '.join(sorted(_SCENE_KEYS))}")
+    check_keys(config, _SCENE_KEYS, source)
 
     def resolve(path):
         if path is None or base_dir is None:
@@ -179,7 +175,6 @@ def scene_from_config(config, source="scene config", base_dir=None):
 
 def load_scene_spec(path):
     """A SceneSpec from a YAML/TOML file."""
-    from .rig import read_config_file
     return scene_from_config(read_config_file(path), str(path), Path(path).parent)
 
 

@@ -196,3 +196,39 @@ def test_scene_with_user_texture_and_panel(tmp_path):
     assert centre.std() > 30
     with pytest.raises(ValueError, match="cannot be read as an image"):
         build_scene(SceneSpec(room_texture=str(tmp_path / "missing.png")))
+
+
+SCENE_YAML = """
+room: [5, 4, 3]
+texel: 0.01
+seed: 2
+room_texture: stripes.png
+boxes:
+  - {lo: [1, 1, 0], hi: [2, 1.5, 1]}
+"""
+
+
+def test_scene_files(tmp_path):
+    from golden.scene import load_scene_spec
+    cv2.imwrite(str(tmp_path / "stripes.png"), np.tile(np.arange(0, 256, 32, dtype=np.uint8), (8, 4)))
+    (tmp_path / "room.yaml").write_text(SCENE_YAML)
+    (tmp_path / "room.toml").write_text('room = [5, 4, 3]\ntexel = 0.01\nseed = 2\n'
+                                        'room_texture = "stripes.png"\n'
+                                        '[[boxes]]\nlo = [1, 1, 0]\nhi = [2, 1.5, 1]\n')
+    spec = load_scene_spec(tmp_path / "room.yaml")
+    assert spec == load_scene_spec(tmp_path / "room.toml")
+    assert spec.room == (5.0, 4.0, 3.0) and spec.boxes[0].hi == (2.0, 1.5, 1.0)
+    assert spec.room_texture == str(tmp_path / "stripes.png")
+    plain = build_scene(SceneSpec(room=spec.room, boxes=spec.boxes, texel=0.01, seed=2))
+    textured = build_scene(spec)
+    (x0, y0), (x6, y6) = textured.atlas.offsets[0], textured.atlas.offsets[6]
+    room_patch = (slice(y0, y0 + 20), slice(x0, x0 + 20))
+    box_patch = (slice(y6, y6 + 20), slice(x6, x6 + 20))
+    assert not np.array_equal(textured.atlas.pyramid[0][room_patch], plain.atlas.pyramid[0][room_patch])
+    assert np.array_equal(textured.atlas.pyramid[0][box_patch], plain.atlas.pyramid[0][box_patch])
+    (tmp_path / "bad.yaml").write_text("room: [5, 4, 3]\nwalls: 2\n")
+    with pytest.raises(ValueError, match="unknown key 'walls' in .*bad.yaml"):
+        load_scene_spec(tmp_path / "bad.yaml")
+    (tmp_path / "out.yaml").write_text("boxes: [{lo: [0, 0, 0], hi: [9, 1, 1]}]\n")
+    with pytest.raises(ValueError, match="box 0 .* must lie inside the room"):
+        load_scene_spec(tmp_path / "out.yaml")
