@@ -6,13 +6,11 @@ centre: the room is left through the nearest of three slab planes, boxes are ent
 the slab test. The hit point's face and position give atlas coordinates; the pixel's
 footprint on the surface picks the mip levels; ``cv2.remap`` does the bilinear lookups.
 Rows are processed in chunks (cache-sized float32 arrays), and boxes that cannot appear
-in a chunk (a cone test on the chunk's rays and pose spread) are skipped.
+in a chunk (cone and elevation tests on the chunk's rays and pose spread) are skipped.
 
 Nothing here depends on how rows are grouped: a row rendered alone, inside a rolling-
 shutter frame or inside a global-shutter frame at the same pose gives the same values.
 """
-
-import math
 
 import cv2
 import numpy as np
@@ -179,7 +177,7 @@ class Renderer:
             axis = (to_y & ~to_z).view(np.int8) + 2 * to_z.view(np.int8)
             positive = [dk > 0 for dk in d]
             high = (positive[0] & (axis == 0)) | (positive[1] & to_y & ~to_z) | (positive[2] & to_z)
-            face = axis + 3 * high.view(np.int8)  # room surface 1 is the high side
+            face = (axis + 3 * high.view(np.int8)).astype(np.int16)  # surface 1: high side
             for b in self._visible_boxes(rotations, origins, rows):
                 self._enter_box(b, o, positive, inv, t, face, axis)
         on_x, on_z = axis == 0, axis == 2
