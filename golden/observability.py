@@ -111,7 +111,8 @@ class Observability:
         return not self.unobservable
 
     def to_dict(self):
-        return {"rank": self.rank, "condition": self.condition,
+        finite = self.condition if np.isfinite(self.condition) else None  # JSON has no inf
+        return {"rank": self.rank, "condition": finite,
                 "worst_row_fraction": self.worst_row_fraction,
                 "unobservable": list(self.unobservable)}
 
