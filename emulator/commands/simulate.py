@@ -23,7 +23,8 @@ def add_arguments(parser):
     parser.add_argument("--duration", type=float, default=0.1,
                         help="seconds of frames to simulate (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0,
-                        help="seed of the textures, trajectory, jitter and noise (default: %(default)s)")
+                        help="seed of the default room's textures, the head motion, trigger "
+                             "jitter and sensor noise (default: %(default)s)")
     parser.add_argument("--motion", choices=MOTIONS, default="head",
                         help="trajectory: random head motion, the papers' test case, or a "
                              "static / pure-rotation / pure-translation case (default: %(default)s)")
