@@ -20,6 +20,8 @@ COMMANDS = (
     "emulator.commands.verilog",
     "emulator.commands.bench",
     "emulator.commands.simulate",
+    "emulator.commands.dts",
+    "emulator.commands.dtfilter",
 )
 
 

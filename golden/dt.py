@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-__all__ = ["NORMS", "sigma_schedule", "domain_derivative", "rf_weights", "rf_causal",
+__all__ = ["NORMS", "check_parameters", "sigma_schedule", "domain_derivative", "rf_weights", "rf_causal",
            "rf_anticausal", "rf_anticausal_window", "recursive_filter", "BoxBounds",
            "transformed_coords", "normalized_convolution"]
 
@@ -73,6 +73,15 @@ def _check_pair(image, guide):
         raise ValueError(f"guide must have the image's height and width {image.shape[:2]}, "
                          f"not {guide.shape[:2]}")
     return image, guide
+
+
+def check_parameters(sigma_s, sigma_r, iterations, norm):
+    """Raise TypeError/ValueError, naming the parameter, for settings no filter accepts."""
+    _positive("sigma_s", sigma_s)
+    _positive("sigma_r", sigma_r, allow_inf=True)
+    _count("iterations", iterations)
+    if norm not in NORMS:
+        raise ValueError(f"norm must be one of {', '.join(NORMS)}, not {norm!r}")
 
 
 def sigma_schedule(sigma_s, iterations):
@@ -186,6 +195,7 @@ def recursive_filter(image, guide=None, *, sigma_s, sigma_r, iterations=3, norm=
         Lines seen by the vertical anti-causal pass (:func:`rf_anticausal_window`);
         ``None`` is the exact pass over the whole frame.
     """
+    check_parameters(sigma_s, sigma_r, iterations, norm)
     image, guide = _check_pair(image, guide)
     dx = domain_derivative(guide, sigma_s, sigma_r, axis=1, norm=norm)
     dy = domain_derivative(guide, sigma_s, sigma_r, axis=0, norm=norm)
@@ -251,6 +261,7 @@ def normalized_convolution(image, guide=None, *, sigma_s, sigma_r, iterations=3,
     Parameters are those of :func:`recursive_filter`; round ``i`` uses a box of radius
     ``sqrt(3) sigma_H,i``.
     """
+    check_parameters(sigma_s, sigma_r, iterations, norm)
     image, guide = _check_pair(image, guide)
     ctx = transformed_coords(guide, sigma_s, sigma_r, axis=1, norm=norm)
     cty = transformed_coords(guide, sigma_s, sigma_r, axis=0, norm=norm)
