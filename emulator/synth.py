@@ -58,7 +58,11 @@ def synth_verilog(verilog_path, top, work_dir):
     # absolute host path (e.g. some of /tmp), but always sees its working directory.
     stat_path = work_dir / "stat.json"
     netlist_path = work_dir / "netlist.json"
+    # Amaranth names the elements of array ports with wires such as `\st[0]`; once
+    # flattened they collide with bit names in ABC9's symbol table and ABC exits
+    # silently. Purging those unused alias wires first avoids it (no logic changes).
     script = (f"read_verilog -sv {source.name}; "
+              f"hierarchy -top {top}; proc; flatten; opt_clean -purge; "
               f"synth_xilinx -family xc7 -top {top} -flatten; "
               f"tee -q -o {stat_path.name} stat -json; "
               f"write_json {netlist_path.name}")
