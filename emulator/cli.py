@@ -19,6 +19,8 @@ COMMANDS = (
     "emulator.commands.run",
     "emulator.commands.verilog",
     "emulator.commands.bench",
+    "emulator.commands.build",
+    "emulator.commands.synth_report",
     "emulator.commands.simulate",
     "emulator.commands.dts",
     "emulator.commands.dtfilter",

@@ -17,7 +17,7 @@ from hdl.uart import FRAME_BITS, UartParams
 
 __all__ = ["crc16", "encode_payload", "encode_packet", "decode_payload", "keep_poses",
            "quantize_pose", "pose_to_float", "uart_bit_clocks", "uart_byte_clocks",
-           "baud_divisor", "packets_per_second", "format_markdown"]
+           "packets_per_second", "format_markdown"]
 
 
 def crc16(data, crc=CRC16_INIT):
@@ -130,16 +130,6 @@ def uart_byte_clocks(uart, divisor_raw):
     return sum(uart_bit_clocks(uart, divisor_raw))
 
 
-def baud_divisor(clk_hz, baud, uart=UartParams()):
-    """The raw divisor register value for ``baud`` at ``clk_hz`` (rounded half-even)."""
-    if baud <= 0 or clk_hz <= 0:
-        raise ValueError(f"baud and clk_hz must be positive, not {baud} and {clk_hz}")
-    raw = int(uart.divisor_fmt.quantize(clk_hz / baud, Rounding.HALF_EVEN, Overflow.ERROR))
-    if raw < uart.min_divisor_raw:
-        raise ValueError(f"baud {baud} is faster than one bit per clock at {clk_hz} Hz")
-    return raw
-
-
 def packets_per_second(params, clk_hz, divisor_raw, uart=UartParams()):
     """Packets per second the UART carries back to back at this divisor."""
     return clk_hz / (params.packet_bytes * uart_byte_clocks(uart, divisor_raw))
@@ -164,7 +154,7 @@ def format_markdown(params=PacketParams(), *, clk_hz=100e6, bauds=(115200, 92160
                 f"first |")
     link = []
     for baud in bauds:
-        divisor = baud_divisor(clk_hz, baud, uart)
+        divisor = uart.divisor_raw(clk_hz, baud)
         rate = packets_per_second(params, clk_hz, divisor, uart)
         needed = ", ".join(f"{int(np.ceil(pose_rate / rate))}" for _, pose_rate in pose_rates)
         link.append(f"| {baud:,} | {divisor / (1 << uart.divisor_fmt.frac_bits):.4f} | "

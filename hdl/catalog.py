@@ -11,6 +11,11 @@ import importlib
 BLOCKS = {
     "mac": "hdl.mac:MultiplyAccumulate",
     "dt_filter": "hdl.dt_filter:DomainTransformFilter",
+    "uart": "hdl.uart:UartTx",
+    "pose_output": "hdl.pose_packet:PoseOutput",
+    "regs": "hdl.top:register_file",
+    "gp0_bridge": "hdl.board.gp0:GP0ToAXI4Lite",
+    "top": "hdl.top:RowtrackTop",
 }
 
 

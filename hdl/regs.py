@@ -12,9 +12,10 @@ count for per-camera arrays). From it come
 A block adds a register by adding a line to its group (rowtrack's map is declared in
 :mod:`hdl.regmap`); no decoder changes.
 
-Values wider than 32 bits take consecutive words, low bits first; a value is read word
-by word, not atomically (a write-only value is delivered when its highest word is
-written). Array elements follow each other.
+Fields are packed into 32-bit words without straddling a word boundary (see
+:meth:`Register.pieces`); a register of several words is read word by word, not
+atomically, and a write-only value is delivered when its highest word is written. Array
+elements follow each other.
 """
 
 import enum
@@ -22,7 +23,7 @@ import keyword
 import zlib
 from dataclasses import dataclass, field, replace
 
-from amaranth.hdl import Const, Module, Shape, Signal, Value
+from amaranth.hdl import Cat, Const, Module, Shape, Signal, Value
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -71,6 +72,18 @@ def _flat_fields(shape, prefix=""):
                 for name, fld in shape
                 for sub, offset, width in _flat_fields(fld.shape, f"{prefix}{name}.")]
     return [(prefix[:-1] or "value", 0, Shape.cast(shape).width)]
+
+
+@dataclass(frozen=True)
+class Piece:
+    """Bits ``[src, src + width)`` of an element (field ``name``, ``part`` of it when
+    the field spans words) at bits ``[dst, dst + width)`` of its word ``word``."""
+    name: str
+    src: int
+    width: int
+    word: int
+    dst: int
+    part: tuple = None
 
 
 @dataclass(frozen=True)
@@ -129,7 +142,7 @@ class Register:
     @property
     def words(self):
         """32-bit words of one element."""
-        return -(-self.width // WORD_BITS)
+        return max(piece.word for piece in self.pieces()) + 1
 
     @property
     def reset_raw(self):
@@ -152,6 +165,25 @@ class Register:
         if isinstance(self.shape, int):
             return [("value", 0, self.shape)]
         return _flat_fields(self.shape)
+
+    def pieces(self):
+        """Where the bits of one element sit in its words, as :class:`Piece` objects.
+
+        Fields are packed in order, never across a word boundary: a field that does not
+        fit the rest of the current word starts the next one, and a field wider than a
+        word starts a word of its own and continues in the following ones. Software
+        then reads any field of up to 32 bits with one access.
+        """
+        out, word, used = [], 0, 0
+        for name, offset, width in self.fields():
+            for lo in range(0, width, WORD_BITS):
+                chunk = min(WORD_BITS, width - lo)
+                if used + chunk > WORD_BITS or (lo == 0 and width > WORD_BITS and used):
+                    word, used = word + 1, 0
+                part = (lo, lo + chunk) if width > WORD_BITS else None
+                out.append(Piece(name, offset + lo, chunk, word, used, part))
+                used += chunk
+        return out
 
 
 @dataclass(frozen=True)
@@ -184,20 +216,16 @@ class RegisterGroup:
 
 @dataclass(frozen=True)
 class Word:
-    """One mapped 32-bit word: ``bits`` ``[lo, lo + width)`` of element ``index``."""
+    """One mapped 32-bit word: word ``word`` of element ``index`` of a register."""
     offset: int
     group: RegisterGroup
     register: Register
     index: int
     word: int
 
-    @property
-    def lo(self):
-        return self.word * WORD_BITS
-
-    @property
-    def width(self):
-        return min(WORD_BITS, self.register.width - self.lo)
+    def pieces(self):
+        """The element's bits in this word."""
+        return [p for p in self.register.pieces() if p.word == self.word]
 
     @property
     def last(self):
@@ -280,7 +308,7 @@ class RegisterMap:
         constant values: software compares it with the ``ident.map_crc`` register."""
         text = "\n".join(
             f"{w.offset}:{w.group.name}.{w.register.name}[{w.index}].{w.word}:"
-            f"{w.register.access.value}:{w.register.fields()}" for w in self.words())
+            f"{w.register.access.value}:{w.pieces()}" for w in self.words())
         return zlib.crc32(text.encode())
 
     def with_value(self, group, name, value):
@@ -305,9 +333,11 @@ class RegisterMap:
                  "",
                  "Access: `rw` control (reads back), `ro` status, `wo` command (the write "
                  "is delivered to the block with a one-clock strobe when the element's "
-                 "highest word is written), `const` build-time constant. Values wider "
-                 "than 32 bits take consecutive words, low bits first, and are read word "
-                 "by word (not atomically). Counters wrap.",
+                 "highest word is written), `const` build-time constant. Fields never "
+                 "straddle words: a field that does not fit the rest of a word starts the "
+                 "next; a field wider than 32 bits takes whole words, low bits first. A "
+                 "register of several words is read word by word (not atomically). "
+                 "Unlisted bits read as 0. Counters wrap.",
                  "", f"Map CRC-32 (`ident.map_crc`): `{self.layout_crc():#010x}`.", ""]
         for g in self.groups:
             lines += [f"## `{g.name}` (offset `{g.offset:#05x}`)", "", g.doc, "",
@@ -319,20 +349,17 @@ class RegisterMap:
                     f" (word {w.word})" if reg.words > 1 else "")
                 known = reg.reset_raw if reg.access is Access.RW else (
                     reg.value if reg.access is Access.CONST else None)
-                first = True
-                for fname, offset, width in reg.fields():
-                    lo, hi = max(offset, w.lo), min(offset + width, w.lo + w.width)
-                    if lo >= hi:
-                        continue
-                    bits = f"{hi - 1 - w.lo}:{lo - w.lo}" if hi - lo > 1 else f"{lo - w.lo}"
+                for k, piece in enumerate(w.pieces()):
+                    hi = piece.dst + piece.width - 1
+                    bits = f"{hi}:{piece.dst}" if piece.width > 1 else f"{piece.dst}"
                     value = "" if known is None else \
-                        f"`{(known >> lo) & ((1 << (hi - lo)) - 1):#x}`"
-                    part = "" if (lo, hi) == (offset, offset + width) else \
-                        f" (bits {hi - 1 - offset}:{lo - offset})"
+                        f"`{(known >> piece.src) & ((1 << piece.width) - 1):#x}`"
+                    part = f" (bits {piece.part[1] - 1}:{piece.part[0]})" if piece.part else ""
+                    first = k == 0
                     lines.append(f"| `{self.base + w.offset:#010x}` | {label if first else ''} | "
                                  f"{reg.access.value if first else ''} | {bits} | "
-                                 f"{fname}{part} | {value} | {reg.doc if first else ''} |")
-                    first = False
+                                 f"{piece.name}{part} | {value} | "
+                                 f"{reg.doc if first and w.word == 0 else ''} |")
             lines.append("")
         return "\n".join(lines)
 
@@ -450,14 +477,16 @@ class RegisterFile(wiring.Component):
                     m.d.comb += [Value.cast(cmd.data).eq(data_sig), cmd.stb.eq(stb)]
                     m.d.sync += stb.eq(0)
 
-        def bits(w, value):
-            lo = w.index * w.register.width + w.lo
-            return value[lo:lo + w.width]
+        def element(w, value):
+            """Value of ``w``'s element inside the flat register ``value``."""
+            width = w.register.width
+            return value[w.index * width:(w.index + 1) * width]
 
         # Writes: take address and data together, answer on B.
         b_valid = Signal()
         b_resp = Signal(2)
         take_write = axi.awvalid & axi.wvalid & ~b_valid
+        mask = Cat(*(axi.wstrb[lane].replicate(8) for lane in range(4)))
         m.d.comb += [axi.awready.eq(take_write), axi.wready.eq(take_write),
                      axi.bvalid.eq(b_valid), axi.bresp.eq(b_resp)]
         with m.If(axi.bvalid & axi.bready):
@@ -474,13 +503,20 @@ class RegisterFile(wiring.Component):
                             continue
                         with m.Case(w.offset // WORD_BYTES):
                             if access is Access.RW:
-                                self._write_bytes(m, bits(w, stored[key]), axi.wdata, axi.wstrb)
+                                target = element(w, stored[key])
+                                for piece in w.pieces():
+                                    dst = slice(piece.dst, piece.dst + piece.width)
+                                    old_bits = target[piece.src:piece.src + piece.width]
+                                    m.d.sync += old_bits.eq((old_bits & ~mask[dst])
+                                                            | (axi.wdata[dst] & mask[dst]))
                                 m.d.sync += b_resp.eq(RESP_OKAY)
                             else:
                                 data_sig, stb = commands[key]
+                                target = element(w, data_sig)
                                 with m.If(axi.wstrb == 0b1111):
-                                    m.d.sync += [bits(w, data_sig).eq(axi.wdata),
-                                                 b_resp.eq(RESP_OKAY)]
+                                    m.d.sync += [target[p.src:p.src + p.width].eq(
+                                        axi.wdata[p.dst:p.dst + p.width]) for p in w.pieces()]
+                                    m.d.sync += b_resp.eq(RESP_OKAY)
                                     if w.last:
                                         m.d.sync += stb[w.index].eq(1)
 
@@ -507,17 +543,19 @@ class RegisterFile(wiring.Component):
                             source = Const(reg.value << (w.index * reg.width),
                                            reg.width * reg.count)
                         with m.Case(w.offset // WORD_BYTES):
-                            m.d.sync += [r_data.eq(bits(w, source)), r_resp.eq(RESP_OKAY)]
+                            m.d.sync += [r_data.eq(self._word_value(w, element(w, source))),
+                                         r_resp.eq(RESP_OKAY)]
         with m.Elif(axi.rvalid & axi.rready):
             m.d.sync += r_valid.eq(0)
         return m
 
     @staticmethod
-    def _write_bytes(m, target, wdata, wstrb):
-        """Byte-strobed write of ``wdata`` into ``target`` (at most 32 bits)."""
-        for lane in range(4):
-            lo, hi = 8 * lane, min(8 * lane + 8, len(target))
-            if lo >= hi:
-                break
-            with m.If(wstrb[lane]):
-                m.d.sync += target[lo:hi].eq(wdata[lo:hi])
+    def _word_value(w, element):
+        """The 32-bit word ``w`` read from its element's flat value (zeros between)."""
+        parts, at = [], 0
+        for piece in sorted(w.pieces(), key=lambda p: p.dst):
+            if piece.dst > at:
+                parts.append(Const(0, piece.dst - at))
+            parts.append(element[piece.src:piece.src + piece.width])
+            at = piece.dst + piece.width
+        return Cat(*parts)

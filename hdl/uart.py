@@ -11,7 +11,7 @@ from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .fixed import QFormat, UQ
+from .fixed import Overflow, QFormat, Rounding, UQ
 
 __all__ = ["UartParams", "UartTx"]
 
@@ -39,6 +39,27 @@ class UartParams:
                              f"not {self.divisor_fmt}")
 
     replace = replace
+
+    def divisor_raw(self, clk_hz, baud):
+        """The raw divisor register value for ``baud`` at ``clk_hz`` (half-even).
+
+        Raises
+        ------
+        ValueError
+            If ``baud`` is not positive, faster than one bit per clock, or too slow for
+            ``divisor_fmt``.
+        """
+        if not baud > 0 or not clk_hz > 0:
+            raise ValueError(f"baud and clk_hz must be positive, not {baud!r} and {clk_hz!r}")
+        try:
+            raw = int(self.divisor_fmt.quantize(clk_hz / baud, Rounding.HALF_EVEN,
+                                                Overflow.ERROR))
+        except OverflowError:
+            raise ValueError(f"baud must be at least {clk_hz / self.divisor_fmt.max_value:.0f} "
+                             f"at {clk_hz:g} Hz with a {self.divisor_fmt} divisor, not {baud}")
+        if raw < self.min_divisor_raw:
+            raise ValueError(f"baud must be at most one bit per clock ({clk_hz:g}), not {baud}")
+        return raw
 
     @property
     def min_divisor_raw(self):

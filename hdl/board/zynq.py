@@ -1,0 +1,96 @@
+"""The board top shared by every Zynq board: PS7, GP0 bridge, tracker, pins.
+
+:class:`ZynqTop` is what ``rowtrack build --board NAME`` elaborates: the PS7
+(:mod:`hdl.board.ps7`) clocks the fabric from FCLK_CLK0 and reaches the register file
+through M_AXI_GP0 and :class:`~hdl.board.gp0.GP0ToAXI4Lite`; each camera's PCLK pin
+clocks its own domain (``pclk<k>``, reset from the system reset through a reset
+synchronizer); the trigger outputs and the pose UART go to pins.
+"""
+
+from amaranth.build import ResourceError
+from amaranth.hdl import ClockDomain, ClockSignal, Elaboratable, Module, ResetSignal, Signal
+from amaranth.lib import wiring
+from amaranth.lib.cdc import ResetSynchronizer
+
+from ..camera_input import CameraParams
+from ..top import RowtrackTop, TopParams
+from .gp0 import GP0ToAXI4Lite
+from .ps7 import PS7
+from .spec import BoardSpec
+
+__all__ = ["ZynqTop", "XC7Z020_CLG400_CLOCK_P"]
+
+#: Package pins of xc7z020clg400 that are the P side of a clock-capable (MRCC/SRCC)
+#: pair, among those the supported boards bring out (bank names from Digilent's
+#: Arty Z7-20 master XDC).
+XC7Z020_CLG400_CLOCK_P = frozenset({
+    "U18", "N18", "U14", "N20",             # bank 34: L12P/L13P MRCC, L11P/L14P SRCC
+    "U7", "Y7", "Y9",                       # bank 13: L11P SRCC, L13P MRCC, L14P SRCC
+    "H16", "K17", "L16", "J18",             # bank 35: L13P/L12P MRCC, L11P/L14P SRCC
+})
+
+
+def default_params(board, fclk_hz=100_000_000):
+    """The tracker parameters for ``board``: one camera per camera port."""
+    return TopParams(camera=CameraParams(n_cameras=board.n_cameras), clk_hz=fclk_hz)
+
+
+class ZynqTop(Elaboratable):
+    """The whole design for one board.
+
+    Parameters
+    ----------
+    board : BoardSpec
+    params : TopParams, optional
+        Default: :func:`default_params`. ``camera.n_cameras`` must equal the board's
+        camera ports; ``clk_hz`` is the FCLK_CLK0 frequency the PS is configured for.
+    """
+
+    def __init__(self, board, params=None):
+        if not isinstance(board, BoardSpec):
+            raise TypeError(f"board must be a BoardSpec, not {board!r}")
+        params = default_params(board) if params is None else params
+        if not isinstance(params, TopParams):
+            raise TypeError(f"params must be a TopParams, not {params!r}")
+        if params.camera.n_cameras != board.n_cameras:
+            raise ValueError(f"params.camera.n_cameras must be {board.n_cameras} (the camera "
+                             f"ports of {board.name}), not {params.camera.n_cameras}")
+        self.board = board
+        self.params = params
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.ps7 = ps7 = PS7(fclk_hz=self.params.clk_hz)
+        m.submodules.gp0 = bridge = GP0ToAXI4Lite()
+        m.submodules.tracker = tracker = RowtrackTop(self.params)
+        wiring.connect(m, ps7.gp0, bridge.gp0)
+        wiring.connect(m, bridge.lite, tracker.axi)
+
+        for k, domain in enumerate(tracker.domains):
+            pins = platform.request("camera", k)
+            m.domains += ClockDomain(domain)
+            m.d.comb += ClockSignal(domain).eq(pins.pclk.i)
+            m.submodules[f"{domain}_reset"] = ResetSynchronizer(ResetSignal("sync"),
+                                                                domain=domain)
+            m.d.comb += [tracker.dvp[k].vsync.eq(pins.vsync.i),
+                         tracker.dvp[k].href.eq(pins.href.i),
+                         tracker.dvp[k].data.eq(pins.data.i),
+                         pins.fsin.o.eq(tracker.fsin[k])]
+        m.d.comb += platform.request("pose_uart", 0).tx.o.eq(tracker.uart_tx)
+        self._heartbeat(m, platform)
+        return m
+
+    def _heartbeat(self, m, platform):
+        """Blink the board's first LED at about 1 Hz from FCLK_CLK0 (bring-up aid: the
+        PS clock runs and the bitstream is loaded), if the board has one."""
+        try:
+            led = platform.request("led", 0)
+        except ResourceError:
+            return
+        counter = Signal(range(self.params.clk_hz // 2))
+        blink = Signal()
+        with m.If(counter == self.params.clk_hz // 2 - 1):
+            m.d.sync += [counter.eq(0), blink.eq(~blink)]
+        with m.Else():
+            m.d.sync += counter.eq(counter + 1)
+        m.d.comb += led.o.eq(blink)
