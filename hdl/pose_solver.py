@@ -1,0 +1,148 @@
+"""The pose solver: per image row, the weighted least-squares small-motion step and the
+integrated pose, in fixed point.
+
+Measurements (one per camera or row segment) stream in; each row's last measurement
+closes the row, and one pose record per row streams out. Inside:
+
+* the coefficient store (:class:`amaranth.lib.memory.Memory`, one entry of nine
+  coefficients per slot and row; initial contents at build time, rewritable at run
+  time through ``coef_write``);
+* :class:`hdl.pose_accumulator.PoseAccumulator`: the weighted normal equations;
+* :class:`hdl.pose_engine.PoseEngine`: Jacobi scaling, the LDLᵀ solve with its pivot
+  check, and the pose integration.
+
+The algorithm, formats and error budget are in ``docs/pose_solver.md``; the
+bit-accurate model is :mod:`emulator.pose_solver`.
+"""
+
+import numpy as np
+from amaranth.hdl import Module, Signal, signed
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out, connect
+
+from .pose_accumulator import PoseAccumulator, measurement_layout
+from .pose_engine import PoseEngine, counters_layout, record_layout
+from .pose_params import PoseFlag, PoseSolverParams
+
+__all__ = ["PoseSolver", "PoseSolverParams", "PoseFlag", "coef_write_signature",
+           "measurement_layout", "record_layout", "counters_layout"]
+
+
+def coef_write_signature(params):
+    """Run-time write of one coefficient (driven by the register file).
+
+    Members
+    -------
+    addr : Out(entry_bits)
+        Entry ``slot · rows + row``.
+    index : Out(4)
+        Coefficient 0..8 (a_Tx, a_Ty, a_Tz, a_Cx, a_Cy, a_Cz, a_Rx, a_Ry, a_Rz).
+    data : Out(signed(coef_width))
+        Raw value in that coefficient's format.
+    en : Out(1)
+        Write in this clock.
+    """
+    return wiring.Signature({"addr": Out(params.entry_bits), "index": Out(4),
+                             "data": Out(signed(params.coef_width)), "en": Out(1)})
+
+
+class PoseSolver(wiring.Component):
+    """Fixed-point weighted least-squares pose update, one per row.
+
+    Parameters
+    ----------
+    params : PoseSolverParams
+    coefficients : ndarray (slots, rows, 9) of int, optional
+        Initial raw contents of the coefficient store (see
+        :func:`hdl.pose_params.quantize_coefficients`); zeros if omitted.
+
+    Members
+    -------
+    i : In(stream.Signature(measurement_layout(params)))
+        Measurements, ``last`` on the final one of a row (formats: shift ``shift_fmt``
+        pixels, cue ``cue_fmt``, confidence ``conf_fmt``).
+    o : Out(stream.Signature(record_layout(params)))
+        One pose record per row (q ``quat_fmt``, p ``position_fmt`` metres, step
+        ``step_fmt`` metres/radians, :class:`PoseFlag` flags).
+    coef_write : In(coef_write_signature(params))
+        Rewrites one stored coefficient.
+    counters : Out(counters_layout(params))
+        Rows solved and rows flagged per reason (wrapping).
+
+    Latency: :attr:`latency` clocks from the transfer of a row's last measurement to
+    ``o.valid``, when the solver is idle and ``o`` is not stalled. Throughput: one
+    measurement per ``ceil(27 / lanes)`` clocks; one row per :attr:`row_interval`
+    clocks when rows come back to back. Backpressure: ``i.ready`` falls while a finished
+    row waits for the engine, and the engine waits while ``o`` holds an untaken record.
+    Reset: pose (1, 0, 0, 0), position 0, counters 0; the coefficient store keeps its
+    contents.
+    """
+
+    def __init__(self, params=None, coefficients=None):
+        params = PoseSolverParams() if params is None else params
+        if not isinstance(params, PoseSolverParams):
+            raise TypeError(f"params must be a PoseSolverParams, not {params!r}")
+        if coefficients is None:
+            coefficients = np.zeros((params.slots, params.rows, 9), dtype=np.int64)
+        coefficients = np.asarray(coefficients)
+        if coefficients.shape != (params.slots, params.rows, 9):
+            raise ValueError(f"coefficients must have shape ({params.slots}, {params.rows}, "
+                             f"9), not {coefficients.shape}")
+        fmts = [params.coef_t_fmt] * 3 + [params.coef_c_fmt] * 3 + [params.coef_r_fmt] * 3
+        for k, fmt in enumerate(fmts):
+            fmt.raw(coefficients[..., k])  # raises if a value does not fit
+        self.params = params
+        self.coefficients = coefficients
+        self._accumulator = PoseAccumulator(params)
+        self._engine = PoseEngine(params)
+        super().__init__({
+            "i": In(stream.Signature(measurement_layout(params))),
+            "o": Out(stream.Signature(record_layout(params))),
+            "coef_write": In(coef_write_signature(params)),
+            "counters": Out(counters_layout(params)),
+        })
+
+    @property
+    def latency(self):
+        """Clocks from a row's last measurement to its pose record (idle solver)."""
+        return self._accumulator.tail + 1 + self._engine.length
+
+    @property
+    def measurement_interval(self):
+        """Clocks between measurements at full rate."""
+        return self._accumulator.period
+
+    @property
+    def row_interval(self):
+        """Clocks per row when rows of ``slots`` measurements come back to back: the
+        engine program plus its start, or the accumulation if that is longer."""
+        accumulate = self.params.slots * self._accumulator.period + self._accumulator.tail
+        return max(self._engine.length + 1, accumulate)
+
+    def elaborate(self, platform):
+        p = self.params
+        m = Module()
+        m.submodules.accumulator = acc = self._accumulator
+        m.submodules.engine = engine = self._engine
+
+        lane = data.ArrayLayout(signed(p.coef_width), 9)
+        init = [[int(v) for v in entry] for entry in self.coefficients.reshape(-1, 9)]
+        store = Memory(shape=lane, depth=p.entries, init=init)
+        m.submodules.coefficients = store
+        read = store.read_port()
+        write = store.write_port(granularity=1)
+        m.d.comb += [read.addr.eq(acc.coef_addr), acc.coef_data.eq(read.data),
+                     write.addr.eq(self.coef_write.addr)]
+        for k in range(9):
+            m.d.comb += [write.data[k].eq(self.coef_write.data),
+                         write.en[k].eq(self.coef_write.en & (self.coef_write.index == k))]
+
+        connect(m, wiring.flipped(self.i), acc.i)
+        connect(m, engine.o, wiring.flipped(self.o))
+        m.d.comb += [engine.row_done.eq(acc.done), acc.release.eq(engine.release),
+                     acc.read_index.eq(engine.read_index), engine.read_data.eq(acc.read_data),
+                     engine.exponents.eq(acc.exponents), engine.empty.eq(acc.empty),
+                     engine.overrun.eq(acc.overrun), engine.row.eq(acc.row),
+                     engine.time.eq(acc.time), self.counters.eq(engine.counters)]
+        return m
