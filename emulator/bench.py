@@ -18,6 +18,7 @@ import platform
 BENCHES = {
     "fixed": "emulator.benches.fixed",
     "simulator": "emulator.benches.simulator",
+    "dt": "emulator.benches.dt",
 }
 
 

@@ -86,19 +86,22 @@ def horizontal_pass(params, value, w_h):
     return anti
 
 
-def vertical_pass(params, values, w_v):
+def vertical_pass(params, values, w_v, window=None):
     """Causal recursion down the columns, then the anti-causal one over ``window`` lines.
 
     Row ``y`` of the anti-causal pass starts at row ``min(y + window - 1, H - 1)`` and
     folds in the rows above it one by one, as the hardware's chain of line buffers does.
+    ``window`` defaults to ``params.window``; at least ``H`` gives the exact pass (what a
+    frame buffer would allow).
     """
+    window = params.window if window is None else window
     height = values.shape[0]
     causal = values.copy()
     for y in range(1, height):
         causal[y] = rf_step(params, values[y], causal[y - 1], w_v[y])
     rows = np.arange(height)
-    acc = causal[np.minimum(rows + params.window - 1, height - 1)].copy()
-    for t in range(params.window - 1, 0, -1):
+    acc = causal[np.minimum(rows + window - 1, height - 1)].copy()
+    for t in range(min(window, height) - 1, 0, -1):
         n = rows[rows + t <= height - 1]
         q = n + t - 1
         acc[n] = rf_step(params, causal[q], acc[n], w_v[q + 1])

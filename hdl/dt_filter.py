@@ -18,8 +18,8 @@ same for every pixel: ``(L + 1)`` rows plus a few clocks (:attr:`DomainTransform
 Weights: ``w = a**d = exp(-sqrt(2)/sigma_s - sqrt(2) |dI| / sigma_r)
 = 2**-(k_s + k_r |dI|)`` with ``k = sqrt(2) / ln(2) / sigma``. Two free-running
 dividers turn the run-time registers ``sigma_s`` and ``sigma_r`` into ``k_s``, ``k_r``;
-each weight is ``2**-n`` times two lookup-table factors ``2**-f`` (high and low byte of
-the fraction ``f``) in fixed point. The first pixel of every row and every pixel of a
+each weight is ``2**-n`` times two lookup-table factors ``2**-f`` (the high and low 10
+bits of the fraction ``f``, floored to 20 bits) in fixed point (:class:`WeightUnit`). The first pixel of every row and every pixel of a
 frame's first row get weight 0, which starts the recursions; it also keeps frames and
 the filler rows used for flushing apart.
 
@@ -84,7 +84,7 @@ def _check_int(name, value, minimum, maximum=None, choices=None):
 
 @dataclass(frozen=True, kw_only=True)
 class DtFilterParams:
-    """Build parameters of :class:`DomainTransformFilter` (no Amaranth: the model uses it).
+    """Build parameters of :class:`DomainTransformFilter` (plain data: the model uses it too).
 
     Parameters
     ----------

@@ -80,6 +80,12 @@ def test_bad_parameters_are_named():
         DtsParams(iterations=2.5)
     with pytest.raises(ValueError, match=r"hard_threshold must be in \(0, 1\], not 2"):
         DtsParams(hard_threshold=2)
+    with pytest.raises(ValueError, match="norm must be one of l1, l2, not 'max'"):
+        DtsParams(norm="max")
+    with pytest.raises(ValueError, match="robust must be a positive finite number, not -1"):
+        DtsParams(robust=-1)
+    with pytest.raises(ValueError, match=r"peak must be in \(0, 1\], not 1.5"):
+        target_confidence(np.zeros((3, 4)), peak=1.5)
     with pytest.raises(ValueError, match=r"confidence must lie in \[0, 1\]"):
         dts(np.zeros((3, 4)), np.zeros((3, 4)), np.full((3, 4), 2.0))
     with pytest.raises(ValueError, match=r"confidence must have shape \(3, 4\)"):
