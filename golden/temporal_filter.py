@@ -1,0 +1,122 @@
+"""Temporal consistency: robust Holt–Winters smoothing with a Huber loss (Gelper, Fried
+and Croux 2010, as used by CVPR 2018 §3.2.3 and its Algorithm 1).
+
+For a series ``m_t`` with forecast ``m_{t|t−1} = m̃_{t−1} + B_{t−1}``:
+
+* robust scale (τ²-scale recursion): ``σ̂²_t = λ ρ(r_t/σ̂_{t−1}) σ̂²_{t−1} + (1 − λ) σ̂²_{t−1}``
+  with ``r_t = m_t − m_{t|t−1}`` and ρ the biweight (k = 2, c_k = 2.52), so a single
+  outlier cannot blow the scale up;
+* cleaning: ``m*_t = ψ(r_t/σ̂_t) σ̂_t + m_{t|t−1}`` with the Huber ψ (k = 2);
+* smoothing: ``m̃_t = α m*_t + (1 − α)(m̃_{t−1} + B_{t−1})``,
+  ``B_t = β (m̃_t − m̃_{t−1}) + (1 − β) B_{t−1}``.
+
+The tracker uses two pieces (see ``docs/tracker.md``): :class:`RobustScale` judges every
+measurement channel's innovation against the forecast (weight ``ψ(x)/x``, outliers
+replaced by the forecast), and :class:`HoltWinters` smooths the per-row motion.
+"""
+
+import numpy as np
+
+__all__ = ["HUBER_K", "BIWEIGHT_CK", "huber_weight", "biweight_rho",
+           "RobustScale", "HoltWinters"]
+
+#: Huber and biweight tuning constant (Gelper et al.: k = 2).
+HUBER_K = 2.0
+#: Biweight normalisation for k = 2 (consistency of the τ²-scale at the normal law).
+BIWEIGHT_CK = 2.52
+
+
+def huber_weight(x, k=HUBER_K):
+    """``ψ(x)/x``: 1 inside ``[−k, k]``, ``k/|x|`` outside."""
+    ax = np.abs(np.asarray(x, dtype=float))
+    with np.errstate(divide="ignore"):
+        return np.where(ax <= k, 1.0, k / ax)
+
+
+def biweight_rho(x, k=HUBER_K, ck=BIWEIGHT_CK):
+    """Bounded biweight loss: ``c_k (1 − (1 − (x/k)²)³)`` inside ``[−k, k]``, ``c_k`` outside."""
+    u = np.minimum((np.asarray(x, dtype=float) / k) ** 2, 1.0)
+    return ck * (1.0 - (1.0 - u) ** 3)
+
+
+def _check_fraction(name, value, allow_zero=False):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"{name} must be a number, not {value!r}")
+    if not (0 <= value <= 1 if allow_zero else 0 < value <= 1):
+        raise ValueError(f"{name} must be in {'[0, 1]' if allow_zero else '(0, 1]'}, "
+                         f"not {value!r}")
+
+
+class RobustScale:
+    """Per-channel robust scale of innovations and the Huber verdict on each new one.
+
+    Parameters
+    ----------
+    channels : int
+        Number of independent series (camera × segment).
+    initial, floor : float
+        Starting scale and its lower bound (units of the series, here pixels); the floor
+        keeps a noiseless series from declaring every later deviation an outlier.
+    smoothing : float
+        λ of the scale recursion, in (0, 1].
+    k : float
+        Huber threshold in scales.
+    """
+
+    def __init__(self, channels, *, initial, floor, smoothing=0.1, k=HUBER_K):
+        if isinstance(channels, bool) or not isinstance(channels, (int, np.integer)) \
+                or channels < 1:
+            raise ValueError(f"channels must be a positive integer, not {channels!r}")
+        for name, value in (("initial", initial), ("floor", floor), ("k", k)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0:
+                raise ValueError(f"{name} must be a positive number, not {value!r}")
+        _check_fraction("smoothing", smoothing)
+        self.scale = np.full(channels, max(float(initial), float(floor)))
+        self.floor, self.smoothing, self.k = float(floor), float(smoothing), float(k)
+
+    def judge(self, channels, innovations):
+        """Standardised innovations ``x`` and consistency weights ``ψ(x)/x`` of new values
+        on ``channels``; then update those channels' scales (NaN innovations skip)."""
+        channels = np.asarray(channels)
+        innovations = np.asarray(innovations, dtype=float)
+        scale = self.scale[channels]
+        x = innovations / scale
+        weight = huber_weight(x, self.k)
+        seen = np.isfinite(x)
+        lam = self.smoothing
+        new = scale**2 * (lam * biweight_rho(x[seen], self.k) + (1 - lam))
+        self.scale[channels[seen]] = np.maximum(np.sqrt(new), self.floor)
+        return x, np.where(seen, weight, 0.0)
+
+
+class HoltWinters:
+    """Double exponential smoothing of a vector series (level and trend).
+
+    Parameters
+    ----------
+    level : array_like
+        Initial level.
+    alpha, beta : float
+        Level and trend smoothing, in (0, 1] and [0, 1].
+    """
+
+    def __init__(self, level, *, alpha, beta):
+        _check_fraction("alpha", alpha)
+        _check_fraction("beta", beta, allow_zero=True)
+        self.level = np.array(level, dtype=float)
+        self.trend = np.zeros_like(self.level)
+        self.alpha, self.beta = float(alpha), float(beta)
+
+    def forecast(self, steps=1):
+        """The level expected ``steps`` samples ahead."""
+        return self.level + steps * self.trend
+
+    def update(self, value=None):
+        """Take the next (already cleaned) value, or none (the forecast stands); returns
+        the new level."""
+        predicted = self.forecast()
+        level = predicted if value is None else \
+            self.alpha * np.asarray(value, dtype=float) + (1 - self.alpha) * predicted
+        self.trend = self.beta * (level - self.level) + (1 - self.beta) * self.trend
+        self.level = level
+        return level

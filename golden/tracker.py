@@ -1,0 +1,530 @@
+"""The golden per-row 6-DoF tracker (float64): rows in, one pose per row slot out.
+
+Per slot (one row period, :mod:`golden.tracker_slots`) every camera's current row is
+matched against a reference row (:mod:`golden.reference_rows`) in ``segments`` segments
+with the row descriptor and Hamming matcher of :mod:`golden.descriptor`; each segment
+gives one linear equation in the rig's motion (:mod:`golden.tracker_geometry`,
+:mod:`golden.pose_lsq`), with depth from :mod:`golden.depth` or
+:mod:`golden.depth_maps`.
+
+What is estimated. The unknown of a slot at time t is ``Y = [T θ]``, the rig's motion
+over one frame period, from the estimated pose at ``t − 1/fps`` (the same row slot of
+the previous frame) to the pose at ``t``. Every reference is built from the previous
+frame with the estimated poses of its rows, so a measurement constrains exactly this
+motion and errors chain from frame to frame, not from row to row. The equations are
+linearised about the forecast ``Ŷ`` of a robust Holt–Winters filter on Y
+(:mod:`golden.temporal_filter`): ``s − g(Ŷ) = A δ`` where ``g`` is the exact predicted
+shift of each segment (full projection with the lens) and ``A`` the segment-averaged
+design rows, which depend only on calibration, pixel position and depth (the
+hardware's precomputed coefficients). Then ``Y = Ŷ + δ`` is smoothed by the filter and
+the pose of the slot is the previous frame's pose composed with it.
+
+Per-measurement confidence is the matcher's peak ratio times the Huber consistency
+weight of its innovation ``s − g(Ŷ)`` against the channel's robust scale; an outlier is
+replaced by the forecast. A slot whose measurements all have confidence below
+``min_confidence``, or whose weighted system is rank deficient or has a condition number
+above ``max_condition``, makes no step: its pose follows the forecast. See
+``docs/tracker.md`` for the derivations and the choices.
+"""
+
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .descriptor import DescriptorParams, MatchParams, describe, match, segment_bounds
+from .depth import StereoDepth, stereo_pairs
+from .pose_lsq import body_step, normal_equations, solve_normal
+from .reference_rows import HomographyReference, PreviousFrameReference
+from .temporal_filter import HoltWinters, RobustScale
+from .tracker_geometry import DesignTable, reference_pixels, segment_means
+from .tracker_motion import PoseTrack, compose, ground_truth_track
+from .tracker_slots import RowSlots
+
+__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "TrackerParams", "TrackResult", "track"]
+
+REFERENCES = ("homography", "previous")
+DEPTHS = ("auto", "stereo", "overlap", "oracle")
+SOLVERS = ("linear", "nonlinear")
+
+
+def _check(name, value, kind, low=None, high=None, low_open=False):
+    if isinstance(value, bool) or not isinstance(value, kind):
+        raise TypeError(f"{name} must be {'an integer' if kind is int else 'a number'}, "
+                        f"not {value!r}")
+    if low is not None and (value <= low if low_open else value < low):
+        raise ValueError(f"{name} must be {'>' if low_open else '≥'} {low}, not {value!r}")
+    if high is not None and value > high:
+        raise ValueError(f"{name} must be ≤ {high}, not {value!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrackerParams:
+    """Parameters of the golden tracker (defaults: ``docs/tracker.md`` gives the reasons).
+
+    Parameters
+    ----------
+    reference : str
+        ``"homography"`` (a: rotation-compensated previous frame, the papers') or
+        ``"previous"`` (b: the previous frame's stored descriptor rows).
+    reselect_angle : float
+        (a) Rotation (rad) since the reference rotation that forces a new one.
+    parallax : bool
+        (a) Also compensate the translation's parallax when reading the reference, with
+        the current depth (off: the papers' rotation-only compensation).
+    follow_rows : bool
+        (b) Read the stored row the content is predicted to come from (one row address
+        per camera and row) instead of the same row index.
+    sigma : float
+        Descriptor σ (pixels).
+    window : int
+        Half-width of the temporal shift window (pixels), centred on the prediction.
+    segments : int
+        Segments (equations) per camera row.
+    depth : str
+        ``"stereo"`` (pair disparity), ``"overlap"`` (depth maps bootstrapped from
+        neighbouring cameras), ``"oracle"`` (the simulator's true depth — ablations
+        only) or ``"auto"`` (stereo if the rig has rectified pairs, else overlap).
+    disparity_blocks : int
+        Disparity segments per row (stereo).
+    min_depth_fraction : float
+        Share of a segment's pixels that need a depth for the segment to count.
+    alpha, beta : float
+        Holt–Winters level and trend smoothing of the per-slot motion.
+    huber_k : float
+        Huber threshold (robust scales).
+    scale_initial, scale_floor : float
+        Robust scale of the shift innovations at the start and its floor (pixels).
+    scale_smoothing : float
+        λ of the robust scale recursion.
+    min_confidence : float
+        A slot needs one measurement at least this confident to step.
+    max_condition : float
+        Largest condition number of the weighted, column-scaled design matrix.
+    block_rows : int
+        Slots whose window centres and reference rows are predicted together.
+    geometry_stride : int
+        Every n-th pixel of a segment enters its averaged equation (the averages of
+        smooth per-pixel coefficients; 1 uses every pixel).
+    solver : str
+        ``"linear"`` (one weighted least-squares solve) or ``"nonlinear"`` (refined on
+        the exact projection model, for comparison).
+    """
+    reference: str = "homography"
+    reselect_angle: float = 0.06
+    parallax: bool = True
+    follow_rows: bool = True
+    sigma: float = 2.0
+    window: int = 20
+    segments: int = 8
+    depth: str = "auto"
+    disparity_blocks: int = 16
+    min_depth_fraction: float = 0.5
+    alpha: float = 0.3
+    beta: float = 0.01
+    huber_k: float = 2.0
+    scale_initial: float = 0.5
+    scale_floor: float = 0.1
+    scale_smoothing: float = 0.1
+    min_confidence: float = 1.0
+    max_condition: float = 1e3
+    block_rows: int = 48
+    geometry_stride: int = 4
+    solver: str = "linear"
+
+    def __post_init__(self):
+        for name, options in (("reference", REFERENCES), ("depth", DEPTHS),
+                              ("solver", SOLVERS)):
+            if getattr(self, name) not in options:
+                raise ValueError(f"{name} must be one of {', '.join(options)}, "
+                                 f"not {getattr(self, name)!r}")
+        for name in ("parallax", "follow_rows"):
+            if not isinstance(getattr(self, name), bool):
+                raise TypeError(f"{name} must be a bool, not {getattr(self, name)!r}")
+        _check("reselect_angle", self.reselect_angle, (int, float), 0, low_open=True)
+        _check("window", self.window, int, 1)
+        _check("segments", self.segments, int, 1)
+        _check("disparity_blocks", self.disparity_blocks, int, 1)
+        _check("block_rows", self.block_rows, int, 1)
+        _check("geometry_stride", self.geometry_stride, int, 1)
+        _check("min_depth_fraction", self.min_depth_fraction, (int, float), 0, 1,
+               low_open=True)
+        _check("alpha", self.alpha, (int, float), 0, 1, low_open=True)
+        _check("beta", self.beta, (int, float), 0, 1)
+        for name in ("huber_k", "scale_initial", "scale_floor", "scale_smoothing",
+                     "max_condition"):
+            _check(name, getattr(self, name), (int, float), 0, low_open=True)
+        _check("min_confidence", self.min_confidence, (int, float), 0)
+        DescriptorParams(sigma=self.sigma)
+
+    replace = replace
+
+    @property
+    def descriptor(self):
+        return DescriptorParams(sigma=self.sigma)
+
+    @property
+    def matcher(self):
+        return MatchParams(shift_min=-self.window, shift_max=self.window,
+                           segments=self.segments)
+
+
+@dataclass
+class TrackResult:
+    """The tracker's output, one entry per occupied row slot.
+
+    Members
+    -------
+    times : (S,) slot times (s)
+    rotations, positions : (S, 3, 3), (S, 3) estimated world-from-rig poses
+    tracked : (S,) bool, false for the initialisation slots (poses given)
+    updated : (S,) bool, the slot made a measurement step
+    condition : (S,) condition number of the weighted, column-scaled system (NaN: none)
+    equations : (S,) measurements with non-zero confidence
+    camera_confidence : (S, N) best segment confidence of each camera (NaN: no row)
+    motion : (S, 6) the smoothed one-frame motion Y of each slot
+    linear_step, refined_step : (S, 6) with ``solver="nonlinear"``: the linear and the
+        refined δ (NaN where no step)
+    period : frame period (s) over which Y is defined
+    params : dict of the TrackerParams used, plus ``depth_source``
+    """
+    times: np.ndarray
+    rotations: np.ndarray
+    positions: np.ndarray
+    tracked: np.ndarray
+    updated: np.ndarray
+    condition: np.ndarray
+    equations: np.ndarray
+    camera_confidence: np.ndarray
+    motion: np.ndarray
+    linear_step: np.ndarray
+    refined_step: np.ndarray
+    period: float
+    params: dict
+
+
+def _row_means(values):
+    """Mean of each row's finite values (0 for a row without any)."""
+    finite = np.isfinite(values)
+    count = finite.sum(axis=-1)
+    return np.where(finite, values, 0.0).sum(axis=-1) / np.maximum(count, 1)
+
+
+class _Entry:
+    """Measurements of one camera over a block's rows of one frame."""
+
+    def __init__(self, **fields):
+        self.__dict__.update(fields)
+
+
+class Tracker:
+    """Runs the golden tracker over a dataset (see the module docstring).
+
+    Parameters
+    ----------
+    dataset : golden.dataset.Dataset
+    params : TrackerParams
+    depth_provider : object, optional
+        Replaces the depth source chosen by ``params.depth`` (used for the oracle).
+    """
+
+    def __init__(self, dataset, params, depth_provider=None):
+        self.rig, self.recordings = dataset.rig, dataset.cameras
+        self.params = params
+        self.slots = RowSlots(dataset)
+        self.desc, self.matcher = params.descriptor, params.matcher
+        self.track = PoseTrack(len(self.slots))
+        self._cache = {}
+        self.columns = np.arange(0, self.rig.cameras[0].width, params.geometry_stride)
+        self.design_tables = [DesignTable(cam, self.columns) for cam in self.rig.cameras]
+        self._init_from_ground_truth(dataset)
+        self.depth, self.depth_source = self._depth_source(dataset, depth_provider)
+        if params.reference == "homography":
+            self.reference = HomographyReference(self.rig, self.recordings, self.track,
+                                                 self.desc, params.reselect_angle)
+        else:
+            self.reference = PreviousFrameReference(self.rig, self.recordings, self.track,
+                                                    self.frame_bits)
+        channels = len(self.rig.cameras) * params.segments
+        self.scale = RobustScale(channels, initial=params.scale_initial,
+                                 floor=params.scale_floor, smoothing=params.scale_smoothing,
+                                 k=params.huber_k)
+
+    # --- set-up ----------------------------------------------------------------------
+
+    def _init_from_ground_truth(self, dataset):
+        """Poses of the initialisation slots from the ground truth (the papers' known
+        first frame), and the motion filter started from the motion they show."""
+        gt = ground_truth_track(dataset)
+        slots = self.slots
+        first = slots.first_tracked
+        init = np.flatnonzero(slots.occupied[:first])
+        rotations, positions = gt.at(slots.times[init])
+        for s, rotation, position in zip(init, rotations, positions):
+            self.track.append(slots.times[s], rotation, position)
+        span = slots.times[init[-1]] - slots.times[init[0]]
+        motion = body_step(rotations[0], positions[0], rotations[-1], positions[-1])
+        motion *= slots.period / span
+        self.motion = HoltWinters(motion, alpha=self.params.alpha, beta=self.params.beta)
+        self.track.set_extrapolation(motion / slots.period)
+
+    def _depth_source(self, dataset, provider):
+        if provider is not None:
+            return provider, "provided"
+        kind = self.params.depth
+        if kind == "auto":
+            kind = "stereo" if stereo_pairs(self.rig) else "overlap"
+        if kind == "stereo":
+            return StereoDepth(self.rig, self.desc, blocks=self.params.disparity_blocks), kind
+        if kind == "oracle":
+            from .depth_maps import OracleDepth
+            return OracleDepth(dataset), kind
+        from .depth_maps import OverlapDepth
+        return OverlapDepth(self.rig, self.recordings, self.track), kind
+
+    def _cached(self, kind, n, frame, compute):
+        """Per-frame values of camera ``n``, kept for this frame and the previous one."""
+        key = (kind, n, frame)
+        if key not in self._cache:
+            for old in [k for k in self._cache if k[:2] == (kind, n) and k[2] < frame - 1]:
+                del self._cache[old]
+            self._cache[key] = compute()
+        return self._cache[key]
+
+    def frame_bits(self, n, frame):
+        """Descriptor bits (H, W) of frame ``frame`` of camera ``n``."""
+        return self._cached("bits", n, frame,
+                            lambda: describe(self.recordings[n].rows[frame], self.desc))
+
+    def _inverse_depth(self, n, frame, rows, rotations, positions):
+        """1/Z (B, W) of camera n's rows (NaN: unknown)."""
+        if not isinstance(self.depth, StereoDepth):
+            return self.depth.inverse_depth(n, frame, rows, rotations, positions)
+        if not self.depth.has_depth(n):
+            return np.full((len(rows), self.rig.cameras[n].width), np.nan)
+        pair = self.depth.pair_of[n]
+        left, right, _ = self.depth.pairs[pair]
+        # a whole frame at once: the same values per row, far fewer matcher calls
+        maps = self._cached("depth", pair, frame, lambda: self.depth.inverse_depth(
+            pair, self.frame_bits(left, frame), self.frame_bits(right, frame)))
+        return maps[0 if n == left else 1][rows]
+
+    # --- measurements of a block -----------------------------------------------------
+
+    def _reference(self, n, frame, rows, rotations, positions, inverse_depth):
+        cam = self.rig.cameras[n]
+        if isinstance(self.reference, HomographyReference):
+            return self.reference.rows(n, frame, rows, rotations, positions, self.columns,
+                                       inverse_depth if self.params.parallax else None)
+        ref = self.reference.rows(n, frame, rows)
+        if self.params.follow_rows:
+            _, y = reference_pixels(cam, cam.rays[rows][:, self.columns],
+                                    inverse_depth[:, self.columns],
+                                    rotations, positions, ref.view_rotation,
+                                    ref.source_centre)
+            offset = _row_means(y - rows[:, None])
+            source = np.clip(rows + np.rint(offset).astype(int), 0, cam.height - 1)
+            ref = self.reference.rows(n, frame, source)
+        return ref
+
+    def _entry(self, n, frame, rows, slot_ids, forecasts):
+        """Predict, build the reference and prepare one camera's rows of a block."""
+        cam, rec = self.rig.cameras[n], self.recordings[n]
+        times = rec.time[frame, rows]
+        prev_rot, prev_pos = self.track.at(times - self.slots.period)
+        rotations, positions = compose(prev_rot, prev_pos, forecasts)
+        full_depth = self._inverse_depth(n, frame, rows, rotations, positions)
+        inverse_depth = full_depth[:, self.columns]
+        ref = self._reference(n, frame, rows, rotations, positions, full_depth)
+        vx, _ = reference_pixels(cam, cam.rays[rows][:, self.columns], inverse_depth,
+                                 rotations, positions, ref.view_rotation, ref.source_centre)
+        predicted = self.columns - vx
+        limit = cam.width // 4
+        centres = np.clip(np.rint(_row_means(predicted)), -limit, limit).astype(int)
+        return _Entry(camera=n, frame=frame, rows=rows, slots=slot_ids,
+                      inverse_depth=inverse_depth, ref=ref, predicted=predicted,
+                      centres=centres, bits=self.frame_bits(n, frame)[rows])
+
+    def _measure(self, entries):
+        """Match the block's rows (grouped by window centre across cameras) and form each
+        entry's segment equations (arrays (B, K, ...))."""
+        p, width = self.params, self.rig.cameras[0].width
+        centres = np.concatenate([e.centres for e in entries])
+        owner = np.concatenate([np.full(len(e.rows), j) for j, e in enumerate(entries)])
+        local = np.concatenate([np.arange(len(e.rows)) for e in entries])
+        cur = np.concatenate([e.bits for e in entries])
+        ref = np.concatenate([e.ref.bits for e in entries])
+        for e in entries:
+            b = len(e.rows)
+            e.shift, e.peak_ratio = np.full((b, p.segments), np.nan), np.zeros((b, p.segments))
+            e.lo, e.hi = np.zeros((b, p.segments), int), np.zeros((b, p.segments), int)
+        for centre in np.unique(centres):
+            sel = np.flatnonzero(centres == centre)
+            result = match(cur[sel], ref[sel], self.desc, self.matcher, centre=int(centre))
+            bounds = np.array(segment_bounds(width, self.desc, self.matcher, int(centre)))
+            good = ~result.textureless & ~result.edge_hit
+            for j in np.unique(owner[sel]):
+                mine = owner[sel] == j
+                e, rows = entries[j], local[sel][mine]
+                e.shift[rows] = np.where(good[mine], result.shift[mine], np.nan)
+                e.peak_ratio[rows] = np.where(good[mine], result.peak_ratio[mine], 0.0)
+                e.lo[rows], e.hi[rows] = bounds[:, 0], bounds[:, 1]
+        for e in entries:
+            self._equations(e)
+
+    def _equations(self, e):
+        """Segment-averaged design rows and predicted shifts of an entry; segments with too
+        little depth or an unusable reference get no measurement."""
+        p, cam = self.params, self.rig.cameras[e.camera]
+        usable = np.isfinite(e.inverse_depth) & np.isfinite(e.predicted)
+        design = self.design_tables[e.camera].rows(e.rows, e.inverse_depth)
+        stride = p.geometry_stride
+        lo, hi = -(-e.lo // stride), -(-e.hi // stride)     # strided columns in [lo, hi)
+        e.design, share = segment_means(design, usable, lo, hi)
+        e.expected, _ = segment_means(e.predicted, usable, lo, hi)
+        margin = p.window + self.desc.radius
+        invalid = np.cumsum(np.concatenate([np.zeros((len(e.rows), 1)), ~e.ref.valid],
+                                           axis=1), axis=1)
+        offset = e.centres[:, None]
+        first = np.clip(e.lo - offset - margin, 0, cam.width)
+        last = np.clip(e.hi - offset + margin, 0, cam.width)
+        clean = (np.take_along_axis(invalid, last, 1) == np.take_along_axis(invalid, first, 1))
+        ok = clean & (share >= p.min_depth_fraction)
+        e.shift = np.where(ok, e.shift, np.nan)
+        e.peak_ratio = np.where(ok, e.peak_ratio, 0.0)
+        columns = self.columns
+        e.masks = usable[:, None, :] & (columns >= e.lo[..., None]) & (columns < e.hi[..., None])
+
+    # --- the slot loop ---------------------------------------------------------------
+
+    def run(self, progress=False):
+        slots, p = self.slots, self.params
+        n_cams = len(self.rig.cameras)
+        size = len(slots)
+        out = {
+            "updated": np.zeros(size, dtype=bool), "condition": np.full(size, np.nan),
+            "equations": np.zeros(size, dtype=int),
+            "camera_confidence": np.full((size, n_cams), np.nan),
+            "motion": np.full((size, 6), np.nan), "linear_step": np.full((size, 6), np.nan),
+            "refined_step": np.full((size, 6), np.nan)}
+        starts = range(slots.first_tracked, size, p.block_rows)
+        if progress:
+            from tqdm import tqdm
+            starts = tqdm(starts, unit="block", desc=f"track {self.rig.name}")
+        for first in starts:
+            self._run_block(first, min(first + p.block_rows, size), out)
+        occupied = np.flatnonzero(slots.occupied)
+        n = self.track.count
+        return TrackResult(
+            times=self.track.times[:n].copy(), rotations=self.track.rotations[:n].copy(),
+            positions=self.track.positions[:n].copy(),
+            tracked=occupied >= slots.first_tracked,
+            **{key: value[occupied] for key, value in out.items()},
+            period=slots.period,
+            params={**asdict(p), "depth_source": self.depth_source})
+
+    def _run_block(self, first, stop, out):
+        slots, k = self.slots, self.params.segments
+        occupied = np.flatnonzero(slots.occupied[first:stop]) + first
+        ahead = np.cumsum(slots.occupied[first:stop])          # forecast steps per slot
+        block_forecasts = {s: self.motion.forecast(ahead[s - first]) for s in occupied}
+        entries = []
+        for n in range(len(self.rig.cameras)):
+            frames, rows, slot_ids = slots.members(n, first, stop)
+            for frame in np.unique(frames[frames >= 1]):
+                part = frames == frame
+                forecasts = np.array([block_forecasts[s] for s in slot_ids[part]])
+                entries.append(self._entry(n, int(frame), rows[part], slot_ids[part],
+                                           forecasts))
+        if entries:
+            self._measure(entries)
+        table = _Entry(
+            slot=np.concatenate([np.repeat(e.slots, k) for e in entries] or [[]]).astype(int),
+            camera=np.concatenate([np.full(e.shift.size, e.camera) for e in entries] or [[]]
+                                  ).astype(int),
+            channel=np.concatenate([np.tile(e.camera * k + np.arange(k), len(e.rows))
+                                    for e in entries] or [[]]).astype(int),
+            design=np.concatenate([e.design.reshape(-1, 6) for e in entries] or [np.zeros((0, 6))]),
+            innovation=np.concatenate([(e.shift - e.expected).ravel() for e in entries] or [[]]),
+            ratio=np.concatenate([e.peak_ratio.ravel() for e in entries] or [[]]),
+            source=[(e, i) for e in entries for i in range(len(e.rows))])
+        order = np.argsort(table.slot, kind="stable")
+        bounds = np.searchsorted(table.slot[order], np.append(occupied, stop))
+        previous = self.track.at(slots.times[occupied] - slots.period)
+        for j, s in enumerate(occupied):
+            mine = order[bounds[j]:bounds[j + 1]]
+            self._step(s, block_forecasts[s], table, mine, (previous[0][j], previous[1][j]),
+                       out)
+
+    def _step(self, s, linearised_at, table, mine, previous, out):
+        """Robust weighted solve of slot ``s`` from the block's measurements ``mine``."""
+        p = self.params
+        forecast = self.motion.forecast()
+        step, condition, used = None, np.nan, 0
+        if len(mine):
+            design, ratio = table.design[mine], table.ratio[mine]
+            residual = table.innovation[mine] - design @ (forecast - linearised_at)
+            ok = np.isfinite(residual) & np.all(np.isfinite(design), axis=1) & (ratio > 0)
+            x, weight = self.scale.judge(table.channel[mine][ok], residual[ok])
+            confidence = np.zeros(len(mine))
+            confidence[ok] = ratio[ok] * weight
+            outlier = np.zeros(len(mine), dtype=bool)
+            outlier[ok] = np.abs(x) > p.huber_k
+            cleaned = np.where(outlier | ~ok, 0.0, residual)    # outlier -> the forecast
+            best = np.zeros(len(self.rig.cameras))
+            np.maximum.at(best, table.camera[mine], confidence)
+            present = np.unique(table.camera[mine])
+            out["camera_confidence"][s, present] = best[present]
+            used = int(np.count_nonzero(confidence))
+            if confidence.max() >= p.min_confidence:
+                normal, rhs = normal_equations(design[ok], cleaned[ok], confidence[ok])
+                solution = solve_normal(normal, rhs, p.max_condition**2)
+                condition = float(np.sqrt(solution.condition))
+                if solution.ok:
+                    step = solution.step
+                    if p.solver == "nonlinear":
+                        parts = [table.source[m // p.segments] for m in mine[::p.segments]]
+                        out["linear_step"][s] = step
+                        step = self._refine(parts, forecast, step, confidence, outlier)
+                        out["refined_step"][s] = step
+        level = self.motion.update(None if step is None else forecast + step)
+        rotation, position = compose(*previous, level)
+        self.track.append(self.slots.times[s], rotation, position)
+        self.track.set_extrapolation(level / self.slots.period)
+        out["updated"][s], out["condition"][s] = step is not None, condition
+        out["equations"][s], out["motion"][s] = used, level
+
+    def _exact_shifts(self, parts, motion):
+        """Segment shifts predicted by the full projection model for the one-frame motion
+        ``motion`` (the nonlinear counterpart of the design rows)."""
+        shifts = []
+        for e, i in parts:
+            cam = self.rig.cameras[e.camera]
+            time = self.recordings[e.camera].time[e.frame, e.rows[i]] - self.slots.period
+            rotation, position = compose(*self.track.at(time), motion)
+            vx, _ = reference_pixels(cam, cam.rays[e.rows[i]][self.columns],
+                                     e.inverse_depth[i], rotation, position,
+                                     e.ref.view_rotation[i], e.ref.source_centre[i])
+            shift = self.columns - vx
+            masks = e.masks[i]
+            shifts.append(np.where(masks, shift, 0.0).sum(axis=1)
+                          / np.maximum(masks.sum(axis=1), 1))
+        return np.concatenate(shifts)
+
+    def _refine(self, parts, forecast, step, confidence, outlier):
+        """Weighted nonlinear least squares on the exact model, from the linear step;
+        outliers keep standing for the forecast as in the linear solve."""
+        measured = np.concatenate([e.shift[i] for e, i in parts])
+        measured = np.where(outlier, self._exact_shifts(parts, forecast), measured)
+        weight = np.sqrt(confidence)
+        use = confidence > 0
+
+        def residuals(delta):
+            return weight[use] * (measured - self._exact_shifts(parts, forecast + delta))[use]
+
+        return least_squares(residuals, step, method="lm", x_scale=np.full(6, 1e-3)).x
+
+
+def track(dataset, params=None, *, progress=False, depth_provider=None):
+    """Run the golden tracker on ``dataset``; returns a :class:`TrackResult`."""
+    return Tracker(dataset, params or TrackerParams(), depth_provider).run(progress)
