@@ -28,7 +28,19 @@ class CycleCounter:
             self.cycle += 1
 
 
-class StreamSource:
+class _StreamPort:
+    """The ``valid``/``ready``/``payload`` handles of stream port ``port`` of ``dut``."""
+
+    def __init__(self, dut, port, layout, clock, rng):
+        self.valid = getattr(dut, f"{port}__valid")
+        self.ready = getattr(dut, f"{port}__ready")
+        self.payload = getattr(dut, f"{port}__payload")
+        self.layout = layout
+        self.clock = clock
+        self.rng = rng
+
+
+class StreamSource(_StreamPort):
     """Drives payloads into a stream port, holding each until it is transferred.
 
     ``valid_prob`` < 1 inserts random idle cycles (``rng`` is a seeded
@@ -37,12 +49,7 @@ class StreamSource:
     """
 
     def __init__(self, dut, port, layout, clock, *, rng=None, valid_prob=1.0):
-        self.valid = getattr(dut, f"{port}__valid")
-        self.ready = getattr(dut, f"{port}__ready")
-        self.payload = getattr(dut, f"{port}__payload")
-        self.layout = layout
-        self.clock = clock
-        self.rng = rng
+        super().__init__(dut, port, layout, clock, rng)
         self.valid_prob = valid_prob
         self.sent = []
         self.valid.value = 0
@@ -65,7 +72,7 @@ class StreamSource:
         self.valid.value = 0
 
 
-class StreamSink:
+class StreamSink(_StreamPort):
     """Accepts transfers from a stream port, with random ``ready`` backpressure.
 
     ``received`` records ``(cycle, payload)`` of every transfer; the payload is unpacked
@@ -73,12 +80,7 @@ class StreamSink:
     """
 
     def __init__(self, dut, port, layout, clock, *, rng=None, ready_prob=1.0):
-        self.valid = getattr(dut, f"{port}__valid")
-        self.ready = getattr(dut, f"{port}__ready")
-        self.payload = getattr(dut, f"{port}__payload")
-        self.layout = layout
-        self.clock = clock
-        self.rng = rng
+        super().__init__(dut, port, layout, clock, rng)
         self.ready_prob = ready_prob
         self.received = []
         self.ready.value = 0
