@@ -6,7 +6,6 @@ dataset. ``RUN_SLOW=1`` adds the 640-pixel-wide build.
 """
 
 import os
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -14,7 +13,7 @@ import pytest
 
 from golden.dt_scenes import make_scene
 from hdl.dt_filter import DomainTransformFilter, DtFilterParams
-from sim_tests.common.cocotb_runner import BUILD_ROOT, run_cocotb
+from sim_tests.common.cocotb_runner import run_cocotb
 
 SLOW = pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="set RUN_SLOW=1")
 
@@ -44,18 +43,16 @@ def _simulator_dataset(directory):
     from golden.simulator import simulate
     from golden.trajectory import SpeedProfile, make_trajectory
     path = directory / "radial4.npz"
-    if not path.exists():
-        trajectory = make_trajectory("head", seed=9, linear_speed=SpeedProfile.parse("1.4", "v"),
-                                     angular_speed=SpeedProfile.parse("2.0", "w"))
-        simulate(load_rig("radial4"), default_scene_spec(9), trajectory, 0.004, seed=9).save(path)
+    trajectory = make_trajectory("head", seed=9, linear_speed=SpeedProfile.parse("1.4", "v"),
+                                 angular_speed=SpeedProfile.parse("2.0", "w"))
+    simulate(load_rig("radial4"), default_scene_spec(9), trajectory, 0.004, seed=9).save(path)
     assert Dataset.load(path).cameras[0].rows.shape[1:] == (480, 640)
     return path
 
 
 @pytest.fixture(scope="module")
-def frame_sources():
-    directory = BUILD_ROOT / "dt_filter-frames"
-    directory.mkdir(parents=True, exist_ok=True)
+def frame_sources(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("dt_filter_frames")  # one per test worker
     return {"DT_IMAGE_PAIRS": os.pathsep.join(_scene_images(directory)),
             "DT_DATASET": str(_simulator_dataset(directory))}
 
