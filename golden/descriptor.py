@@ -24,18 +24,25 @@ Conventions shared with the emulator and the HDL
   ``|d − d*| ≥ 2`` (the minimum's own slopes are not a rival peak).
 * Sub-pixel: ``δ = (C₋₁ − C₊₁) / (2 (C₋₁ − 2 C₀ + C₊₁))``; ``δ = 0`` when ``d*`` is on the
   window edge (flagged) or the denominator is zero.
-* Peak ratio: ``min(C₂ / C₁, cap)``, ``cap`` when ``C₁ = 0`` and ``C₂ > 0``; a segment with
-  fewer than ``min_transitions`` bit changes in the current row is flagged textureless
-  and gets confidence 0.
+* Peak ratio: ``min(C₂ / C₁, cap)``, ``cap`` when ``C₁ = 0`` and ``C₂ > 0``.
+* Textureless: a segment of the current row with fewer than ``min_transitions`` bit
+  changes, or (when the caller passes the row's strong columns) fewer than
+  ``min_strong`` columns whose response magnitude is at least ``strong_response``, is
+  flagged textureless and gets confidence 0. The second test is what catches a flat row
+  under sensor noise: its sign bits are random and change all the time, and with short
+  segments a random cost curve can show a deep, isolated minimum by chance.
 """
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["DescriptorParams", "MatchParams", "MatchResult", "dog2_kernel", "describe",
-           "match", "compare_range", "segment_bounds"]
+__all__ = ["DescriptorParams", "MatchParams", "MatchResult", "CostPeaks", "dog2_kernel",
+           "response", "describe", "strength", "hamming_costs", "transitions",
+           "strong_counts", "textureless", "cost_peaks", "match", "compare_range",
+           "segment_bounds"]
 
 
 def _check_positive_int(name, value, minimum=1):
@@ -53,14 +60,23 @@ class DescriptorParams:
     ----------
     sigma : float
         Standard deviation of the Gaussian, pixels (0.5 to 8).
+    strong_response : float
+        A column is *strong* where the response magnitude (pixel values through the
+        peak-normalized kernel) is at least this; sensor noise of σₙ gives a response of
+        about 1.6 σₙ at σ = 2, an edge of contrast h about 1.5 h.
     """
     sigma: float = 2.0
+    strong_response: float = 12.0
 
     def __post_init__(self):
         if not isinstance(self.sigma, (int, float)) or isinstance(self.sigma, bool):
             raise TypeError(f"sigma must be a number, not {self.sigma!r}")
         if not 0.5 <= self.sigma <= 8.0:
             raise ValueError(f"sigma must be between 0.5 and 8 pixels, not {self.sigma}")
+        if (not isinstance(self.strong_response, (int, float))
+                or isinstance(self.strong_response, bool) or self.strong_response < 0):
+            raise ValueError(f"strong_response must be a number ≥ 0, not "
+                             f"{self.strong_response!r}")
 
     replace = replace
 
@@ -85,12 +101,15 @@ class MatchParams:
         Upper bound of the peak-ratio confidence.
     min_transitions : int
         Fewer bit changes than this in a segment of the current row: textureless.
+    min_strong : int
+        Fewer strong columns than this in a segment of the current row: textureless.
     """
     shift_min: int = -20
     shift_max: int = 20
     segments: int = 1
     peak_ratio_cap: float = 2.0
     min_transitions: int = 4
+    min_strong: int = 16
 
     def __post_init__(self):
         for name in ("shift_min", "shift_max"):
@@ -102,6 +121,7 @@ class MatchParams:
                              f"least 3 shifts (parabola fit)")
         _check_positive_int("segments", self.segments)
         _check_positive_int("min_transitions", self.min_transitions, minimum=0)
+        _check_positive_int("min_strong", self.min_strong, minimum=0)
         if not isinstance(self.peak_ratio_cap, (int, float)) or not self.peak_ratio_cap > 1:
             raise ValueError(f"peak_ratio_cap must be a number > 1, not {self.peak_ratio_cap!r}")
 
@@ -126,31 +146,55 @@ def dog2_kernel(params):
     return k / np.abs(k).max()
 
 
-def response(rows, params):
-    """Filter response on the interior ``[R, W − R)`` of each row; shape ``(..., W − 2R)``."""
-    rows = np.asarray(rows, dtype=np.float64)
-    k = dog2_kernel(params)
+def response(rows, params, kernel=None):
+    """Filter response on the interior ``[R, W − R)`` of each row; shape ``(..., W − 2R)``.
+
+    ``kernel`` (``2R + 1`` taps) replaces :func:`dog2_kernel`; with integer taps and
+    integer rows the response is computed in exact integer arithmetic, which is how the
+    emulator applies the hardware's quantized kernel with the same border convention.
+    """
+    k = dog2_kernel(params) if kernel is None else np.asarray(kernel)
+    if k.shape != (2 * params.radius + 1,):
+        raise ValueError(f"kernel must have {2 * params.radius + 1} taps, not {k.shape}")
+    integer = k.dtype.kind in "iu" and np.asarray(rows).dtype.kind in "iu"
+    rows = np.asarray(rows, dtype=np.int64 if integer else np.float64)
     width = rows.shape[-1]
     interior = width - 2 * params.radius
     if interior < 1:
         raise ValueError(f"rows of width {width} are too short for sigma {params.sigma}")
     # correlation with the (symmetric) kernel over the valid part only
-    out = np.zeros(rows.shape[:-1] + (interior,))
+    out = np.zeros(rows.shape[:-1] + (interior,), dtype=rows.dtype)
     for j, coeff in enumerate(k):
         out += coeff * rows[..., j:j + interior]
     return out
 
 
-def describe(rows, params):
+def describe(rows, params, kernel=None):
     """Descriptor bits of ``rows`` (``(..., W)``), as a bool array of the same shape.
 
     Border bits (``x < R`` or ``x ≥ W − R``) are ``False`` and never compared.
+    ``kernel`` as in :func:`response`.
     """
     rows = np.asarray(rows)
     bits = np.zeros(rows.shape, dtype=bool)
     r = params.radius
-    bits[..., r:rows.shape[-1] - r] = response(rows, params) > 0
+    bits[..., r:rows.shape[-1] - r] = response(rows, params, kernel) > 0
     return bits
+
+
+def strength(rows, params, kernel=None, threshold=None):
+    """Strong columns of ``rows``: ``|response| ≥ threshold`` (default
+    ``params.strong_response``), as a bool array like :func:`describe` (borders False).
+
+    ``kernel`` as in :func:`response`; an integer kernel wants an integer threshold in
+    the kernel's scale.
+    """
+    rows = np.asarray(rows)
+    threshold = params.strong_response if threshold is None else threshold
+    strong = np.zeros(rows.shape, dtype=bool)
+    r = params.radius
+    strong[..., r:rows.shape[-1] - r] = np.abs(response(rows, params, kernel)) >= threshold
+    return strong
 
 
 def compare_range(width, desc, match_params, centre=0):
@@ -212,27 +256,66 @@ def transitions(cur_bits, desc, match_params, centre=0):
     return np.stack([change[..., lo:hi - 1].sum(axis=-1) for lo, hi in bounds], axis=-1)
 
 
-def match(cur_bits, ref_bits, desc, match_params, centre=0):
-    """Match descriptor rows; returns a :class:`MatchResult` with one entry per segment."""
-    costs = hamming_costs(cur_bits, ref_bits, desc, match_params, centre)
+class CostPeaks(NamedTuple):
+    """The integer facts :func:`match` derives from the costs, shape ``(..., K)`` each."""
+    best: np.ndarray     # index of the first minimum
+    c0: np.ndarray       # its cost
+    c2: np.ndarray       # lowest cost at |index − best| ≥ 2
+    cm: np.ndarray       # cost at best − 1 (clipped to the window)
+    cp: np.ndarray       # cost at best + 1 (clipped to the window)
+    edge: np.ndarray     # best on the window edge
+
+
+def cost_peaks(costs):
+    """First minimum, second minimum and the minimum's neighbours of ``(..., n)`` costs.
+
+    Shared by the float matcher and the emulator (the hardware's costs are the same
+    integers), so only the sub-pixel and confidence arithmetic differ between them.
+    """
+    costs = np.asarray(costs)
     n = costs.shape[-1]
     best = np.argmin(costs, axis=-1)                      # first minimum
     c0 = np.take_along_axis(costs, best[..., None], -1)[..., 0]
-    idx = np.arange(n)
-    far = np.abs(idx - best[..., None]) >= 2
+    far = np.abs(np.arange(n) - best[..., None]) >= 2
     c2 = np.where(far, costs, np.iinfo(np.int64).max).min(axis=-1)
-    edge = (best == 0) | (best == n - 1)
     cm = np.take_along_axis(costs, np.clip(best - 1, 0, n - 1)[..., None], -1)[..., 0]
     cp = np.take_along_axis(costs, np.clip(best + 1, 0, n - 1)[..., None], -1)[..., 0]
+    return CostPeaks(best, c0, c2, cm, cp, (best == 0) | (best == n - 1))
+
+
+def strong_counts(cur_strong, desc, match_params, centre=0):
+    """Strong columns of the current row inside each segment, ``(..., K)``."""
+    cur_strong = np.asarray(cur_strong, dtype=bool)
+    bounds = segment_bounds(cur_strong.shape[-1], desc, match_params, centre)
+    return np.stack([cur_strong[..., lo:hi].sum(axis=-1) for lo, hi in bounds], axis=-1)
+
+
+def textureless(cur_bits, desc, match_params, centre=0, cur_strong=None):
+    """Textureless segments, ``(..., K)`` bool: too few bit changes, or (with
+    ``cur_strong`` from :func:`strength`) too few strong columns."""
+    flat = transitions(cur_bits, desc, match_params, centre) < match_params.min_transitions
+    if cur_strong is not None:
+        flat |= strong_counts(cur_strong, desc, match_params, centre) < match_params.min_strong
+    return flat
+
+
+def match(cur_bits, ref_bits, desc, match_params, centre=0, cur_strong=None):
+    """Match descriptor rows; returns a :class:`MatchResult` with one entry per segment.
+
+    Pass ``cur_strong`` (:func:`strength` of the current row) to flag noisy flat
+    segments textureless as well.
+    """
+    costs = hamming_costs(cur_bits, ref_bits, desc, match_params, centre)
+    best, c0, c2, cm, cp, edge = cost_peaks(costs)
     denom = cm - 2 * c0 + cp
     with np.errstate(divide="ignore", invalid="ignore"):
         delta = np.where(edge | (denom == 0), 0.0, (cm - cp) / (2.0 * denom))
     cap = float(match_params.peak_ratio_cap)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(c0 == 0, np.where(c2 > 0, cap, 0.0), np.minimum(c2 / c0, cap))
-    textureless = transitions(cur_bits, desc, match_params, centre) < match_params.min_transitions
-    ratio = np.where(textureless, 0.0, ratio)
+    flat = textureless(cur_bits, desc, match_params, centre, cur_strong)
+    ratio = np.where(flat, 0.0, ratio)
     int_shift = centre + match_params.shift_min + best
     return MatchResult(shift=int_shift + delta, int_shift=int_shift, subpixel=delta,
                        peak_ratio=ratio, cost_min=c0, cost_second=c2, edge_hit=edge,
-                       textureless=textureless, costs=costs)
+                       textureless=flat, costs=costs)

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from golden.descriptor import (STEREO_MATCH, DescriptorParams, MatchParams, compare_range,
-                               describe, dog2_kernel, match, segment_bounds)
+                               cost_peaks, describe, dog2_kernel, match, response,
+                               segment_bounds, strength)
 
 SEED = 20261123
 
@@ -83,9 +84,51 @@ def test_segments_split_the_compared_range():
     assert all(a[1] == b[0] for a, b in zip(bounds, bounds[1:]))
 
 
+def test_integer_kernel_gives_exact_integer_response():
+    """The emulator's path: integer taps on integer rows, computed in integers."""
+    p = DescriptorParams()
+    rows = np.random.default_rng(SEED).integers(0, 256, (4, 80))
+    kernel = np.round(dog2_kernel(p) * 256).astype(np.int64)
+    exact = response(rows, p, kernel)
+    assert exact.dtype == np.int64
+    assert np.array_equal(exact, np.round(response(rows.astype(float), p,
+                                                   kernel.astype(float))).astype(np.int64))
+    with pytest.raises(ValueError, match="kernel must have 13 taps"):
+        response(rows, p, kernel[1:])
+
+
+def test_cost_peaks():
+    costs = np.array([[9, 4, 2, 3, 2, 8, 5],             # first minimum wins ties
+                      [1, 6, 7, 7, 6, 5, 4]])            # minimum on the edge
+    best, c0, c2, cm, cp, edge = cost_peaks(costs)
+    assert best.tolist() == [2, 0] and c0.tolist() == [2, 1]
+    assert c2.tolist() == [2, 4]      # index 4 (distance 2) and index 6: far minima
+    assert cm.tolist() == [4, 1] and cp.tolist() == [3, 6] and edge.tolist() == [False, True]
+
+
+def test_noisy_flat_rows_are_textureless_given_strength():
+    """Sign bits of noise change all the time; the strong-column test still sees a
+    flat row, where short segments could otherwise match by chance."""
+    rng = np.random.default_rng(SEED)
+    desc, m = DescriptorParams(), MatchParams(segments=8)
+    textured = textured_row(rng, 640) * 0.5 + 64
+    for _ in range(20):
+        cur = 97 + rng.normal(0, 2, 640)
+        ref = 97 + rng.normal(0, 2, 640)
+        plain = match(describe(cur, desc), describe(ref, desc), desc, m)
+        assert not plain.textureless.any()
+        r = match(describe(cur, desc), describe(ref, desc), desc, m,
+                  cur_strong=strength(cur, desc))
+        assert r.textureless.all() and (r.peak_ratio == 0).all()
+    r = match(describe(textured, desc), describe(textured, desc), desc, m,
+              cur_strong=strength(textured, desc))
+    assert not r.textureless.any()
+
+
 @pytest.mark.parametrize("kwargs, error, message", [
     ({"sigma": 0.1}, ValueError, "sigma must be between 0.5 and 8 pixels, not 0.1"),
     ({"sigma": "2"}, TypeError, "sigma must be a number"),
+    ({"strong_response": -1}, ValueError, "strong_response must be a number ≥ 0, not -1"),
 ])
 def test_bad_descriptor_params(kwargs, error, message):
     with pytest.raises(error, match=message):
@@ -95,6 +138,7 @@ def test_bad_descriptor_params(kwargs, error, message):
 @pytest.mark.parametrize("kwargs, error, message", [
     ({"shift_min": 0, "shift_max": 1}, ValueError, "must hold at least 3 shifts"),
     ({"segments": 0}, ValueError, "segments must be an integer ≥ 1, not 0"),
+    ({"min_strong": -2}, ValueError, "min_strong must be an integer ≥ 0, not -2"),
     ({"shift_min": 1.5}, TypeError, "shift_min must be an integer"),
     ({"peak_ratio_cap": 1.0}, ValueError, "peak_ratio_cap must be a number > 1"),
 ])

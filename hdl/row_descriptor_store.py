@@ -1,0 +1,130 @@
+"""Reference store: the previous frame's descriptor row for every row of a camera.
+
+Descriptor bits of columns ``0 … width − R − 1`` of every row in 32-bit words of a
+``lib.memory`` (20 words per 640-pixel row, 9,600 words = 307,200 bits for 640×480),
+plus a tag per row (valid, frame number). Each word is read one column before the row
+reaches it and written back, with the new row's bits, after its last column: the
+read of the previous frame's word always comes first, so reading the reference and
+writing the new row never collide, whatever the window and centre, without a second
+frame buffer. The matcher lines the bits up with its own delay lines.
+"""
+
+from amaranth.hdl import Cat, Module, Mux, Signal
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from .row_descriptor_layouts import descriptor_layout, pair_layout
+from .row_descriptor_params import RowDescriptorParams
+
+__all__ = ["ReferenceStore"]
+
+#: Bits per memory word (a power of two: the bit within a word is the column's low bits).
+WORD_BITS = 32
+
+
+class ReferenceStore(wiring.Component):
+    """Swap a streaming descriptor row with the stored row of the previous frame.
+
+    Column ``j = pos − R ≥ 0`` of row ``meta.row`` comes out as ``ref`` with the bit the
+    previous write of that row left there, and the current bit replaces it. The row's
+    tag is read with every column and written with its last one: ``valid = not
+    meta.bad`` (the row's final verdict), ``frame = meta.frame``. ``no_reference`` is
+    set unless the tag is valid and from frame ``meta.frame − 1`` (modulo
+    ``2**frame_bits``). Rows at or beyond ``height`` are not written and read as zeros.
+
+    Members
+    -------
+    i : In(stream.Signature(descriptor_layout(params, 1)))
+    o : Out(stream.Signature(pair_layout(params)))
+
+    Latency 2 (bit select, output register with the tag check); one column per clock;
+    backpressure stalls both stages. Reset clears the valid bits, not the memories
+    (which start all zero: no valid reference until a frame has been stored).
+    """
+
+    latency = 2
+
+    def __init__(self, params):
+        if not isinstance(params, RowDescriptorParams):
+            raise TypeError(f"params must be a RowDescriptorParams, not {params!r}")
+        self.params = params
+        super().__init__({
+            "i": In(stream.Signature(descriptor_layout(params, 1))),
+            "o": Out(stream.Signature(pair_layout(params))),
+        })
+
+    @property
+    def words_per_row(self):
+        return -(-(self.params.width - self.params.radius) // WORD_BITS)
+
+    def elaborate(self, platform):
+        p = self.params
+        m = Module()
+        stall = self.o.valid & ~self.o.ready
+        advance = ~stall
+        m.d.comb += self.i.ready.eq(advance)
+        item = self.i.payload
+        accept = self.i.valid & advance
+        stored = p.width - p.radius            # columns 0 … stored − 1 are kept
+
+        tag_layout = data.StructLayout({"valid": 1, "frame": p.frame_bits})
+        m.submodules.words = words = Memory(shape=WORD_BITS,
+                                            depth=p.height * self.words_per_row, init=[])
+        m.submodules.tags = tags = Memory(shape=tag_layout, depth=p.height, init=[])
+        words_rd, words_wr = words.read_port(), words.write_port()
+        tags_rd, tags_wr = tags.read_port(), tags.write_port()
+
+        # the row's first word, registered with its first item (R ≥ 2, so the first
+        # read, at column −1 = pos R − 1, comes after it)
+        row_base = Signal(range(p.height * self.words_per_row))
+        in_frame = item.meta.row < p.height
+        with m.If(accept & item.first):
+            m.d.sync += row_base.eq(item.meta.row * self.words_per_row)
+        column = item.pos - p.radius                       # signed: −R … width − R − 1
+        bit = column[:5]
+        word = column >> 5
+        next_word = (column + 1) >> 5
+
+        # read the next word while passing the last column of this one
+        m.d.comb += [
+            words_rd.addr.eq(row_base + next_word),
+            words_rd.en.eq(accept & (bit == WORD_BITS - 1) & (column + 1 < stored)),
+        ]
+        old_word = Signal(WORD_BITS)
+        ref_bit = Mux(bit == 0, words_rd.data[0], old_word.bit_select(bit, 1))
+        with m.If(accept & (bit == 0)):
+            m.d.sync += old_word.eq(words_rd.data)
+
+        # collect the new word; write it with its last column (or the row's last)
+        new_word = Signal(WORD_BITS)
+        merged = Cat(Mux(bit == k, item.bits[0], new_word[k]) for k in range(WORD_BITS))
+        with m.If(accept):
+            m.d.sync += new_word.eq(merged)
+        m.d.comb += [
+            words_wr.addr.eq(row_base + word), words_wr.data.eq(merged),
+            words_wr.en.eq(accept & (column >= 0) & in_frame &
+                           ((bit == WORD_BITS - 1) | (column == stored - 1))),
+            tags_rd.addr.eq(item.meta.row), tags_rd.en.eq(advance),
+            tags_wr.addr.eq(item.meta.row),
+            tags_wr.data.valid.eq(~item.meta.bad), tags_wr.data.frame.eq(item.meta.frame),
+            tags_wr.en.eq(accept & item.last & in_frame),
+        ]
+
+        s1_valid = Signal()
+        s1 = Signal(pair_layout(p))
+        with m.If(advance):
+            m.d.sync += [s1_valid.eq(self.i.valid), s1.cur.eq(item.bits[0]),
+                         s1.ref.eq(ref_bit), s1.strong.eq(item.strong[0]),
+                         s1.pos.eq(item.pos), s1.first.eq(item.first), s1.last.eq(item.last),
+                         s1.meta.eq(item.meta)]
+            tag = tags_rd.data
+            previous = (s1.meta.frame - 1)[:p.frame_bits]
+            s1_in_frame = s1.meta.row < p.height
+            out = self.o.payload
+            m.d.sync += [
+                self.o.valid.eq(s1_valid), out.eq(s1),
+                out.ref.eq(s1.ref & s1_in_frame),
+                out.no_reference.eq(~tag.valid | (tag.frame != previous) | ~s1_in_frame),
+            ]
+        return m
