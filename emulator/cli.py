@@ -21,6 +21,7 @@ COMMANDS = (
     "emulator.commands.bench",
     "emulator.commands.build",
     "emulator.commands.synth_report",
+    "emulator.commands.host",
     "emulator.commands.simulate",
     "emulator.commands.dts",
     "emulator.commands.dtfilter",

@@ -103,9 +103,6 @@ class PacketParams:
             if not fmt.signed:
                 raise ValueError(f"{name} must be signed, not {fmt}")
             _check_bits(f"{name} width", fmt.width, high=32)
-        if self.payload_bytes > 255:
-            raise ValueError(f"the payload must fit a one-byte length, not {self.payload_bytes} "
-                             f"bytes")
 
     replace = replace
 

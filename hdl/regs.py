@@ -200,10 +200,10 @@ class RegisterGroup:
             raise ValueError(f"offset of group {self.name} must be a non-negative multiple "
                              f"of {WORD_BYTES}, not {self.offset!r}")
         object.__setattr__(self, "registers", tuple(self.registers))
-        names = [r.name for r in self.registers]
         for reg in self.registers:
             if not isinstance(reg, Register):
                 raise TypeError(f"group {self.name} must hold Registers, not {reg!r}")
+        names = [r.name for r in self.registers]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ValueError(f"group {self.name} declares {sorted(dup)[0]!r} twice")

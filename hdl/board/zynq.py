@@ -9,13 +9,13 @@ synchronizer); the trigger outputs and the pose UART go to pins.
 
 from amaranth.build import ResourceError
 from amaranth.hdl import ClockDomain, ClockSignal, Elaboratable, Module, ResetSignal, Signal
-from amaranth.lib import wiring
+from amaranth.lib import io, wiring
 from amaranth.lib.cdc import ResetSynchronizer
 
 from ..camera_input import CameraParams
 from ..top import RowtrackTop, TopParams
 from .gp0 import GP0ToAXI4Lite
-from .ps7 import PS7
+from .ps7 import FCLK0_NET, PS7
 from .spec import BoardSpec
 
 __all__ = ["ZynqTop", "XC7Z020_CLG400_CLOCK_P"]
@@ -61,22 +61,31 @@ class ZynqTop(Elaboratable):
     def elaborate(self, platform):
         m = Module()
         m.submodules.ps7 = ps7 = PS7(fclk_hz=self.params.clk_hz)
+        m.domains += ClockDomain("sync")
+        m.d.comb += ClockSignal("sync").eq(getattr(ps7, FCLK0_NET))
+        m.submodules.reset_sync = ResetSynchronizer(ps7.reset, domain="sync")
         m.submodules.gp0 = bridge = GP0ToAXI4Lite()
         m.submodules.tracker = tracker = RowtrackTop(self.params)
         wiring.connect(m, ps7.gp0, bridge.gp0)
         wiring.connect(m, bridge.lite, tracker.axi)
 
         for k, domain in enumerate(tracker.domains):
-            pins = platform.request("camera", k)
+            pins = platform.request("camera", k, dir="-")
+            buffers = {name: io.Buffer("o" if name == "fsin" else "i", getattr(pins, name))
+                       for name in ("pclk", "vsync", "href", "data", "fsin")}
+            for name, buffer in buffers.items():
+                m.submodules[f"camera{k}_{name}"] = buffer
             m.domains += ClockDomain(domain)
-            m.d.comb += ClockSignal(domain).eq(pins.pclk.i)
+            m.d.comb += ClockSignal(domain).eq(buffers["pclk"].i)
             m.submodules[f"{domain}_reset"] = ResetSynchronizer(ResetSignal("sync"),
                                                                 domain=domain)
-            m.d.comb += [tracker.dvp[k].vsync.eq(pins.vsync.i),
-                         tracker.dvp[k].href.eq(pins.href.i),
-                         tracker.dvp[k].data.eq(pins.data.i),
-                         pins.fsin.o.eq(tracker.fsin[k])]
-        m.d.comb += platform.request("pose_uart", 0).tx.o.eq(tracker.uart_tx)
+            m.d.comb += [tracker.dvp[k].vsync.eq(buffers["vsync"].i),
+                         tracker.dvp[k].href.eq(buffers["href"].i),
+                         tracker.dvp[k].data.eq(buffers["data"].i),
+                         buffers["fsin"].o.eq(tracker.fsin[k])]
+        m.submodules.uart_tx = uart = io.Buffer("o", platform.request("pose_uart", 0,
+                                                                     dir="-").tx)
+        m.d.comb += uart.o.eq(tracker.uart_tx)
         self._heartbeat(m, platform)
         return m
 
@@ -84,7 +93,7 @@ class ZynqTop(Elaboratable):
         """Blink the board's first LED at about 1 Hz from FCLK_CLK0 (bring-up aid: the
         PS clock runs and the bitstream is loaded), if the board has one."""
         try:
-            led = platform.request("led", 0)
+            m.submodules.led = led = io.Buffer("o", platform.request("led", 0, dir="-"))
         except ResourceError:
             return
         counter = Signal(range(self.params.clk_hz // 2))
