@@ -39,9 +39,11 @@ class RowAlignerModel:
         head = [offers[k] is not None and enable[k] for k in range(n)]
         first = [offers[k] is not None and bool(offers[k]["first"]) for k in range(n)]
         keys = [self._key(b) if b is not None else 0 for b in offers]
+        floor_valid = self.streaming or self.last_valid
+        floor_key = self.target if self.streaming else self.last_key
         stale = [head[k] and first[k] and (
             offers[k]["row"] >= self.height
-            or (self.last_valid and not _older(self.last_key, keys[k], bits)))
+            or (floor_valid and not _older(floor_key, keys[k], bits)))
             for k in range(n)]
         usable = [head[k] and first[k] and not stale[k] for k in range(n)]
         tv = self.target_valid
@@ -50,10 +52,10 @@ class RowAlignerModel:
         newer = [usable[k] and tv and _older(self.target, keys[k], bits) for k in range(n)]
         awaited = [enable[k] and not self.absent[k] and not same[k] and not newer[k]
                    for k in range(n)]
-        discard = [offers[k] is not None and (not enable[k] or (
-            not self.streaming and (not first[k] or stale[k]))) for k in range(n)]
-
         live = [self.active[k] and not self.done[k] for k in range(n)]
+        discard = [offers[k] is not None and (not enable[k] or (
+            not (self.streaming and live[k]) and (not first[k] or stale[k])))
+            for k in range(n)]
         valid = self.streaming and all(offers[k] is not None for k in range(n) if live[k])
         out = None
         if valid:
@@ -78,6 +80,9 @@ class RowAlignerModel:
                 self.target_valid = True
                 self.target = keys[usable.index(True)]
                 self.timer = 0
+                row_bits = p.row_bits
+                if not self.last_valid or self.target >> row_bits != self.last_key >> row_bits:
+                    self.absent = [False] * n
         elif any(older):
             self.target = keys[older.index(True)]
         else:

@@ -31,7 +31,7 @@ from amaranth.lib.wiring import In, Out
 from .streams import (ROW_FLAG_BITS, RowFlag, aligned_row_layout, camera_event_layout,
                       camera_pixel_layout, dvp_signature, skew_measurement_layout)
 
-__all__ = ["CameraParams", "CameraInput"]
+__all__ = ["CameraParams", "CameraInput", "saturating_increment", "wire"]
 
 
 def _check_int(name, value, low, high=None):
@@ -199,8 +199,17 @@ _SHORT, _LONG, _SPLIT, _FRAME, _OVERRUN, _STALL, _OVERFLOW = (
                            RowFlag.OVERRUN, RowFlag.STALL, RowFlag.OVERFLOW))
 
 
-def _saturating_increment(value, top):
+def saturating_increment(value, top):
+    """``value + 1``, held at ``top``."""
     return Mux(value >= top, top, value + 1)
+
+
+def wire(m, value, name):
+    """``value`` as a named combinational signal. Amaranth re-emits an expression at
+    every use; naming the ones used more than once keeps the netlist linear."""
+    sig = Signal(value.shape(), name=name)
+    m.d.comb += sig.eq(value)
+    return sig
 
 
 class CameraInput(wiring.Component):
@@ -304,21 +313,22 @@ class CameraInput(wiring.Component):
         since = Signal(p.width_bits)       # PCLKs since the slot began, saturating
         lost = Signal()
 
-        vsync_rise = cur.vsync & ~prev_vsync
-        run_start = cur.href & (~prev_href | vsync_rise)
+        vsync_rise = wire(m, cur.vsync & ~prev_vsync, "vsync_rise")
+        run_start = wire(m, cur.href & (~prev_href | vsync_rise), "run_start")
         ahead_high = Const(1)
         for tap in taps[:-1]:
             ahead_high &= tap.href
-        glitch = run_start & ~ahead_high
-        start = run_start & ~glitch
-        cont = in_piece & cur.href & ~vsync_rise
-        end = in_piece & (~cur.href | vsync_rise)
+        glitch = wire(m, run_start & ~ahead_high, "glitch")
+        start = wire(m, run_start & ~glitch, "start")
+        cont = wire(m, in_piece & cur.href & ~vsync_rise, "cont")
+        end = wire(m, in_piece & (~cur.href | vsync_rise), "end")
 
-        fresh_frame = ~have_slot | vsync_rise
-        new_slot = fresh_frame | (since >= width)
-        index = Mux(fresh_frame, 0,
-                    Mux(since >= width, _saturating_increment(slot, 2 ** p.row_bits - 1), slot))
-        keep_pixel = start | (cont & (length < width))
+        fresh_frame = wire(m, ~have_slot | vsync_rise, "fresh_frame")
+        slot_over = wire(m, since >= width, "slot_over")
+        new_slot = wire(m, fresh_frame | slot_over, "new_slot")
+        index = wire(m, Mux(fresh_frame, 0, Mux(slot_over, saturating_increment(
+            slot, 2 ** p.row_bits - 1), slot)), "index")
+        keep_pixel = wire(m, start | (cont & (length < width)), "keep_pixel")
 
         word = Signal(word_layout)
         m.d.comb += [
@@ -341,14 +351,14 @@ class CameraInput(wiring.Component):
 
         cd += [
             in_piece.eq(start | cont),
-            since.eq(_saturating_increment(since, p.max_width)),
+            since.eq(saturating_increment(since, p.max_width)),
         ]
         with m.If(start):
             cd += [length.eq(1), slot.eq(index), have_slot.eq(1)]
             with m.If(new_slot):
                 cd += since.eq(1)
         with m.Elif(cont):
-            cd += length.eq(_saturating_increment(length, p.max_width + 1))
+            cd += length.eq(saturating_increment(length, p.max_width + 1))
         with m.Elif(vsync_rise):
             cd += have_slot.eq(0)
 
@@ -388,18 +398,18 @@ class CameraInput(wiring.Component):
         # VSYNC: a VSYNC in the middle of an in-step frame puts the next frame out of
         # step; any VSYNC in an out-of-step frame re-arms.
         early = synced & (rows_seen != 0) & (rows_seen < self.cfg.height)
-        fs = wv & w.frame_start
-        synced_now = Mux(fs, ~(synced & early), synced)
-        frame_now = Mux(fs, self.frame, frame_num)
+        fs = wire(m, wv & w.frame_start, "fs")
+        synced_now = wire(m, Mux(fs, ~(synced & early), synced), "synced_now")
+        frame_now = wire(m, Mux(fs, self.frame, frame_num), "frame_now")
         with m.If(fs):
             m.d.sync += [synced.eq(synced_now), frame_num.eq(self.frame), rows_seen.eq(0)]
 
-        new_row = wv & w.pixel & w.first
-        more = wv & w.pixel & ~w.first & row_open
-        closes = wv & row_open & (w.end | w.first | w.frame_start)
+        new_row = wire(m, wv & w.pixel & w.first, "new_row")
+        more = wire(m, wv & w.pixel & ~w.first & row_open, "more")
+        closes = wire(m, wv & row_open & (w.end | w.first | w.frame_start), "closes")
         timeout = self.cfg.pclk_timeout
-        stalled = row_open & ~wv & (timeout != 0) & (idle >= timeout)
-        lost_flag = Mux(w.lost, _OVERFLOW, 0)
+        stalled = wire(m, row_open & ~wv & (timeout != 0) & (idle >= timeout), "stalled")
+        lost_flag = wire(m, Mux(w.lost, _OVERFLOW, 0), "lost_flag")
         end_flags = (Mux(w.end & w.short, _SHORT, 0) | Mux(w.end & w.long, _LONG, 0)
                      | Mux(w.end, 0, _OVERFLOW) | lost_flag)
 
@@ -407,8 +417,8 @@ class CameraInput(wiring.Component):
         room_more = pixels.level <= p.buffer_depth - 3
         room_last = pixels.level <= p.buffer_depth - 2
         room_row = starts.level <= p.row_queue_depth - 2
-        ok_more = room_more & (~pend_first | room_row)
-        ok_last = room_last & (~pend_first | room_row)
+        ok_more = wire(m, room_more & (~pend_first | room_row), "ok_more")
+        ok_last = wire(m, room_last & (~pend_first | room_row), "ok_last")
 
         write = Signal()
         write_last = Signal()
@@ -461,7 +471,7 @@ class CameraInput(wiring.Component):
         with m.If(wv | ~row_open):
             m.d.sync += idle.eq(0)
         with m.Else():
-            m.d.sync += idle.eq(_saturating_increment(idle, 2 ** p.timer_bits - 1))
+            m.d.sync += idle.eq(saturating_increment(idle, 2 ** p.timer_bits - 1))
 
         # Events for camera_sync.
         m.d.sync += [

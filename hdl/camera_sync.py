@@ -20,7 +20,7 @@ from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .camera_input import CameraInput, CameraParams
+from .camera_input import CameraInput, CameraParams, saturating_increment, wire
 from .fixed import Overflow, Rounding, SQ, hdl_resize
 from .row_aligner import RowAligner
 from .streams import dvp_signature
@@ -74,10 +74,6 @@ def front_status_layout(params):
         "sync": sync_status_layout(params), "align": params.align_status_layout(),
         "inputs": data.ArrayLayout(params.input_status_layout(), params.n_cameras),
     })
-
-
-def _saturating_increment(value, bits):
-    return Mux(value == 2 ** bits - 1, value, value + 1)
 
 
 class CameraSync(wiring.Component):
@@ -162,10 +158,10 @@ class CameraSync(wiring.Component):
         m_row = Signal(p.row_bits)
         m_row_t = Signal(p.timestamp_bits)
         # The master's latest syncs, including this cycle's.
-        mf = Mux(master.frame_start, master.frame, m_frame)
-        mf_t = Mux(master.frame_start, master.frame_time, m_frame_t)
-        mr = Mux(master.row_start, master.row, m_row)
-        mr_t = Mux(master.row_start, master.row_time, m_row_t)
+        mf = wire(m, Mux(master.frame_start, master.frame, m_frame), "mf")
+        mf_t = wire(m, Mux(master.frame_start, master.frame_time, m_frame_t), "mf_t")
+        mr = wire(m, Mux(master.row_start, master.row, m_row), "mr")
+        mr_t = wire(m, Mux(master.row_start, master.row_time, m_row_t), "mr_t")
         with m.If(master.frame_start):
             m.d.sync += [m_frame.eq(master.frame), m_frame_t.eq(master.frame_time)]
         with m.If(master.row_start):
@@ -179,11 +175,11 @@ class CameraSync(wiring.Component):
     def _lost(self, m, k, ev):
         p, cfg, status = self.params, self.cfg, self.status
         idle = Signal(p.timer_bits, name=f"idle{k}")
-        lost_now = (cfg.lost_timeout != 0) & (idle >= cfg.lost_timeout)
+        lost_now = wire(m, (cfg.lost_timeout != 0) & (idle >= cfg.lost_timeout), f"lost_now{k}")
         with m.If(ev.frame_start | ev.row_start):
             m.d.sync += idle.eq(0)
         with m.Else():
-            m.d.sync += idle.eq(_saturating_increment(idle, p.timer_bits))
+            m.d.sync += idle.eq(saturating_increment(idle, 2 ** p.timer_bits - 1))
         m.d.sync += status.lost[k].eq(lost_now)
         with m.If(lost_now & ~status.lost[k]):
             m.d.sync += status.lost_count[k].eq(status.lost_count[k] + 1)
@@ -202,27 +198,30 @@ class CameraSync(wiring.Component):
         rc_t = Signal(p.timestamp_bits, name=f"rc_t{k}")
 
         # Frame starts, matched by frame number.
-        f_hit_m = master.frame_start & fc_pend & (fc_frame == master.frame)
-        fm_pend1 = Mux(master.frame_start, ~f_hit_m, fm_pend)
+        f_hit_m = wire(m, master.frame_start & fc_pend & (fc_frame == master.frame),
+                       f"f_hit_m{k}")
+        fm_pend1 = wire(m, Mux(master.frame_start, ~f_hit_m, fm_pend), f"fm_pend1_{k}")
         fc_pend1 = fc_pend & ~f_hit_m
-        f_hit_c = ev.frame_start & fm_pend1 & (mf == ev.frame)
+        f_hit_c = wire(m, ev.frame_start & fm_pend1 & (mf == ev.frame), f"f_hit_c{k}")
         frame_hit = f_hit_m | f_hit_c
-        frame_skew = Mux(f_hit_m, self._skew(fc_t, master.frame_time),
-                         self._skew(ev.frame_time, mf_t))
+        frame_skew = wire(m, self._skew(Mux(f_hit_m, fc_t, ev.frame_time),
+                                        Mux(f_hit_m, master.frame_time, mf_t)),
+                          f"frame_skew{k}")
         m.d.sync += [fm_pend.eq(fm_pend1 & ~f_hit_c), fc_pend.eq(fc_pend1)]
         with m.If(ev.frame_start & ~f_hit_c):
             m.d.sync += [fc_pend.eq(1), fc_frame.eq(ev.frame), fc_t.eq(ev.frame_time)]
 
         # Row starts, matched by row index; a frame start on either side forgets rows.
         frame_edge = master.frame_start | ev.frame_start
-        rc_pend0 = rc_pend & ~frame_edge
-        r_hit_m = master.row_start & rc_pend0 & (rc_row == master.row)
-        rm_pend1 = Mux(master.row_start, ~r_hit_m, rm_pend & ~master.frame_start)
+        rc_pend0 = wire(m, rc_pend & ~frame_edge, f"rc_pend0_{k}")
+        r_hit_m = wire(m, master.row_start & rc_pend0 & (rc_row == master.row), f"r_hit_m{k}")
+        rm_pend1 = wire(m, Mux(master.row_start, ~r_hit_m, rm_pend & ~master.frame_start),
+                        f"rm_pend1_{k}")
         rc_pend1 = rc_pend0 & ~r_hit_m
-        r_hit_c = ev.row_start & rm_pend1 & (mr == ev.row)
+        r_hit_c = wire(m, ev.row_start & rm_pend1 & (mr == ev.row), f"r_hit_c{k}")
         row_hit = r_hit_m | r_hit_c
-        row_skew = Mux(r_hit_m, self._skew(rc_t, master.row_time),
-                       self._skew(ev.row_time, mr_t))
+        row_skew = wire(m, self._skew(Mux(r_hit_m, rc_t, ev.row_time),
+                                      Mux(r_hit_m, master.row_time, mr_t)), f"row_skew{k}")
         m.d.sync += [rm_pend.eq(rm_pend1 & ~r_hit_c), rc_pend.eq(rc_pend1)]
         with m.If(ev.row_start & ~r_hit_c):
             m.d.sync += [rc_pend.eq(1), rc_row.eq(ev.row), rc_t.eq(ev.row_time)]
@@ -242,10 +241,11 @@ class CameraSync(wiring.Component):
         def beyond(valid, skew):
             magnitude = Mux(skew < 0, -skew, skew).as_unsigned()[:p.skew_bits]
             return valid & (magnitude > cfg.skew_threshold)
-        flag = beyond(out.frame_valid, out.frame_skew) | beyond(out.row_valid, out.row_skew)
+        flag = wire(m, beyond(out.frame_valid, out.frame_skew) |
+                    beyond(out.row_valid, out.row_skew), f"desync_flag{k}")
         rearm = Signal(name=f"rearm{k}")
         m.d.sync += rearm.eq(master.frame_start)
-        armed = status.desync[k] & ~rearm
+        armed = wire(m, status.desync[k] & ~rearm, f"armed{k}")
         m.d.sync += status.desync[k].eq(armed | flag)
         with m.If(flag & ~armed):
             m.d.sync += status.desync_count[k].eq(status.desync_count[k] + 1)

@@ -6,18 +6,19 @@ for the enabled cameras (with a time-out for a missing one), then streams the se
 column per transfer, lane ``k`` carrying camera ``k``.
 
 Rows are identified by their key ``(frame, row)``, compared modulo the key width (the
-frame number wraps). A row older than the last set sent, or with an index past the frame
-height, cannot join any set: it is discarded and counted as stale. A camera missing from
+frame number wraps). A row older than the set being sent (or the last one sent), or with an
+index past the frame height, cannot join any set: it is discarded and counted as stale,
+at once, so a camera that has fallen out of step never backs up. A camera missing from
 a set for want of a row (rather than because it is ahead) is marked *absent* and not
 waited for until it shows a usable row again, so a lost camera costs one time-out, not
-one per row.
+one per row. At each new frame every enabled camera is waited for again.
 """
 
 from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .camera_input import CameraParams
+from .camera_input import CameraParams, saturating_increment, wire
 
 __all__ = ["RowAligner"]
 
@@ -96,23 +97,29 @@ class RowAligner(wiring.Component):
 
         enable = self.cfg.enable
         keys = [Cat(lane.p.row, lane.p.frame) for lane in self.i]
-        head = Cat(lane.valid & enable[k] for k, lane in enumerate(self.i))
+        head = wire(m, Cat(lane.valid & enable[k] for k, lane in enumerate(self.i)), "head")
         first = Cat(lane.p.first for lane in self.i)
-        stale = Cat(head[k] & first[k] & (
-            (lane.p.row >= self.height) | (last_valid & ~_older(last_key, keys[k], key_bits)))
-            for k, lane in enumerate(self.i))
-        usable = head & first & ~stale
-        same = Cat(usable[k] & target_valid & (keys[k] == target) for k in range(n))
-        older = Cat(usable[k] & target_valid & _older(keys[k], target, key_bits)
-                    for k in range(n))
-        newer = Cat(usable[k] & target_valid & _older(target, keys[k], key_bits)
-                    for k in range(n))
+        # While a set streams, its own key is the floor too: a camera showing it now
+        # has missed the set.
+        floor_valid = streaming | last_valid
+        floor_key = wire(m, Mux(streaming, target, last_key), "floor_key")
+        stale = wire(m, Cat(head[k] & first[k] & (
+            (lane.p.row >= self.height) | (floor_valid & ~_older(floor_key, keys[k], key_bits)))
+            for k, lane in enumerate(self.i)), "stale")
+        usable = wire(m, head & first & ~stale, "usable")
+        same = wire(m, Cat(usable[k] & target_valid & (keys[k] == target) for k in range(n)),
+                    "same")
+        older = wire(m, Cat(usable[k] & target_valid & _older(keys[k], target, key_bits)
+                            for k in range(n)), "older")
+        newer = wire(m, Cat(usable[k] & target_valid & _older(target, keys[k], key_bits)
+                            for k in range(n)), "newer")
         awaited = enable & ~absent & ~same & ~newer
+        live = wire(m, active & ~done, "live")
         # Rows that cannot join a set: stale rows, stray pixels, disabled cameras.
-        discard = Cat(lane.valid & (~enable[k] | (~streaming & (~lane.p.first | stale[k])))
-                      for k, lane in enumerate(self.i))
+        discard = wire(m, Cat(lane.valid & (~enable[k] | (~(streaming & live[k]) &
+                                                          (~lane.p.first | stale[k])))
+                              for k, lane in enumerate(self.i)), "discard")
 
-        live = active & ~done
         all_live_valid = Const(1)
         for k, lane in enumerate(self.i):
             all_live_valid &= ~live[k] | lane.valid
@@ -122,7 +129,7 @@ class RowAligner(wiring.Component):
             o.p.lane_valid.eq(live),
             o.p.missing.eq(missing),
         ]
-        transfer = o.valid & o.ready
+        transfer = wire(m, o.valid & o.ready, "transfer")
         for k, lane in enumerate(self.i):
             m.d.comb += [
                 o.p.lanes[k].eq(Mux(live[k], lane.p.as_value(), 0)),
@@ -143,12 +150,15 @@ class RowAligner(wiring.Component):
                                  last_valid.eq(1), last_key.eq(target)]
         with m.Elif(~target_valid):
             with m.If(usable.any()):
-                m.d.sync += [target_valid.eq(1), target.eq(_lowest(usable, keys)),
-                             timer.eq(0)]
+                new_target = wire(m, _lowest(usable, keys), "new_target")
+                m.d.sync += [target_valid.eq(1), target.eq(new_target), timer.eq(0)]
+                # The trigger brings every camera back in step at each frame.
+                with m.If(~last_valid | (new_target[p.row_bits:] != last_key[p.row_bits:])):
+                    m.d.sync += absent.eq(0)
         with m.Elif(older.any()):
             m.d.sync += target.eq(_lowest(older, keys))
         with m.Else():
-            m.d.sync += timer.eq(Mux(timer == 2 ** p.timer_bits - 1, timer, timer + 1))
+            m.d.sync += timer.eq(saturating_increment(timer, 2 ** p.timer_bits - 1))
             with m.If((awaited == 0) | (timer >= self.cfg.timeout)):
                 m.d.sync += [
                     active.eq(same), done.eq(0), missing.eq(enable & ~same),

@@ -1,0 +1,251 @@
+"""The camera front end on the cocotb bench: cameras, downstream, model and truth.
+
+:class:`FrontEndRun` drives :class:`hdl.camera_sync.CameraFrontEnd`'s generated
+Verilog: one :class:`~sim_tests.common.dvp.DvpPlayer` per camera with its own PCLK
+(period, phase, jitter), triggered by the block's own FSIN outputs, plays image rows;
+the downstream ``ready`` follows a seeded per-cycle pattern; every transfer on ``o``
+and every skew strobe is recorded with its system cycle. Afterwards
+:meth:`FrontEndRun.check_model` replays the recorded pins through
+:class:`emulator.camera_sync.FrontEndModel` and demands the same transfers, strobes and
+counters, cycle for cycle, and the ``truth`` helpers compare against what the cameras
+actually sent.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import cocotb
+import numpy as np
+from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
+from cocotb.utils import get_sim_time
+
+from emulator.camera_input import SystemClock
+from emulator.camera_sync import FrontEndModel
+from hdl.camera_sync import front_config_layout, front_status_layout
+from sim_tests.common.clocking import CLOCK_PERIOD_NS, reset, start_clock
+from sim_tests.common.dvp import DvpPlayer, DvpTiming, drive_cocotb
+from sim_tests.common.payload import pack, unpack
+
+__all__ = ["SYS_PS", "Scenario", "FrontEndRun", "row_runs", "dataset_images"]
+
+SYS_PS = CLOCK_PERIOD_NS * 1000
+
+
+@dataclass
+class Scenario:
+    """One bench run. Times in system clocks unless named ``_ps``.
+
+    ``periods_ps``/``phases_ps``: each camera's PCLK; ``delays``: FSIN delays;
+    ``ready``: probability of ``o.ready`` per cycle; ``stall``: ``(first, count)``
+    cycles with ``o.ready`` low; ``faults``: camera -> tuple of Fault.
+    """
+    n_frames: int
+    timing: DvpTiming
+    periods_ps: tuple
+    phases_ps: tuple
+    delays: tuple
+    period: int
+    jitter_ps: int = 0
+    ready: float = 1.0
+    stall: tuple = None
+    faults: dict = field(default_factory=dict)
+    skew_threshold: int = 12
+    align_timeout: int = 40
+    pclk_timeout: int = 60
+    lost_timeout: int = 0
+    images: object = None
+
+    def config(self, params):
+        n = params.n_cameras
+        return {
+            "input": {"width": self.timing.width, "height": self.timing.height,
+                      "pclk_timeout": self.pclk_timeout},
+            "sync": {"trigger_enable": 1, "period": self.period, "pulse": 4, "exposure": 20,
+                     "delay": {k: self.delays[k] for k in range(n)},
+                     "skew_threshold": self.skew_threshold,
+                     "lost_timeout": self.lost_timeout},
+            "align": {"enable": (1 << n) - 1, "timeout": self.align_timeout},
+        }
+
+
+def dataset_images(path, n_cameras, width, height, n_frames):
+    """``(n_cameras, n_frames, height, width)`` rows of a golden simulator dataset."""
+    from golden.dataset import Dataset
+    cams = Dataset.load(path).cameras
+    if len(cams) < n_cameras:
+        raise ValueError(f"the dataset has {len(cams)} cameras, the bench needs {n_cameras}")
+    return np.stack([rec.rows[:n_frames, :height, :width] for rec in cams[:n_cameras]])
+
+
+class FrontEndRun:
+    def __init__(self, dut, params, scenario, rng):
+        self.dut = dut
+        self.p = params
+        self.sc = scenario
+        self.rng = rng
+        n = params.n_cameras
+        t = scenario.timing
+        self.images = (scenario.images if scenario.images is not None else
+                       np.array([[rng.randrange(1 << params.pixel_bits) for _ in range(t.width)]
+                                 for _ in range(n * scenario.n_frames * t.height)])
+                       .reshape(n, scenario.n_frames, t.height, t.width))
+        self.cfg = scenario.config(params)
+        self.pixel_layout = params.aligned_layout()
+        self.skew_layout = params.skew_layout()
+        self.players = [DvpPlayer(frames=self.images[k], timing=t,
+                                  period_ps=scenario.periods_ps[k],
+                                  phase_ps=scenario.phases_ps[k],
+                                  jitter_ps=scenario.jitter_ps, rng=rng,
+                                  faults=tuple(scenario.faults.get(k, ())))
+                        for k in range(n)]
+        self.cycles = self._ready_pattern()
+        self.transfers = []
+        self.skews = []
+        self.cycle = 1
+        self.t0 = None
+
+    def _ready_pattern(self):
+        sc = self.sc
+        length = sc.n_frames * sc.period * 2 + 20000
+        pattern = [self.rng.random() < sc.ready for _ in range(length)]
+        pattern[:2] = [True, True]
+        if sc.stall:
+            first, count = sc.stall
+            pattern[first:first + count] = [False] * count
+        return pattern
+
+    def ready(self, cycle):
+        return self.cycles[cycle] if cycle < len(self.cycles) else True
+
+    async def run(self, extra_cycles=400):
+        """Reset, play every frame, and keep going until all rows have drained."""
+        dut, p = self.dut, self.p
+        clock = start_clock(dut)
+        for k in range(p.n_cameras):
+            getattr(dut, f"pclk{k}_rst").value = 1
+        dut.cfg.value = pack(front_config_layout(p), self.cfg)
+        dut.o__ready.value = 1
+        for k, player in enumerate(self.players):
+            cocotb.start_soon(drive_cocotb(dut, f"dvp__{k}", f"pclk{k}_clk", player,
+                                           trigger=self._fsin(k)))
+        await reset(dut)
+        for k in range(p.n_cameras):
+            getattr(dut, f"pclk{k}_rst").value = 0
+        cocotb.start_soon(self._monitor())
+        await ClockCycles(dut.clk, self.sc.n_frames * self.sc.period)
+        while any(pl.busy for pl in self.players):
+            await ClockCycles(dut.clk, 50)
+        await ClockCycles(dut.clk, extra_cycles)
+        await ReadOnly()
+        self.end_cycle = self.cycle
+        self.status = unpack(front_status_layout(p), dut.status.value)
+        return clock
+
+    def _fsin(self, k):
+        fsin = self.dut.fsin
+        return lambda: int(fsin.value) >> k & 1
+
+    async def _monitor(self):
+        dut = self.dut
+        skew_ports = [getattr(dut, f"skew__{k}") for k in range(self.p.n_cameras)]
+        valid_bits = sum(1 << f.offset for name, f in self.skew_layout
+                         if name in ("frame_valid", "row_valid"))
+        while True:
+            await RisingEdge(dut.clk)
+            self.cycle += 1
+            c = self.cycle
+            if self.t0 is None:
+                self.t0 = int(get_sim_time("ps")) - c * SYS_PS
+            ready = self.ready(c)
+            dut.o__ready.value = int(ready)
+            await ReadOnly()
+            if c == 2:
+                now = unpack(front_status_layout(self.p), dut.status.value)["now"]
+                assert now == c, f"cycle numbering is off: now={now} in bench cycle {c}"
+            if ready and int(dut.o__valid.value):
+                self.transfers.append((c, unpack(self.pixel_layout, dut.o__payload.value)))
+            for k, port in enumerate(skew_ports):
+                value = int(port.value)
+                if value & valid_bits:
+                    self.skews.append((c, k, unpack(self.skew_layout, value)))
+
+    # --- checks ------------------------------------------------------------------------
+
+    def model(self):
+        model = FrontEndModel(self.p, self.cfg,
+                              [(pl.samples, pl.times) for pl in self.players],
+                              SystemClock(self.t0, SYS_PS), self.ready)
+        model.run(self.end_cycle)
+        return model
+
+    def check_model(self):
+        """The emulator predicts every transfer, skew strobe and counter exactly."""
+        model = self.model()
+        assert len(self.transfers) == len(model.transfers), (
+            f"{len(self.transfers)} transfers on o, the model predicts {len(model.transfers)}")
+        for got, exp in zip(self.transfers, model.transfers):
+            assert got == exp, f"o differs from the model: got {got}, expected {exp}"
+        assert self.skews == model.skews, "skew measurements differ from the model"
+        assert self.status == model.status(), "status differs from the model"
+        return model
+
+    def sets(self):
+        """Row sets sent on ``o``: dicts with frame, row, lanes {k: row record}, missing,
+        the cycle of the last transfer."""
+        sets, current = [], None
+        for cycle, out in self.transfers:
+            live = [k for k in out["lanes"] if out["lane_valid"] >> k & 1]
+            if current is None:
+                head = out["lanes"][live[0]]
+                current = {"frame": head["frame"], "row": head["row"], "missing": out["missing"],
+                           "lanes": {k: {"pixels": [], "first_cycle": cycle} for k in live},
+                           "open": set(live)}
+            for k in live:
+                beat = out["lanes"][k]
+                lane = current["lanes"][k]
+                lane["pixels"].append(beat["data"])
+                if beat["last"]:
+                    lane.update(flags=beat["flags"], t_first=beat["t_first"],
+                                t_last=beat["t_last"], frame=beat["frame"], row=beat["row"],
+                                last_cycle=cycle)
+                    current["open"].discard(k)
+            if not current["open"]:
+                current["last_cycle"] = cycle
+                sets.append(current)
+                current = None
+        return sets
+
+
+def row_runs(player, glitch_pclks):
+    """HREF runs each frame put on the pins: per played frame, a list of
+    ``(first_sample, last_sample)`` (runs of at most ``glitch_pclks`` are left out)."""
+    href = [s[1] for s in player.samples]
+    starts = list(player.frame_starts) + [len(href)]
+    frames = []
+    for a, b in zip(starts, starts[1:]):
+        runs, x = [], a
+        while x < b:
+            if href[x] and (x == 0 or not href[x - 1]):
+                y = x
+                while y + 1 < len(href) and href[y + 1]:
+                    y += 1
+                if y - x + 1 > glitch_pclks:
+                    runs.append((x, y))
+                x = y + 1
+            else:
+                x += 1
+        frames.append(runs)
+    return frames
+
+
+def write_time(player, sample, glitch_pclks):
+    """Time of the PCLK edge that writes the word of ``sample`` into the crossing."""
+    return player.times[sample + glitch_pclks + 1]
+
+
+def clocks(ps):
+    return ps / SYS_PS
+
+
+def ceil_clocks(ps):
+    return math.ceil(ps / SYS_PS)
