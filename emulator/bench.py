@@ -19,6 +19,7 @@ BENCHES = {
     "fixed": "emulator.benches.fixed",
     "simulator": "emulator.benches.simulator",
     "dt": "emulator.benches.dt",
+    "camera": "emulator.benches.camera",
 }
 
 

@@ -16,6 +16,10 @@ BLOCKS = {
     "regs": "hdl.top:register_file",
     "gp0_bridge": "hdl.board.gp0:GP0ToAXI4Lite",
     "top": "hdl.top:RowtrackTop",
+    "camera_input": "hdl.camera_input:CameraInput",
+    "camera_sync": "hdl.camera_sync:CameraSync",
+    "row_aligner": "hdl.row_aligner:RowAligner",
+    "camera_front": "hdl.camera_sync:CameraFrontEnd",
 }
 
 

@@ -1,0 +1,102 @@
+"""Benchmark of the camera front end (issue 6): throughput and latency measured on the
+generated Verilog with cocotb + Verilator, resources from synth_xilinx.
+
+The simulation is the ``performance`` test of ``sim_tests/cocotb/camera``: eight
+cameras with 640-pixel rows, PCLK as fast as the system clock (each camera at its own
+phase), no backpressure, every set checked against the emulator cycle by cycle and
+every row against the pixels sent.
+"""
+
+import json
+import math
+import tempfile
+from pathlib import Path
+
+from emulator.synth import XC7Z020, synth_report
+
+#: The configuration the issue's figures are for: 8 cameras, 640-pixel rows.
+N_CAMERAS = 8
+SEED = 6
+
+#: Targets from issue 6.
+LATENCY_TARGET = 16
+RATE_TARGET = 1.0
+
+
+def _params():
+    from hdl.camera_input import CameraParams
+    return CameraParams(n_cameras=N_CAMERAS, max_width=640, max_height=480)
+
+
+def _simulate(params):
+    from hdl.camera_sync import CameraFrontEnd
+    from sim_tests.common.cocotb_runner import run_cocotb
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "figures.json"
+        run_cocotb(CameraFrontEnd(params), name="camera_front", tag="perf8", sim="verilator",
+                   test_module="sim_tests.cocotb.camera.front_end_bench",
+                   testcase=["performance"], seed=SEED,
+                   extra_env={"ROWTRACK_FIGURES": str(path)})
+        return json.loads(path.read_text())
+
+
+def measure():
+    from hdl.camera_input import CameraInput
+    from hdl.camera_sync import CameraFrontEnd
+    params = _params()
+    sim = _simulate(params)
+    one = synth_report(CameraInput(params, camera=0, domain="pclk"), "camera_input")
+    total = synth_report(CameraFrontEnd(params), "camera_front8")
+    n = params.n_cameras
+    return {
+        "latency_clocks": round(sim["latency_clocks"], 2),
+        "px_per_clock": round(sim["px_per_clock"], 4),
+        "skew_error_clocks": round(sim["skew_error_clocks"], 2),
+        "row_sets_checked": sim["sets"],
+        "lut_per_camera": math.ceil(total["lut"] / n),
+        "ff_per_camera": math.ceil(total["ff"] / n),
+        "bram36_per_camera": total["bram36"] / n,
+        "input.lut": one["lut"], "input.ff": one["ff"], "input.bram36": one["bram36"],
+        "input.lut_levels": one["lut_levels"],
+        "front_end.lut": total["lut"], "front_end.ff": total["ff"],
+        "front_end.bram36": total["bram36"], "front_end.lut_levels": total["lut_levels"],
+    }
+
+
+def report(figures):
+    f = figures
+    n = N_CAMERAS
+    verdict = lambda ok: "met" if ok else "**missed**"
+    rows = "\n".join(f"| {key} | {value} |" for key, value in sorted(f.items()))
+    return f"""# Camera front end: sync, DVP inputs, row aligner
+
+`hdl/camera_sync.py` `CameraFrontEnd` with {n} cameras, 640-pixel rows, default
+`CameraParams` (8-bit pixels, 1024-pixel buffer and a 4-row queue per camera, 8-entry
+clock-crossing FIFOs, glitch filter of 2 PCLKs).
+
+**Throughput and latency** come from the `performance` cocotb test on the generated
+Verilog (Verilator): every camera runs its PCLK at the system clock frequency, each at
+its own phase, and plays two frames of four 640-pixel rows; downstream is always ready.
+Every row set is compared with `emulator/camera_sync.py` cycle by cycle, every row with
+the pixels the cameras sent.
+
+* `px_per_clock`: pixels per system clock per camera lane while a row set streams
+  (the slowest set; {verdict(f['px_per_clock'] >= RATE_TARGET)} against the target of
+  {RATE_TARGET} with {n} cameras).
+* `latency_clocks`: system clocks from the PCLK edge that samples a row's last pixel at
+  the pins of the latest camera to the clock edge that takes the set's last pixel from
+  the aligner, including the {2}-PCLK glitch look-ahead, the input register, the
+  clock crossing and the output buffer (worst set; {verdict(f['latency_clocks'] <=
+  LATENCY_TARGET)} against the target of ≤ {LATENCY_TARGET}).
+* `skew_error_clocks`: largest difference between a measured frame or row skew and the
+  skew between the cameras' PCLK edges that wrote the events into the crossings.
+
+**Resources** from Yosys `synth_xilinx -family xc7` (xc7z020 capacity:
+{XC7Z020['lut']} LUTs, {XC7Z020['ff']} FFs, {XC7Z020['bram36']} BRAM36). `*_per_camera`
+divide the whole front end (inputs, sync, aligner) by {n}; `input.*` is one
+`CameraInput` alone. A RAMB18 counts as half a BRAM36.
+
+| figure | value |
+|---|---|
+{rows}
+"""
