@@ -276,7 +276,7 @@ Simulated in the Amaranth simulator on a synthetic scene, every output checked a
 |---|---|
 | pixels per clock (within and across rows) | {f['px_per_clock']} |
 | latency, clocks (every pixel) | {f['latency_clocks']} ({f['latency_rows']} rows) |
-| tail after the last input pixel, clocks | {f['tail_clocks']} |
+| last output after the last input pixel (filler rows flush the frame), clocks | {f['tail_clocks']} |
 | LUT / FF | {f['lut']} / {f['ff']} |
 | BRAM36 | {f['bram36']} |
 | DSP48E1 | {f['dsp48']} |
