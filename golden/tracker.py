@@ -99,6 +99,9 @@ class TrackerParams:
         λ of the robust scale recursion.
     min_confidence : float
         A slot needs one measurement at least this confident to step.
+    min_cameras : int
+        ... and measurements from at least this many cameras (fewer cameras leave
+        directions weakly determined; such a slot carries on from the latest pose).
     max_condition : float
         Largest condition number of the weighted, column-scaled design matrix.
     block_rows : int
@@ -120,14 +123,15 @@ class TrackerParams:
     depth: str = "auto"
     disparity_blocks: int = 16
     min_depth_fraction: float = 0.5
-    alpha: float = 0.3
+    alpha: float = 0.1
     beta: float = 0.01
     huber_k: float = 2.0
     scale_initial: float = 0.5
     scale_floor: float = 0.1
     scale_smoothing: float = 0.1
     min_confidence: float = 1.0
-    max_condition: float = 1e3
+    min_cameras: int = 3
+    max_condition: float = 100.0
     block_rows: int = 48
     geometry_stride: int = 4
     solver: str = "linear"
@@ -155,6 +159,7 @@ class TrackerParams:
                      "max_condition"):
             _check(name, getattr(self, name), (int, float), 0, low_open=True)
         _check("min_confidence", self.min_confidence, (int, float), 0)
+        _check("min_cameras", self.min_cameras, int, 1)
         DescriptorParams(sigma=self.sigma)
 
     replace = replace
@@ -476,7 +481,8 @@ class Tracker:
             present = np.unique(table.camera[mine])
             out["camera_confidence"][s, present] = best[present]
             used = int(np.count_nonzero(confidence))
-            if confidence.max() >= p.min_confidence:
+            cameras = len(np.unique(table.camera[mine][confidence > 0]))
+            if confidence.max() >= p.min_confidence and cameras >= p.min_cameras:
                 normal, rhs = normal_equations(design[ok], cleaned[ok], confidence[ok])
                 solution = solve_normal(normal, rhs, p.max_condition**2)
                 condition = float(np.sqrt(solution.condition))
@@ -488,7 +494,13 @@ class Tracker:
                         step = self._refine(parts, forecast, step, confidence, outlier)
                         out["refined_step"][s] = step
         level = self.motion.update(None if step is None else forecast + step)
-        rotation, position = compose(*previous, level)
+        if step is None:     # no measurement: carry on from the latest pose, at the forecast rate
+            last = self.track.count - 1
+            dt = self.slots.times[s] - self.track.times[last]
+            rotation, position = compose(self.track.rotations[last], self.track.positions[last],
+                                         level * (dt / self.slots.period))
+        else:
+            rotation, position = compose(*previous, level)
         self.track.append(self.slots.times[s], rotation, position)
         self.track.set_extrapolation(level / self.slots.period)
         out["updated"][s], out["condition"][s] = step is not None, condition
