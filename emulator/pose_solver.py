@@ -9,12 +9,13 @@ step, is in ``docs/pose_solver.md``:
 1. design rows ``a = [w a_T, a_R + w a_C]`` from the coefficient store (rounded to
    ``a_fmt``), then exact sums ``N = Σ c aᵀa`` and ``r = Σ c a s``;
 2. power-of-two Jacobi scaling ``N̂ = S N S``, ``b̂ = S r``, ``S = diag(2**-e_i)``;
-3. LDLᵀ (Crout) of ``N̂`` with the right-hand side carried along, pivots checked
-   against ``2**-pivot_log2``, reciprocals from an interpolated seed and one Newton
-   step;
-4. back substitution, ``Y = S x``;
+3. Cholesky ``N̂ = G Gᵀ`` (every factor entry within ±1) with the forward
+   substitution carried along, pivots checked against ``2**-pivot_log2``, ``D^-1/2``
+   from an interpolated seed and one Newton step;
+4. back substitution with ``L = G·D^-1/2``, ``Y = S x``;
 5. integration: ``q ← q ⊗ (1, θ/2)`` renormalized by one Newton step,
-   ``p ← p + R(q) T``, committed only if the row was solved.
+   ``p ← p + R(q) T`` (R from the quaternion before the step), committed only if the
+   row was solved.
 """
 
 from dataclasses import dataclass
@@ -22,10 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, mul, resize
-from hdl.pose_params import SLOPE_FMT, PoseFlag, seed_tables
+from hdl.pose_params import DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag, seed_tables
 
 __all__ = ["PoseRows", "Value", "StepResult", "accumulate", "scale_system",
-           "reciprocal_seed", "solve_rows", "integrate_rows",
+           "rsqrt_seed", "solve_rows", "integrate_rows",
            "pose_solver_model", "upper_pairs", "identity_pose", "flags_from_checks"]
 
 #: The 21 (i, j), i ≤ j, entries of the symmetric normal matrix, in accumulator order.
@@ -230,35 +231,35 @@ def scale_system(params, normal, rhs):
     return scaled, scaled_rhs, scales, empty, saturated
 
 
-# --- 3. reciprocal seed --------------------------------------------------------------------
+# --- 3. inverse square root seed -----------------------------------------------------------
 
-def reciprocal_seed(params, pivot):
-    """Seeds ``≈ 1/D`` in ``seed_fmt`` for pivots ``D`` (a Value in ``unit_fmt``).
+def rsqrt_seed(params, pivot):
+    """Seeds ``≈ D^-1/2`` in ``seed_fmt`` for pivots ``D`` (a Value in ``unit_fmt``).
 
-    ``m = D·2**k ∈ [1/2, 1)`` by the pivot's bit length; the top ``seed_bits`` fraction
-    bits of ``m`` index the tables, the next ``delta_bits`` (truncated) interpolate;
-    the seed is ``y0·2**k`` (exact). Pivots at or below zero give the seed of the
-    smallest positive pivot (the row is flagged ILL anyway).
+    ``m = D·2**(2k) ∈ [1/4, 1)`` from the pivot's bit length (an even shift, so exact);
+    the top ``seed_bits`` fraction bits of ``m`` index the tables, the next
+    ``DELTA_BITS`` (truncated) interpolate; the seed is ``y0·2**k`` (exact). Pivots at
+    or below zero give the seed of the smallest positive pivot (the row is flagged ILL).
     """
     unit = params.unit_fmt
     raw = np.maximum(np.asarray(pivot.raw, dtype=object), 1)
-    length = _bit_length(raw)
-    k = unit.frac_bits - length                       # m = D·2**k, m_raw = raw << (k + 1)
-    mantissa = params.mantissa_bits                    # = unit frac + 1
-    m_raw = np.array([int(r) << int(s + 1) for r, s in zip(raw.tolist(), k)], dtype=object)
-    low = mantissa - 1 - params.seed_bits
-    index = np.array([(int(v) >> low) & ((1 << params.seed_bits) - 1) for v in m_raw])
-    delta = np.array([(int(v) >> (low - params.delta_bits)) & ((1 << params.delta_bits) - 1)
-                      for v in m_raw], dtype=np.int64)
-    table_fmt = params.seed_table_fmt
-    values, slopes = seed_tables(params.seed_bits, table_fmt, SLOPE_FMT)
-    t0 = Value(np.array([values[i] for i in index], dtype=np.int64), table_fmt)
+    excess = unit.frac_bits - _bit_length(raw)                   # D·2**excess ∈ [1/2, 1)
+    k = excess // 2                                              # m = D·2**(2k) ∈ [1/4, 1)
+    mantissa = np.array([int(r) << int(2 * e + 2) for r, e in zip(raw.tolist(), k)],
+                        dtype=object)                            # mantissa_bits fraction bits
+    low = params.mantissa_bits - params.seed_bits
+    index = np.array([int(v) >> low for v in mantissa])
+    delta = np.array([(int(v) >> (low - DELTA_BITS)) & ((1 << DELTA_BITS) - 1)
+                      for v in mantissa], dtype=np.int64)
+    values, slopes = seed_tables(params.seed_bits)
+    t0 = Value(np.array([values[i] for i in index], dtype=np.int64), SEED_TABLE_FMT)
     t1 = Value(np.array([slopes[i] for i in index], dtype=np.int64), SLOPE_FMT)
-    delta_fmt = UQ(0, params.seed_bits + 1 + params.delta_bits)
-    y0, _ = _dot(table_fmt, init=t0, terms=[(-1, t1, Value(delta, delta_fmt))])
-    seed_raw = np.array([int(v) << int(s + 1) for v, s in zip(np.asarray(y0.raw).tolist(), k)],
-                        dtype=object)
-    wide = QFormat(True, params.seed_fmt.int_bits + mantissa + 2, params.seed_fmt.frac_bits)
+    delta_fmt = UQ(0, params.seed_bits + DELTA_BITS)
+    y0, _ = _dot(SEED_TABLE_FMT, init=t0, terms=[(-1, t1, Value(delta, delta_fmt))])
+    shift = params.seed_fmt.frac_bits - SEED_TABLE_FMT.frac_bits   # y0·2**k, exact
+    seed_raw = np.array([int(v) << int(e + shift) for v, e in
+                         zip(np.asarray(y0.raw).tolist(), k)], dtype=object)
+    wide = QFormat(True, params.seed_fmt.int_bits + params.mantissa_bits, params.seed_fmt.frac_bits)
     return Value(resize(seed_raw, wide, params.seed_fmt, Rounding.FLOOR, Overflow.SATURATE),
                  params.seed_fmt)
 
@@ -288,47 +289,55 @@ def flags_from_checks(overrun, empty, ill, saturated):
                       int(PoseFlag.SATURATED)], 0).astype(np.int64)
 
 
-def _ldlt_solve(params, scaled, rhs, scales, trace=None):
-    """LDLᵀ of N̂ with forward, diagonal and back substitution, then ``Y = S x``.
-    Returns (six step Values, ILL mask, saturated mask). ``trace``, a dict, receives
-    every intermediate under the names of :func:`hdl.pose_program.build_row_program`."""
+def _cholesky_solve(params, scaled, rhs, scales, trace=None):
+    """Cholesky ``N̂ = G Gᵀ`` with the forward substitution carried along, the back
+    substitution with ``L = G·ρ``, then ``Y = S x``. Returns (six step Values, ILL mask,
+    saturated mask). ``trace``, a dict, receives every intermediate under the names of
+    :func:`hdl.pose_program.build_row_program`."""
     n = len(np.asarray(scales[0].raw))
     entry = {pair: v for pair, v in zip(UPPER, scaled)}
     unit, lower, sol = params.unit_fmt, params.lower_fmt, params.solution_fmt
-    two = _constant(2.0, lower, n)
+    three_halves = _constant(1.5, unit, n)
     threshold = int(unit.quantize(2.0 ** -params.pivot_log2))
     ill = np.zeros(n, dtype=bool)
     saturated = np.zeros(n, dtype=bool)
 
-    def op(dst, init=None, terms=(), name=None):
+    def op(name, dst, init=None, terms=(), scale_log2=0):
         nonlocal saturated
-        value, sat = _dot(dst, init, terms)
+        value, sat = _dot(dst, init, terms, scale_log2)
         saturated |= sat
         if trace is not None:
             trace[name] = value
         return value
 
-    w, low, seed, newton, z = {}, {}, [], [], []
+    g, low, rho, z = {}, {}, [], []
     for j in range(6):
-        pivot = op(unit, entry[(j, j)], [(-1, w[(j, k)], low[(j, k)]) for k in range(j)],
-                   f"D{j}")
+        pivot = op(f"D{j}", unit, entry[(j, j)], [(-1, g[(j, k)], g[(j, k)]) for k in range(j)])
         ill |= np.asarray(pivot.raw, dtype=object) < threshold
-        seed.append(reciprocal_seed(params, pivot))
+        seed = rsqrt_seed(params, pivot)
         if trace is not None:
-            trace[f"seed{j}"] = seed[j]
-        newton.append(op(unit, two, [(-1, pivot, seed[j])], f"e{j}"))
+            trace[f"seed{j}"] = seed
+        # one Newton step of D^-1/2 from the seed: ρ = seed·(3/2 − D·seed²/2)
+        root = op(f"h{j}", unit, terms=[(1, pivot, seed)])
+        newton = op(f"e{j}", unit, three_halves, [(-1, root, seed)], -1)
+        rho.append(op(f"rho{j}", lower, terms=[(1, seed, newton)]))
         for i in range(j + 1, 6):
-            w[(i, j)] = op(unit, entry[(j, i)], [(-1, w[(i, k)], low[(j, k)]) for k in range(j)],
-                           f"W{i}{j}")
-            product = op(lower, terms=[(1, w[(i, j)], seed[j])], name=f"P{i}{j}")
-            low[(i, j)] = op(lower, terms=[(1, product, newton[j])], name=f"L{i}{j}")
-        z.append(op(sol, rhs[j], [(-1, low[(j, k)], z[k]) for k in range(j)], f"z{j}"))
-    y = [op(sol, terms=[(1, op(sol, terms=[(1, z[j], seed[j])], name=f"Pz{j}"), newton[j])],
-            name=f"y{j}") for j in range(6)]
+            schur = op(f"W{i}{j}", unit, entry[(j, i)],
+                       [(-1, g[(i, k)], g[(j, k)]) for k in range(j)])
+            product = op(f"P{i}{j}", unit, terms=[(1, schur, seed)])
+            g[(i, j)] = op(f"G{i}{j}", unit, terms=[(1, product, newton)])
+            low[(i, j)] = op(f"L{i}{j}", lower, terms=[(1, g[(i, j)], rho[j])])
+        forward = op(f"c{j}", sol, rhs[j], [(-1, g[(j, k)], z[k]) for k in range(j)])
+        z.append(op(f"z{j}", sol, terms=[(1, forward, rho[j])]))
+    # back substitution, right-looking: once x_k is known, every x_j (j < k) loses its
+    # L_kj·x_k term, so each unknown is one single-term op after the previous one
+    partial = [op(f"w{j}", sol, terms=[(1, z[j], rho[j])]) for j in range(6)]
     x = [None] * 6
-    for j in reversed(range(6)):
-        x[j] = op(sol, y[j], [(-1, low[(k, j)], x[k]) for k in range(j + 1, 6)], f"x{j}")
-    step = [op(params.step_fmt, terms=[(1, x[j], scales[j])], name=f"Y{j}") for j in range(6)]
+    for k in reversed(range(6)):
+        x[k] = partial[k]
+        for j in reversed(range(k)):
+            partial[j] = op(f"u{j}_{k}", sol, partial[j], [(-1, low[(k, j)], x[k])])
+    step = [op(f"Y{j}", params.step_fmt, terms=[(1, x[j], scales[j])]) for j in range(6)]
     return step, ill, saturated
 
 
@@ -336,7 +345,7 @@ def solve_rows(params, coef_raw, rows):
     """Steps and flags of every row (no integration): a :class:`StepResult`."""
     normal, rhs = accumulate(params, coef_raw, rows)
     scaled, scaled_rhs, scales, empty, sat_scale = scale_system(params, normal, rhs)
-    step, ill, sat_solve = _ldlt_solve(params, scaled, scaled_rhs, scales)
+    step, ill, sat_solve = _cholesky_solve(params, scaled, scaled_rhs, scales)
     flags = flags_from_checks(rows.counts > params.slots, empty, ill, sat_scale | sat_solve)
     raw = np.stack([np.asarray(v.raw, dtype=object) for v in step], axis=1)
     raw = np.where((flags == 0)[:, None], raw, 0).astype(np.int64)
@@ -352,8 +361,8 @@ def identity_pose(params):
 
 
 def _integrate_one(params, q, p, step):
-    """One committed step: raw (q, p) → raw (q, p); the hardware's op sequence, four
-    (quaternion) or three (position) components at a time."""
+    """One committed step: raw (q, p) → raw (q, p); the hardware's op sequence, several
+    components at a time."""
     qf, sf, pf = params.quat_fmt, params.step_fmt, params.position_fmt
     w, x, y, z = q
     tx, ty, tz, ax, ay, az = step
@@ -364,6 +373,14 @@ def _integrate_one(params, q, p, step):
     def steps(*raw):
         return Value(np.array(raw, dtype=object), sf)
 
+    # R(q) of the pose before the step, row by row: diagonal 1 − 2(..), the rest 2(..)
+    one = _constant(1.0, qf, 9)
+    diagonal = np.array([1, 0, 0, 0, 1, 0, 0, 0, 1])
+    rotation, _ = _dot(qf, Value(np.where(diagonal == 1, one.raw, 0), qf),
+                       [((-1, 1, 1, 1, -1, 1, 1, 1, -1), quat(y, x, x, x, x, y, x, y, x),
+                         quat(y, y, z, y, x, z, z, z, x)),
+                        ((-1, -1, 1, 1, -1, -1, -1, 1, -1), quat(z, w, w, w, z, w, w, w, y),
+                         quat(z, z, y, z, z, x, y, x, y))], scale_log2=1)
     # q ⊗ (1, θ/2): w' = w − v·θ/2, v' = v + (w θ + v × θ)/2
     q1, _ = _dot(qf, quat(w, x, y, z),
                  [((-1, 1, 1, 1), quat(x, w, w, w), steps(ax, ax, ay, az)),
@@ -374,15 +391,12 @@ def _integrate_one(params, q, p, step):
                                             Value(q1.raw[k:k + 1], qf)) for k in range(4)],
                 scale_log2=-1)
     q2, _ = _dot(qf, terms=[(1, q1, Value(np.repeat(g.raw, 4), qf))])
-    # p + R(q) T = p + T + w t + v × t with t = 2 v × T (old q)
-    t, _ = _dot(qf, terms=[(1, quat(y, z, x), steps(tz, tx, ty)),
-                           (-1, quat(z, x, y), steps(ty, tz, tx))], scale_log2=1)
-    rx, ry, rz = t.raw
-    p2, _ = _dot(pf, Value(np.array(p, dtype=object), pf),
-                 [(1, steps(tx, ty, tz), _constant(1.0, qf, 3)),
-                  (1, quat(w, w, w), quat(rx, ry, rz)),
-                  (1, quat(y, z, x), quat(rz, rx, ry)),
-                  (-1, quat(z, x, y), quat(ry, rz, rx))])
+    # p + R T in two roundings: the T_y, T_z terms, then T_x (last out of the solve)
+    r = rotation.raw
+    early, _ = _dot(pf, Value(np.array(p, dtype=object), pf),
+                    [(1, quat(r[1], r[4], r[7]), steps(ty, ty, ty)),
+                     (1, quat(r[2], r[5], r[8]), steps(tz, tz, tz))])
+    p2, _ = _dot(pf, early, [(1, quat(r[0], r[3], r[6]), steps(tx, tx, tx))])
     return (np.array(q2.raw.tolist(), dtype=np.int64), np.array(p2.raw.tolist(), dtype=np.int64))
 
 

@@ -47,8 +47,9 @@ from .rotations import exp_so3
 __all__ = ["UNKNOWNS", "COEFFICIENTS", "ShiftCoefficients", "shift_coefficients",
            "segment_columns", "design_rows", "normal_equations", "StepSolution",
            "solve_normal", "solve_step", "scaled_condition", "quat_multiply",
-           "quat_to_matrix", "quat_from_rotvec", "integrate", "integrate_steps",
-           "body_step", "project_shift"]
+           "quat_to_matrix", "quat_from_rotvec", "quat_from_matrix", "integrate",
+           "integrate_steps", "body_step", "project_shift", "ROOM", "rig_slots",
+           "rig_coefficient_table", "room_depth", "SyntheticRows", "simulate_rows"]
 
 #: The unknowns of a step, body frame (x right, y down, z forward): metres and radians.
 UNKNOWNS = ("Tx", "Ty", "Tz", "θx", "θy", "θz")
@@ -366,9 +367,9 @@ class SyntheticRows:
     start: tuple
 
 
-def _matrix_to_quat(rotation):
-    """Unit quaternion (w, x, y, z) of one rotation matrix (no trace issues for the
-    rotations used here: picks the largest component)."""
+def quat_from_matrix(rotation):
+    """Unit quaternion (w, x, y, z) of one rotation matrix (Shepperd's method: from the
+    largest of w, x, y, z, so no component is recovered by a small division)."""
     m = np.asarray(rotation, dtype=float)
     trace = np.trace(m)
     candidates = [trace, m[0, 0], m[1, 1], m[2, 2]]
@@ -421,7 +422,7 @@ def simulate_rows(rig, trajectory, duration, *, cue_scale, rng, shift_noise=0.0,
     shift += rng.normal(0.0, shift_noise, shift.shape) if shift_noise else 0.0
     weight = rng.uniform(*weight_range, shift.shape)
     weight[rng.random(shift.shape) < zero_weight_fraction] = 0.0
-    start = (_matrix_to_quat(rot_a[0]), pos_a[0])
+    start = (quat_from_matrix(rot_a[0]), pos_a[0])
     return SyntheticRows(table=rig_coefficient_table(rig, scales), slot=np.broadcast_to(
         np.arange(len(slots)), shift.shape).copy(), shift=shift, cue=cue, weight=weight,
         row=rows, time=times, true_step=steps, start=start)

@@ -7,8 +7,8 @@ word per clock from a ROM — on
   exponents (barrel shift + one half-even rounding) into the ``input`` register bank,
   then writes the six scales ``2**-e``;
 * one pipelined multiply-accumulate unit (exact sums, one rounding per op);
-* a seed unit for reciprocals (normalize, interpolated table, denormalize) that also
-  checks every pivot against ``2**-pivot_log2``;
+* a seed unit for inverse square roots (normalize by an even shift, interpolated
+  table, denormalize) that also checks every pivot against ``2**-pivot_log2``;
 * the ``work`` register bank (LUT RAM, transparent reads) and the pose state registers.
 
 When the program ends it offers the pose record; the next row starts once the record
@@ -22,7 +22,8 @@ from amaranth.lib.wiring import In, Out
 
 from .fixed import SQ, UQ, Overflow, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
 from .pose_accumulator import PAIRS, exponent_bits
-from .pose_params import SLOPE_FMT, PoseFlag, PoseSolverParams, seed_tables
+from .pose_params import (DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag,
+                          PoseSolverParams, seed_tables)
 from .pose_program import (MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, STATE_NAMES,
                            build_row_program, schedule)
 
@@ -64,8 +65,8 @@ def counters_layout(params):
 
 def seed_table_contents(params):
     """ROM words of the seed unit: ``T1 << T0_width | T0`` for each table index."""
-    values, slopes = seed_tables(params.seed_bits, params.seed_table_fmt, SLOPE_FMT)
-    width = params.seed_table_fmt.width
+    values, slopes = seed_tables(params.seed_bits)
+    width = SEED_TABLE_FMT.width
     return [(s << width) | v for v, s in zip(values, slopes)]
 
 
@@ -120,7 +121,7 @@ class _Words:
 
 
 class PoseEngine(wiring.Component):
-    """Scaling, LDLᵀ solve and integration of one row at a time.
+    """Scaling, Cholesky solve and integration of one row at a time.
 
     Parameters
     ----------
@@ -317,9 +318,10 @@ class PoseEngine(wiring.Component):
         assert MAC_LATENCY == 5
 
         # --- seed unit -----------------------------------------------------------------
-        # t+1: pivot, its bit length, the ILL check; t+2: normalize, table address;
-        # t+3: table data, slope·delta; t+4: interpolate; t+5: denormalize; t+6: write.
-        unit, table_fmt = p.unit_fmt, p.seed_table_fmt
+        # t+1: pivot, its bit length, the ILL check; t+2: normalize (even shift), table
+        # address; t+3: table data, slope·delta; t+4: interpolate; t+5: denormalize;
+        # t+6: write. As emulator.pose_solver.rsqrt_seed.
+        unit = p.unit_fmt
         with m.If(stages[1].issue & stages[1].seed
                   & (op_a < int(unit.quantize(2.0 ** -p.pivot_log2)))):
             m.d.sync += ill.eq(1)
@@ -329,33 +331,36 @@ class PoseEngine(wiring.Component):
         for k in range(W - 1):
             with m.If(clamped[k]):
                 m.d.comb += bits.eq(k + 1)
-        pivot2, shift2 = Signal(W - 1), Signal(range(W + 1))
-        m.d.sync += [pivot2.eq(clamped), shift2.eq(unit.frac_bits + 1 - bits)]
+        # excess = F − bits ≥ −1, k = floor(excess / 2), m = D·2**(2k): half = k + 1 ≥ 0
+        pivot2, half2 = Signal(W - 1), Signal(range(W))
+        m.d.sync += [pivot2.eq(clamped), half2.eq((unit.frac_bits + 2 - bits) >> 1)]
         mantissa = Signal(p.mantissa_bits)
-        m.d.comb += mantissa.eq(pivot2 << shift2)
-        low_bit = p.mantissa_bits - 1 - p.seed_bits
-        table = Memory(shape=table_fmt.width + SLOPE_FMT.width, depth=1 << p.seed_bits,
+        m.d.comb += mantissa.eq(pivot2 << (half2 << 1))
+        low_bit = p.mantissa_bits - p.seed_bits
+        table = Memory(shape=SEED_TABLE_FMT.width + SLOPE_FMT.width, depth=1 << p.seed_bits,
                        init=seed_table_contents(p))
         m.submodules.seed_table = table
         lookup = table.read_port()
-        m.d.comb += lookup.addr.eq(mantissa[low_bit:low_bit + p.seed_bits])
-        delta_fmt = UQ(0, p.seed_bits + 1 + p.delta_bits)
-        delta3, shift3 = Signal(p.delta_bits), Signal.like(shift2)
-        m.d.sync += [delta3.eq(mantissa[low_bit - p.delta_bits:low_bit]), shift3.eq(shift2)]
+        m.d.comb += lookup.addr.eq(mantissa[low_bit:])
+        delta_fmt = UQ(0, p.seed_bits + DELTA_BITS)
+        delta3, half3 = Signal(DELTA_BITS), Signal.like(half2)
+        m.d.sync += [delta3.eq(mantissa[low_bit - DELTA_BITS:low_bit]), half3.eq(half2)]
         slope_fmt = mul_format(SLOPE_FMT, delta_fmt)
-        slope4, t0_4, shift4 = Signal(slope_fmt.shape()), Signal(table_fmt.width), Signal.like(shift2)
-        m.d.sync += [slope4.eq(hdl_mul(lookup.data[table_fmt.width:], SLOPE_FMT, delta3,
+        slope4, t0_4, half4 = (Signal(slope_fmt.shape()), Signal(SEED_TABLE_FMT.width),
+                               Signal.like(half2))
+        m.d.sync += [slope4.eq(hdl_mul(lookup.data[SEED_TABLE_FMT.width:], SLOPE_FMT, delta3,
                                        delta_fmt)[0]),
-                     t0_4.eq(lookup.data[:table_fmt.width]), shift4.eq(shift3)]
-        total, total_fmt = hdl_add(t0_4, table_fmt, -slope4,
+                     t0_4.eq(lookup.data[:SEED_TABLE_FMT.width]), half4.eq(half3)]
+        total, total_fmt = hdl_add(t0_4, SEED_TABLE_FMT, -slope4,
                                    SQ(slope_fmt.int_bits + 1, slope_fmt.frac_bits))
-        y0_5, shift5 = Signal(table_fmt.shape()), Signal.like(shift2)
-        m.d.sync += [y0_5.eq(_round_saturating(m, total, total_fmt, table_fmt)[0]),
-                     shift5.eq(shift4)]
-        # seed = y0·2**k (k = shift − 1) in seed_fmt, which has one more fraction bit
-        wide_fmt = SQ(W + table_fmt.width + 2, 0)
+        y0_5, half5 = Signal(SEED_TABLE_FMT.shape()), Signal.like(half2)
+        m.d.sync += [y0_5.eq(_round_saturating(m, total, total_fmt, SEED_TABLE_FMT)[0]),
+                     half5.eq(half4)]
+        # seed = y0·2**k in seed_fmt: shift by (half − 1) + (seed frac − table frac)
+        extra = p.seed_fmt.frac_bits - SEED_TABLE_FMT.frac_bits - 1
         seed_data = Signal(raw)
-        m.d.sync += seed_data.eq(hdl_resize(y0_5 << shift5, UQ(wide_fmt.width - 1, 0),
+        m.d.sync += seed_data.eq(hdl_resize(y0_5 << (half5 + extra),
+                                            UQ(SEED_TABLE_FMT.width + W + extra, 0),
                                             SQ(W, 0), Rounding.FLOOR, Overflow.SATURATE))
         seed_write = stages[6].issue & stages[6].seed
         assert SEED_LATENCY == 6
@@ -390,9 +395,8 @@ class PoseEngine(wiring.Component):
         m.d.comb += [rec.q[k].eq(state[k]) for k in range(4)]
         m.d.comb += [rec.p[k].eq(state[4 + k]) for k in range(3)]
         m.d.comb += [rec.step[k].eq(Mux(flags == 0, captured[k], 0)) for k in range(6)]
-        counted = Signal()
-        m.d.sync += counted.eq(running & (pc == length - 1))
-        with m.If(counted):
+        # counted on the edge that raises o.valid (the flags are final by then)
+        with m.If(running & (pc == length - 1)):
             for name, flag in (("empty", PoseFlag.EMPTY), ("ill", PoseFlag.ILL),
                                ("saturated", PoseFlag.SATURATED),
                                ("overrun", PoseFlag.OVERRUN)):

@@ -15,7 +15,7 @@ import numpy as np
 from .fixed import SQ, UQ, QFormat, Overflow, Rounding
 
 __all__ = ["PoseFlag", "PoseSolverParams", "coefficient_formats", "quantize_coefficients",
-           "COEF_GROUPS", "SLOPE_FMT", "seed_tables"]
+           "COEF_GROUPS", "SEED_TABLE_FMT", "SLOPE_FMT", "DELTA_BITS", "seed_tables"]
 
 #: The three coefficient groups of a table row (see golden.pose_lsq): a_T, a_C, a_R.
 COEF_GROUPS = ("t", "c", "r")
@@ -29,7 +29,7 @@ class PoseFlag(enum.IntFlag):
     #: A column of the normal matrix is below ``min_diagonal``: an unknown has no
     #: constraint (all confidences zero, no measurement, or an unobservable direction).
     EMPTY = 1 << 0
-    #: A pivot of the scaled LDLᵀ factorization fell below ``2**-pivot_log2``: the
+    #: A pivot of the scaled Cholesky factorization fell below ``2**-pivot_log2``: the
     #: system is too ill-conditioned to solve.
     ILL = 1 << 1
     #: An intermediate of the solve or the step left its format (saturated).
@@ -79,7 +79,7 @@ class PoseSolverParams:
         A diagonal entry of the normal matrix below this flags :attr:`PoseFlag.EMPTY`
         (units: pixel² per unknown² times confidence).
     seed_bits : int
-        Index bits of the reciprocal seed table (linear interpolation between entries).
+        Index bits of the ``1/sqrt`` seed table (linear interpolation between entries).
     row_bits, time_bits : int
         Widths of the row index and time stamp carried to the pose record.
     counter_bits : int
@@ -100,7 +100,7 @@ class PoseSolverParams:
     engine_width: int = 42
     pivot_log2: int = 20
     min_diagonal: float = 1.0
-    seed_bits: int = 9
+    seed_bits: int = 10
     row_bits: int = 10
     time_bits: int = 32
     counter_bits: int = 32
@@ -127,12 +127,13 @@ class PoseSolverParams:
             raise ValueError(f"coef_t_fmt, coef_c_fmt and coef_r_fmt must have one width, "
                              f"not {sorted(widths)}")
         _check_int("engine_width", self.engine_width, 32, 64)
-        # the seed register keeps at least 20 fraction bits (the interpolated seed's precision)
-        _check_int("pivot_log2", self.pivot_log2, 2, self.engine_width - 22)
+        # the seed register keeps the table's fraction bits and one more
+        _check_int("pivot_log2", self.pivot_log2, 2,
+                   2 * (self.engine_width - SEED_TABLE_FMT.frac_bits - 3))
         if isinstance(self.min_diagonal, bool) or not isinstance(self.min_diagonal, (int, float)) \
                 or not math.isfinite(self.min_diagonal) or self.min_diagonal <= 0:
             raise ValueError(f"min_diagonal must be a positive number, not {self.min_diagonal!r}")
-        _check_int("seed_bits", self.seed_bits, 2, 12)
+        _check_int("seed_bits", self.seed_bits, 3, 12)
         _check_int("row_bits", self.row_bits, max(1, (self.rows - 1).bit_length()), 16)
         _check_int("time_bits", self.time_bits, 1, 64)
         _check_int("counter_bits", self.counter_bits, 1, 64)
@@ -212,29 +213,31 @@ class PoseSolverParams:
 
     @property
     def unit_fmt(self):
-        """Scaled normal matrix N̂, W = L·D, pivots D, Newton factors e: |·| < 2."""
+        """Scaled normal matrix N̂, Schur complements and pivots, the Cholesky factor G
+        (|G_ij| ≤ 1), the Newton factors: |·| < 2."""
         return self.engine_fmt(2)
 
     @property
     def lower_fmt(self):
-        """L (and W·seed): |L_ij| ≤ D_j^-1/2 ≤ 2**(pivot_log2/2)."""
-        return self.engine_fmt(self.pivot_log2 // 2 + 2)
+        """``ρ = D^-1/2`` and ``L = G·ρ`` (back substitution): up to
+        ``2**(pivot_log2/2)``."""
+        return self.engine_fmt(-(-self.pivot_log2 // 2) + 2)
 
     @property
     def seed_fmt(self):
-        """Reciprocal seeds ``y0·2**k ≈ 1/D`` (exact shifted table values)."""
-        return self.engine_fmt(self.pivot_log2 + 2)
+        """Seeds ``y0·2**k ≈ D^-1/2`` (exact shifted table values)."""
+        return self.lower_fmt
 
     @property
     def solution_fmt(self):
-        """Scaled right-hand side b̂ and the forward/back substitution values z, y, x."""
+        """Scaled right-hand side b̂ and the substitution values c, z, w, x."""
         return self.engine_fmt(12)
 
     @property
     def scale_fmt(self):
         """``2**-e``, the Jacobi scale of an unknown (exact)."""
         low, high = self.exponent_range
-        return self.engine_fmt(max(2, low + 2) if low < 0 else 2)
+        return self.engine_fmt(max(2, 2 - low))
 
     @property
     def step_fmt(self):
@@ -251,20 +254,10 @@ class PoseSolverParams:
         return self.engine_fmt(10)
 
     @property
-    def seed_table_fmt(self):
-        """Interpolated seed ``y0 ≈ 1/m`` for ``m ∈ [1/2, 1)``; one bit finer than the
-        seed register so that ``y0/2`` (a pivot that rounded up to 1) stays exact."""
-        return UQ(2, self.seed_fmt.frac_bits - 1)
-
-    @property
     def mantissa_bits(self):
-        """Fraction bits of the normalized pivot ``m`` in the reciprocal unit."""
-        return self.unit_fmt.frac_bits + 1
-
-    @property
-    def delta_bits(self):
-        """Bits of the interpolation offset kept below the table index."""
-        return self.seed_table_fmt.frac_bits - self.seed_bits + 2
+        """Fraction bits of the normalized pivot ``m ∈ [1/4, 1)`` in the seed unit
+        (two more than the pivot's, so that every even normalization is exact)."""
+        return self.unit_fmt.frac_bits + 2
 
 
 def _mul(a, b):
@@ -301,17 +294,23 @@ def quantize_coefficients(params, table):
                                         Overflow.ERROR) for k, fmt in enumerate(fmts)], axis=-1)
 
 
-#: Format of the reciprocal seed slopes (18 bits: one DSP B port).
+#: Format of the seed table's values ``1/sqrt(m) ∈ (1, 2]`` (the interpolation is good to
+#: about 2**-18, so more bits would buy nothing).
+SEED_TABLE_FMT = UQ(2, 20)
+#: Format of the seed slopes (18 bits: one DSP B port).
 SLOPE_FMT = UQ(3, 15)
+#: Bits of ``m`` below the table index that the interpolation uses.
+DELTA_BITS = 12
 
 
 @lru_cache(maxsize=None)
-def seed_tables(seed_bits, table_fmt, slope_fmt=SLOPE_FMT):
-    """Secant interpolation tables of ``1/m`` on ``m ∈ [1/2, 1)`` (raw ints): values
-    ``T0[i] = 1/m_i`` and slopes ``T1[i] = 1/(m_i m_{i+1})``, so that
-    ``1/m ≈ T0[i] − T1[i]·(m − m_i)``, with ``m_i = 1/2 + i·2**-(seed_bits+1)``."""
-    step = 2.0 ** -(seed_bits + 1)
-    m = 0.5 + np.arange(1 << seed_bits) * step
-    value = table_fmt.quantize(1.0 / m)
-    slope = slope_fmt.quantize(1.0 / (m * (m + step)))
+def seed_tables(seed_bits):
+    """Secant interpolation tables of ``1/sqrt(m)`` on ``m ∈ [0, 1)`` in steps of
+    ``h = 2**-seed_bits`` (raw ints; entries below 1/4 are never used): values
+    ``T0[i] = m_i^-1/2`` and slopes ``T1[i] = (m_i^-1/2 − m_{i+1}^-1/2) / h``, so that
+    ``m^-1/2 ≈ T0[i] − T1[i]·(m − m_i)``."""
+    h = 2.0 ** -seed_bits
+    m = np.maximum(np.arange(1 << seed_bits) * h, 0.25)
+    value = SEED_TABLE_FMT.quantize(1.0 / np.sqrt(m))
+    slope = SLOPE_FMT.quantize((1.0 / np.sqrt(m) - 1.0 / np.sqrt(m + h)) / h)
     return tuple(int(v) for v in value), tuple(int(s) for s in slope)

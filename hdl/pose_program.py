@@ -1,8 +1,8 @@
 """The per-row program of the pose solver's engine, and its static schedule.
 
 The engine (:mod:`hdl.pose_engine`) is a single-issue multiply-accumulate machine with
-a seed unit for reciprocals. Its program for one row — the LDLᵀ solve and the pose
-integration of ``docs/pose_solver.md`` — is written here once, as a list of ops on named
+a seed unit for inverse square roots. Its program for one row — the Cholesky solve and
+the pose integration of ``docs/pose_solver.md`` — is written here once, as a list of ops on named
 values, and scheduled at build time into one instruction word per clock. The schedule is
 static, so the block's latency is known exactly (and read by the benches).
 
@@ -53,7 +53,7 @@ class Operand:
 class Op:
     """One instruction of the program (see the module docstring).
 
-    ``kind`` "mac" or "seed" (the seed unit: ``dst ≈ 1/source`` and the pivot check).
+    ``kind`` "mac" or "seed" (the seed unit: ``dst ≈ source^-1/2`` and the pivot check).
     ``checked``: a saturation sets the row's SATURATED flag. ``commit``: writes state.
     """
     kind: str
@@ -148,7 +148,7 @@ class RowProgram:
 
 def build_row_program(params):
     """The op list of one row for ``params`` (a PoseSolverParams); mirrors
-    ``emulator.pose_solver`` op for op."""
+    ``emulator.pose_solver`` op for op (and uses its value names)."""
     prog = RowProgram()
     unit, lower, sol = params.unit_fmt, params.lower_fmt, params.solution_fmt
     qf, sf, pf = params.quat_fmt, params.step_fmt, params.position_fmt
@@ -158,59 +158,72 @@ def build_row_program(params):
     scales = [prog._new(prog.inputs, "input", f"s{i}", params.scale_fmt) for i in range(6)]
     for name in STATE_NAMES:
         prog._new(prog.state, "state", name, qf if name.startswith("q") else pf)
-    for name, value, fmt in (("two", 2.0, lower), ("three_halves", 1.5, qf),
-                             ("one", 1.0, params.engine_fmt(3))):
+    for name, value, fmt in (("three_halves", 1.5, unit), ("three_halves_q", 1.5, qf),
+                             ("one", 1.0, qf)):
         prog.constants[name] = (prog.work_value(name, fmt), value)
     n = prog.inputs
-    two = prog.constants["two"][0]
+    three_halves = prog.constants["three_halves"][0]
 
-    # LDLᵀ of N̂ with the right-hand side carried along (forward substitution).
-    w, low, seed, newton, z = {}, {}, [], [], []
+    # Cholesky N̂ = G Gᵀ with the forward substitution carried along; D^-1/2 is a seed
+    # and one Newton step, ρ = seed·(3/2 − D·seed²/2).
+    g, low, rho, z = {}, {}, [], []
     for j in range(6):
         pivot = prog.mac(f"D{j}", unit, n[f"N{j}{j}"],
-                         [(-1, w[(j, k)], low[(j, k)]) for k in range(j)], checked=True)
-        seed.append(prog.work_value(f"seed{j}", params.seed_fmt))
-        prog.ops.append(Op("seed", seed[j], source=pivot))
-        newton.append(prog.mac(f"e{j}", unit, two, [(-1, pivot, seed[j])], checked=True))
+                         [(-1, g[(j, k)], g[(j, k)]) for k in range(j)], checked=True)
+        seed = prog.work_value(f"seed{j}", params.seed_fmt)
+        prog.ops.append(Op("seed", seed, source=pivot))
+        root = prog.mac(f"h{j}", unit, terms=[(1, pivot, seed)], checked=True)
+        newton = prog.mac(f"e{j}", unit, three_halves, [(-1, root, seed)], -1, checked=True)
+        rho.append(prog.mac(f"rho{j}", lower, terms=[(1, seed, newton)], checked=True))
         for i in range(j + 1, 6):
-            w[(i, j)] = prog.mac(f"W{i}{j}", unit, n[f"N{j}{i}"],
-                                 [(-1, w[(i, k)], low[(j, k)]) for k in range(j)], checked=True)
-            product = prog.mac(f"P{i}{j}", lower, terms=[(1, w[(i, j)], seed[j])], checked=True)
-            low[(i, j)] = prog.mac(f"L{i}{j}", lower, terms=[(1, product, newton[j])],
+            schur = prog.mac(f"W{i}{j}", unit, n[f"N{j}{i}"],
+                             [(-1, g[(i, k)], g[(j, k)]) for k in range(j)], checked=True)
+            product = prog.mac(f"P{i}{j}", unit, terms=[(1, schur, seed)], checked=True)
+            g[(i, j)] = prog.mac(f"G{i}{j}", unit, terms=[(1, product, newton)], checked=True)
+            low[(i, j)] = prog.mac(f"L{i}{j}", lower, terms=[(1, g[(i, j)], rho[j])],
                                    checked=True)
-        z.append(prog.mac(f"z{j}", sol, rhs[j], [(-1, low[(j, k)], z[k]) for k in range(j)],
-                          checked=True))
-    y = []
-    for j in range(6):
-        pz = prog.mac(f"Pz{j}", sol, terms=[(1, z[j], seed[j])], checked=True)
-        y.append(prog.mac(f"y{j}", sol, terms=[(1, pz, newton[j])], checked=True))
+        forward = prog.mac(f"c{j}", sol, rhs[j], [(-1, g[(j, k)], z[k]) for k in range(j)],
+                           checked=True)
+        z.append(prog.mac(f"z{j}", sol, terms=[(1, forward, rho[j])], checked=True))
+    # back substitution, right-looking: one single-term op per unknown on the chain
+    partial = [prog.mac(f"w{j}", sol, terms=[(1, z[j], rho[j])], checked=True)
+               for j in range(6)]
     x = [None] * 6
-    for j in reversed(range(6)):
-        x[j] = prog.mac(f"x{j}", sol, y[j], [(-1, low[(k, j)], x[k]) for k in range(j + 1, 6)],
-                        checked=True)
+    for k in reversed(range(6)):
+        x[k] = partial[k]
+        for j in reversed(range(k)):  # the next unknown first: it is on the chain
+            partial[j] = prog.mac(f"u{j}_{k}", sol, partial[j], [(-1, low[(k, j)], x[k])],
+                                  checked=True)
     step = [prog.mac(f"Y{j}", sf, terms=[(1, x[j], scales[j])], checked=True) for j in range(6)]
     prog.step = tuple(step)
 
-    # Integration: q ⊗ (1, θ/2), one Newton step of the normalization, p + R(q) T.
+    # Integration: R(q) of the pose before the step (known from the start), q ⊗ (1, θ/2)
+    # with one Newton step of the normalization, p + R(q) T.
     s = prog.state
     qw, qx, qy, qz = (s[k] for k in ("qw", "qx", "qy", "qz"))
     tx, ty, tz, ax, ay, az = step
+    one = prog.constants["one"][0]
+    rotation = [
+        prog.mac("R00", qf, one, [(-1, qy, qy), (-1, qz, qz)], 1),
+        prog.mac("R01", qf, terms=[(1, qx, qy), (-1, qw, qz)], scale_log2=1),
+        prog.mac("R02", qf, terms=[(1, qx, qz), (1, qw, qy)], scale_log2=1),
+        prog.mac("R10", qf, terms=[(1, qx, qy), (1, qw, qz)], scale_log2=1),
+        prog.mac("R11", qf, one, [(-1, qx, qx), (-1, qz, qz)], 1),
+        prog.mac("R12", qf, terms=[(1, qy, qz), (-1, qw, qx)], scale_log2=1),
+        prog.mac("R20", qf, terms=[(1, qx, qz), (-1, qw, qy)], scale_log2=1),
+        prog.mac("R21", qf, terms=[(1, qy, qz), (1, qw, qx)], scale_log2=1),
+        prog.mac("R22", qf, one, [(-1, qx, qx), (-1, qy, qy)], 1)]
     q1 = [prog.mac("q1w", qf, qw, [(-1, qx, ax), (-1, qy, ay), (-1, qz, az)], -1),
           prog.mac("q1x", qf, qx, [(1, qw, ax), (1, qy, az), (-1, qz, ay)], -1),
           prog.mac("q1y", qf, qy, [(1, qw, ay), (1, qz, ax), (-1, qx, az)], -1),
           prog.mac("q1z", qf, qz, [(1, qw, az), (1, qx, ay), (-1, qy, ax)], -1)]
-    gain = prog.mac("gain", qf, prog.constants["three_halves"][0],
+    gain = prog.mac("gain", qf, prog.constants["three_halves_q"][0],
                     [(-1, c, c) for c in q1], -1)
-    t = [prog.mac("tx", qf, terms=[(1, qy, tz), (-1, qz, ty)], scale_log2=1),
-         prog.mac("ty", qf, terms=[(1, qz, tx), (-1, qx, tz)], scale_log2=1),
-         prog.mac("tz", qf, terms=[(1, qx, ty), (-1, qy, tx)], scale_log2=1)]
-    one = prog.constants["one"][0]
-    prog.mac("px'", pf, s["px"], [(1, tx, one), (1, qw, t[0]), (1, qy, t[2]), (-1, qz, t[1])],
-             dst=s["px"])
-    prog.mac("py'", pf, s["py"], [(1, ty, one), (1, qw, t[1]), (1, qz, t[0]), (-1, qx, t[2])],
-             dst=s["py"])
-    prog.mac("pz'", pf, s["pz"], [(1, tz, one), (1, qw, t[2]), (1, qx, t[1]), (-1, qy, t[0])],
-             dst=s["pz"])
+    # T_x comes last out of the back substitution: the T_y, T_z terms go first
+    for k, name in enumerate(("px", "py", "pz")):
+        early = prog.mac(name + "_yz", pf, s[name], [(1, rotation[3 * k + 1], ty),
+                                                     (1, rotation[3 * k + 2], tz)])
+        prog.mac(name + "'", pf, early, [(1, rotation[3 * k], tx)], dst=s[name])
     for name, c in zip(("qw", "qx", "qy", "qz"), q1):
         prog.mac(name + "'", qf, terms=[(1, c, gain)], dst=s[name])
     return prog

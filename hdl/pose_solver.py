@@ -21,7 +21,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out, connect
 
-from .pose_accumulator import PoseAccumulator, measurement_layout
+from .pose_accumulator import PAIRS, PoseAccumulator, measurement_layout
 from .pose_engine import PoseEngine, counters_layout, record_layout
 from .pose_params import PoseFlag, PoseSolverParams
 
@@ -115,10 +115,14 @@ class PoseSolver(wiring.Component):
 
     @property
     def row_interval(self):
-        """Clocks per row when rows of ``slots`` measurements come back to back: the
-        engine program plus its start, or the accumulation if that is longer."""
-        accumulate = self.params.slots * self._accumulator.period + self._accumulator.tail
-        return max(self._engine.length + 1, accumulate)
+        """Clocks per row when rows of ``slots`` measurements come back to back and
+        records are taken at once. Either the engine bounds it (its program, the clock
+        the record is taken in, the clock it restarts in), or the accumulation does: a
+        row's first measurement is accepted once the engine has read the previous
+        row's sums, ``len(PAIRS) + 1`` clocks after that row was done."""
+        acc = self._accumulator
+        accumulate = acc.tail + len(PAIRS) + 1 + (self.params.slots - 1) * acc.period
+        return max(self._engine.length + 2, accumulate)
 
     def elaborate(self, platform):
         p = self.params

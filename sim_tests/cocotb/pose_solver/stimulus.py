@@ -1,0 +1,159 @@
+"""Coefficient tables and row mixes for the pose solver's tests and bench.
+
+A *case* fixes the hardware (parameters and coefficient store contents, from the case
+name alone, so a cocotb bench can rebuild exactly what the pytest runner elaborated);
+its rows are drawn from a seeded generator:
+
+* ``random``: 8 slots × 64 table rows. Table rows 0–31 are random (well-conditioned
+  systems); rows 32–63 are built with a prescribed singular-value spread so that the
+  Jacobi-scaled normal matrix has condition 10⁴–10⁶ (near-singular). Rows mix full,
+  partial, zero-confidence and over-long (OVERRUN) measurement sets and extreme values.
+* ``stereo8``: eight cameras of the ``stereo20`` preset, the left camera of pairs 0–5,
+  8 and 9 (the two cameras of a pair give near-duplicate equations, so four whole
+  pairs are rank 4), with the pair's disparity as cue; 480 rows, the papers' test
+  motion through the room (simulated sequence).
+* ``radial4``: the ``radial4`` preset (8 segments per row, inverse-depth cue), 480
+  rows, the same motion.
+"""
+
+import math
+
+import numpy as np
+
+from emulator.pose_solver import PoseRows, rows_from_float
+from golden import pose_lsq
+from hdl.pose_params import PoseSolverParams, coefficient_formats, quantize_coefficients
+
+__all__ = ["CASES", "build_case", "random_rows", "sequence_rows", "mixed_rows"]
+
+#: Table rows of the ``random`` case with near-singular systems.
+NEAR_SINGULAR_ROWS = range(32, 64)
+#: Condition numbers (of the Jacobi-scaled normal matrix) the near-singular rows aim at.
+NEAR_SINGULAR_CONDITION = (1e4, 1e6)
+#: Inverse-depth cue scale of the radial case (cue = 64/Z fills cue_fmt well).
+RADIAL_CUE_SCALE = 1 / 64
+STEREO_BASELINE = 0.10
+#: Pairs of stereo20 whose left camera the stereo8 case uses.
+STEREO8_PAIRS = (0, 1, 2, 3, 4, 5, 8, 9)
+
+
+def _random_table(rng, slots, rows):
+    """Coefficients of well-conditioned rows (0–31) and near-singular rows (32–63)."""
+    table = np.concatenate([rng.normal(0, 300, (slots, rows, 3)),
+                            rng.normal(0, 20, (slots, rows, 3)),
+                            rng.normal(0, 400, (slots, rows, 3))], axis=-1)
+    for r in NEAR_SINGULAR_ROWS:
+        # A = U Σ Vᵀ with cond(A)² spread over the target range; the cue is 1 and
+        # a_C = 0 in these rows, so the design rows are A itself.
+        target = math.exp(rng.uniform(*np.log(NEAR_SINGULAR_CONDITION)))
+        u, _ = np.linalg.qr(rng.normal(size=(slots, 6)))
+        v, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+        sigma = np.geomspace(1.0, 1.0 / math.sqrt(target), 6)
+        design = (u * sigma) @ v.T * 400 / np.max(np.abs((u * sigma) @ v.T))
+        table[:, r, 0:3], table[:, r, 3:6], table[:, r, 6:9] = design[:, :3], 0.0, design[:, 3:]
+    return table
+
+
+def _rig_case(name, cue_scale):
+    from golden.rig import preset
+    rig = preset("stereo20" if name == "stereo8" else name)
+    if name == "stereo8":
+        from golden.rig import Rig
+        rig = Rig(name="stereo8", row_points=1,
+                  cameras=tuple(rig.cameras[2 * k] for k in STEREO8_PAIRS))
+    table = pose_lsq.rig_coefficient_table(rig, cue_scale(rig))
+    return rig, table
+
+
+def _stereo_scale(rig):
+    return [1.0 / (cam.fx * STEREO_BASELINE) for cam in rig.cameras]
+
+
+CASES = ("random", "stereo8", "radial4")
+
+
+def build_case(name):
+    """``(params, raw coefficients, rig or None)`` of case ``name``; deterministic."""
+    if name == "random":
+        table = _random_table(np.random.default_rng(2026), 8, 64)
+        params = PoseSolverParams(slots=8, rows=64, row_bits=6,
+                                  **coefficient_formats(table, 18))
+        return params, quantize_coefficients(params, table), None
+    if name in ("stereo8", "radial4"):
+        scale = _stereo_scale if name == "stereo8" else (lambda rig: RADIAL_CUE_SCALE)
+        rig, table = _rig_case(name, scale)
+        params = PoseSolverParams(slots=table.shape[0], rows=table.shape[1],
+                                  **coefficient_formats(table, 18))
+        return params, quantize_coefficients(params, table), rig
+    raise ValueError(f"case must be one of {', '.join(CASES)}, not {name!r}")
+
+
+def random_rows(params, rng, count):
+    """Rows for the ``random`` case: a mix of well-conditioned, near-singular,
+    zero-confidence, partial, over-long and extreme rows."""
+    m = params.slots + 2
+    slot = np.zeros((count, m), dtype=np.int64)
+    shift = rng.normal(0, 2.0, (count, m))
+    cue = rng.uniform(0.1, 0.6, (count, m))
+    weight = rng.uniform(0.25, 3.9, (count, m))
+    present = np.zeros((count, m), dtype=bool)
+    row = rng.integers(0, params.rows, count)
+    kind = rng.choice(["full", "near", "zero", "partial", "overrun", "extreme"], count,
+                      p=[0.45, 0.3, 0.05, 0.1, 0.05, 0.05])
+    for r in range(count):
+        n = params.slots
+        if kind[r] == "near":
+            row[r] = rng.choice(NEAR_SINGULAR_ROWS)
+            cue[r], weight[r] = 1.0, 1.0
+        else:
+            row[r] = rng.integers(0, NEAR_SINGULAR_ROWS.start)
+        if kind[r] == "zero":
+            weight[r] = 0.0
+        elif kind[r] == "partial":
+            n = int(rng.integers(1, params.slots))
+        elif kind[r] == "overrun":
+            n = int(rng.integers(params.slots + 1, m + 1))
+        elif kind[r] == "extreme":
+            shift[r] = rng.choice([-40.0, 40.0, 0.0], m)
+            weight[r] = rng.choice([0.0, 4.0, weight[r, 0]], m)
+        slot[r, :n] = rng.permutation(np.resize(np.arange(params.slots), n))
+        present[r, :n] = True
+    rows = rows_from_float(params, slot, shift, cue, weight, row,
+                           rng.integers(0, 1 << params.time_bits, count))
+    return PoseRows(slot=rows.slot, shift=rows.shift, cue=rows.cue, conf=rows.conf,
+                    present=present, row=rows.row, time=rows.time), kind
+
+
+def sequence_rows(params, rig, rng, count, cue_scale=None):
+    """``count`` consecutive rows of ``rig`` on the papers' motion from a random start
+    time, with 0.01 px shift noise and some zero weights; returns (rows, synthetic)."""
+    from golden.trajectory import make_trajectory
+    scales = cue_scale if cue_scale is not None else (
+        _stereo_scale(rig) if rig.name == "stereo8" else RADIAL_CUE_SCALE)
+    cam = rig.cameras[0]
+    start = float(rng.uniform(0, 0.3))
+    trajectory = make_trajectory("paper")
+    shifted = _Shifted(trajectory, start)
+    synthetic = pose_lsq.simulate_rows(rig, shifted, count * cam.t_r, cue_scale=scales, rng=rng,
+                                       shift_noise=0.01, zero_weight_fraction=0.05)
+    ticks = np.round(synthetic.time * 150e6).astype(np.int64)
+    rows = rows_from_float(params, synthetic.slot, synthetic.shift, synthetic.cue,
+                           synthetic.weight, synthetic.row, ticks)
+    return rows, synthetic
+
+
+class _Shifted:
+    """A trajectory started ``offset`` seconds late (rows of a random stretch)."""
+
+    def __init__(self, trajectory, offset):
+        self.trajectory, self.offset = trajectory, offset
+
+    def pose(self, t):
+        return self.trajectory.pose(np.asarray(t) + self.offset)
+
+
+def mixed_rows(case, params, rig, rng, count):
+    """The rows a case's bench sends: ``random_rows`` or ``sequence_rows``."""
+    if case == "random":
+        return random_rows(params, rng, count)[0]
+    return sequence_rows(params, rig, rng, count)[0]
