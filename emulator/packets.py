@@ -11,11 +11,12 @@ A record is a dict of raw integers: ``seq``, ``skipped``, ``t_row``, ``row``,
 
 import numpy as np
 
-from hdl.fixed import Overflow, Rounding
+from hdl.fixed import Overflow, Rounding, resize
 from hdl.pose_packet import CRC16_INIT, CRC16_POLY, PacketParams
 from hdl.uart import FRAME_BITS, UartParams
 
-__all__ = ["crc16", "encode_payload", "encode_packet", "decode_payload", "keep_poses",
+__all__ = ["crc16", "encode_payload", "encode_packet", "decode_payload", "narrow_pose",
+           "keep_poses",
            "quantize_pose", "pose_to_float", "uart_bit_clocks", "uart_byte_clocks",
            "packets_per_second", "damaged_stream", "format_markdown"]
 
@@ -73,19 +74,37 @@ def decode_payload(params, payload):
     return record
 
 
-def keep_poses(params, poses, decimation, seq=0):
-    """The records :class:`hdl.pose_packet.PoseOutput` forms from ``poses``.
+def narrow_pose(params, pose):
+    """A tracker pose (``params.source`` formats) in the packet formats, as
+    :class:`hdl.pose_packet.PoseOutput` narrows it: position and quaternion rounded
+    half-even and saturated, the time stamp cut to its low bits."""
+    src, packet = params.source, params.packet
+    narrowed = {"t_row": int(pose["t_row"]) & ((1 << packet.timestamp_bits) - 1),
+                "row": int(pose["row"]), "flags": int(pose["flags"])}
+    for name, src_fmt, dst_fmt in (("position", src.position_fmt, packet.position_fmt),
+                                   ("quaternion", src.quaternion_fmt, packet.quaternion_fmt)):
+        raw = np.array([int(v) for v in pose[name]], dtype=src_fmt.dtype())
+        narrowed[name] = [int(v) for v in resize(raw, src_fmt, dst_fmt, Rounding.HALF_EVEN,
+                                                 Overflow.SATURATE)]
+    return narrowed
 
-    Keeps one pose in ``decimation`` (0 and 1 keep all), starting with the first, and
-    numbers the kept ones from ``seq`` (wrapping). ``skipped`` is left 0: it depends on
-    the sinks' timing. Returns ``(index_of_pose, record)`` pairs.
+
+def keep_poses(params, poses, decimation, seq=0):
+    """The records :class:`hdl.pose_packet.PoseOutput` (``params``, a
+    :class:`~hdl.pose_packet.PoseOutputParams`) forms from ``poses``.
+
+    Keeps one pose in ``decimation`` (0 and 1 keep all), starting with the first,
+    narrows it into the packet formats and numbers the kept ones from ``seq``
+    (wrapping). ``skipped`` is left 0: it depends on the sinks' timing. Returns
+    ``(index_of_pose, record)`` pairs.
     """
     period = max(int(decimation), 1)
-    mask = (1 << params.seq_bits) - 1
+    mask = (1 << params.packet.seq_bits) - 1
     out = []
     for k, pose in enumerate(poses):
         if k % period == 0:
-            out.append((k, {**pose, "seq": (seq + len(out)) & mask, "skipped": 0}))
+            out.append((k, {**narrow_pose(params, pose), "seq": (seq + len(out)) & mask,
+                            "skipped": 0}))
     return out
 
 

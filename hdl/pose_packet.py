@@ -25,9 +25,9 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
-from .fixed import QFormat, SQ
+from .fixed import Overflow, QFormat, Rounding, SQ, hdl_resize
 
-__all__ = ["PacketField", "PacketParams", "PoseOutputParams", "crc16_step",
+__all__ = ["PacketField", "PacketParams", "PoseSource", "PoseOutputParams", "crc16_step",
            "Framer", "PoseOutput", "CRC16_POLY", "CRC16_INIT"]
 
 #: CRC-16/CCITT-FALSE: polynomial x^16 + x^12 + x^5 + 1, initial value 0xFFFF, no
@@ -136,15 +136,51 @@ class PacketParams:
         """A kept pose as it travels in a packet or sits in the PS FIFO."""
         return data.StructLayout({f.name: self._field_shape(f) for f in self.fields()})
 
-    def pose_layout(self):
-        """A pose as the tracker hands it over (the record without ``seq``/``skipped``)."""
-        return data.StructLayout({f.name: self._field_shape(f) for f in self.fields()
-                                  if f.name not in ("seq", "skipped")})
-
     def _field_shape(self, field):
         from amaranth.hdl import signed, unsigned
         element = signed(field.bits) if field.signed else unsigned(field.bits)
         return element if field.count == 1 else data.ArrayLayout(element, field.count)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PoseSource:
+    """The pose record as the tracker hands it over, in its own formats.
+
+    :class:`PoseOutput` narrows it into the packet formats: position and quaternion
+    rounded half-even and saturated (:func:`hdl.fixed.hdl_resize`), the time stamp cut
+    to its low ``timestamp_bits`` (it wraps anyway); row and flags must fit.
+
+    Parameters
+    ----------
+    position_fmt, quaternion_fmt : QFormat
+        Signed formats of the position (metres) and quaternion components.
+    row_bits, time_bits, flag_bits : int
+        Widths of the row index, time stamp and flags.
+    """
+    position_fmt: QFormat = SQ(8, 24)
+    quaternion_fmt: QFormat = SQ(2, 14)
+    row_bits: int = 16
+    time_bits: int = 32
+    flag_bits: int = 8
+
+    def __post_init__(self):
+        for name in ("position_fmt", "quaternion_fmt"):
+            fmt = getattr(self, name)
+            if not isinstance(fmt, QFormat):
+                raise TypeError(f"{name} must be a QFormat, not {fmt!r}")
+            if not fmt.signed:
+                raise ValueError(f"{name} must be signed, not {fmt}")
+        for name in ("row_bits", "time_bits", "flag_bits"):
+            _check_bits(name, getattr(self, name), multiple_of=1)
+
+    def layout(self):
+        """Fields ``t_row``, ``row``, ``position`` (3), ``quaternion`` (4), ``flags``."""
+        return data.StructLayout({
+            "t_row": self.time_bits, "row": self.row_bits,
+            "position": data.ArrayLayout(self.position_fmt.shape(), 3),
+            "quaternion": data.ArrayLayout(self.quaternion_fmt.shape(), 4),
+            "flags": self.flag_bits,
+        })
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -154,6 +190,9 @@ class PoseOutputParams:
     Parameters
     ----------
     packet : PacketParams
+    source : PoseSource
+        Formats of the incoming poses; ``row_bits`` and ``flag_bits`` must fit the
+        packet's.
     fifo_depth : int
         Records the PS FIFO holds (a power of two, at least 2).
     count_bits : int
@@ -162,6 +201,7 @@ class PoseOutputParams:
         Width of the ``decimation`` register.
     """
     packet: PacketParams = PacketParams()
+    source: PoseSource = PoseSource()
     fifo_depth: int = 256
     count_bits: int = 32
     decimation_bits: int = 16
@@ -169,6 +209,13 @@ class PoseOutputParams:
     def __post_init__(self):
         if not isinstance(self.packet, PacketParams):
             raise TypeError(f"packet must be a PacketParams, not {self.packet!r}")
+        if not isinstance(self.source, PoseSource):
+            raise TypeError(f"source must be a PoseSource, not {self.source!r}")
+        for name, packet_name in (("row_bits", "row_bits"), ("flag_bits", "flag_bits")):
+            if getattr(self.source, name) > getattr(self.packet, packet_name):
+                raise ValueError(f"source.{name} must fit the packet's {packet_name} "
+                                 f"({getattr(self.packet, packet_name)}), not "
+                                 f"{getattr(self.source, name)}")
         for name, low, high in (("fifo_depth", 2, 1 << 16), ("count_bits", 8, 64),
                                 ("decimation_bits", 1, 32)):
             value = getattr(self, name)
@@ -289,8 +336,9 @@ class PoseOutput(wiring.Component):
 
     Members
     -------
-    pose : In(stream.Signature(packet.pose_layout()))
-        Poses from the tracker; ``ready`` is always high (the output never stalls it).
+    pose : In(stream.Signature(source.layout()))
+        Poses from the tracker in its formats (:class:`PoseSource`); ``ready`` is
+        always high (the output never stalls it).
     cfg : In(params.config_layout())
         Run-time control (registers).
     uart : Out(stream.Signature(8))
@@ -311,7 +359,7 @@ class PoseOutput(wiring.Component):
         self.params = params
         packet = params.packet
         super().__init__({
-            "pose": In(stream.Signature(packet.pose_layout())),
+            "pose": In(stream.Signature(params.source.layout())),
             "cfg": In(params.config_layout()),
             "uart": Out(stream.Signature(8)),
             "fifo": Out(stream.Signature(packet.record_layout())),
@@ -343,8 +391,7 @@ class PoseOutput(wiring.Component):
                          phase.eq(Mux(phase + 1 >= self.cfg.decimation, 0, phase + 1))]
             with m.If(phase == 0):
                 m.d.sync += [increment("records"), seq.eq(seq + 1), record.seq.eq(seq)]
-                m.d.sync += [getattr(record, name).eq(getattr(self.pose.payload, name))
-                             for name, _ in packet.pose_layout()]
+                m.d.sync += self._narrow(record, self.pose.payload)
             with m.Else():
                 m.d.sync += increment("decimated")
 
@@ -382,6 +429,20 @@ class PoseOutput(wiring.Component):
             m.d.sync += [window_clock.eq(window_clock + 1),
                          window_poses.eq(window_poses + self.pose.valid)]
         return m
+
+    def _narrow(self, record, pose):
+        """Assignments of ``pose`` (source formats) to ``record`` (packet formats)."""
+        src, packet = self.params.source, self.params.packet
+        out = [record.t_row.eq(pose.t_row[:packet.timestamp_bits]), record.row.eq(pose.row),
+               record.flags.eq(pose.flags)]
+        for name, src_fmt, dst_fmt, count in (
+                ("position", src.position_fmt, packet.position_fmt, 3),
+                ("quaternion", src.quaternion_fmt, packet.quaternion_fmt, 4)):
+            for k in range(count):
+                out.append(getattr(record, name)[k].eq(hdl_resize(
+                    getattr(pose, name)[k], src_fmt, dst_fmt, Rounding.HALF_EVEN,
+                    Overflow.SATURATE)))
+        return out
 
     def _sink(self, m, kept, *, enable, room, dropped):
         """Drop-when-full bookkeeping of one sink.

@@ -9,9 +9,11 @@ registers.
 
 from importlib.metadata import PackageNotFoundError, version
 
+from amaranth.hdl import signed
 from amaranth.lib import data
 
 from .camera_sync import sync_config_layout, sync_status_layout
+from .pose_solver import counters_layout
 from .regs import Access, Register, RegisterGroup, RegisterMap
 
 __all__ = ["rowtrack_map", "MAGIC", "GROUP_OFFSETS"]
@@ -20,7 +22,7 @@ __all__ = ["rowtrack_map", "MAGIC", "GROUP_OFFSETS"]
 MAGIC = 0x5257544B
 
 #: Byte offset of each block's group in the window.
-GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "camera": 0x200}
+GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "camera": 0x200, "solver": 0x400}
 
 
 def _package_version():
@@ -123,8 +125,25 @@ def _camera(params):
     ])
 
 
+def _solver(params):
+    solver = params.solver
+    return RegisterGroup("solver", GROUP_OFFSETS["solver"], "Pose solver "
+                         "(`hdl/pose_solver.py`): coefficient load and row counters.", [
+        Register("geometry", data.StructLayout({"slots": 16, "rows": 16}), Access.CONST,
+                 "coefficient store size: measurement slots and rows per frame",
+                 value=solver.slots | solver.rows << 16),
+        Register("counters", counters_layout(solver), Access.RO, "rows solved and rows "
+                 "flagged per reason (`PoseFlag`)"),
+        Register("coef", data.StructLayout({
+            "addr": solver.entry_bits, "index": 4, "data": signed(solver.coef_width)}),
+                 Access.WO, "write one stored coefficient: entry `slot · rows + row`, "
+                 "coefficient 0–8 (a_T x y z, a_C x y z, a_R x y z), raw value"),
+    ])
+
+
 def rowtrack_map(params):
     """The register map of :class:`hdl.top.RowtrackTop` built with ``params``."""
-    regmap = RegisterMap(groups=(_ident(params), _pose_out(params), _camera(params)),
+    regmap = RegisterMap(groups=(_ident(params), _pose_out(params), _camera(params),
+                                 _solver(params)),
                          base=params.reg_base, size=params.reg_size)
     return regmap.with_value("ident", "map_crc", regmap.layout_crc())

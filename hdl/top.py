@@ -4,9 +4,18 @@
 
 * the camera front end (:class:`hdl.camera_sync.CameraFrontEnd`: one DVP input per
   camera in its pixel-clock domain, the trigger/sync monitor and the row aligner),
+* the pose solver (:class:`hdl.pose_solver.PoseSolver`: coefficient store, normal
+  equations, LDLᵀ solve, pose integration),
 * the pose output (:class:`PoseLink`: decimation, framing, UART, PS FIFO), and
 * the register file (:class:`hdl.regs.RegisterFile` of :func:`hdl.regmap.rowtrack_map`)
-  to every block's configuration and status.
+  to every block's configuration, status and the solver's coefficient load.
+
+Not yet in the top: the measurement engine between the aligner and the solver — one
+:class:`hdl.row_descriptor.RowDescriptor` lane per camera needs a fan-out of the aligned
+row sets, and the solver needs a join that turns the lanes' segment measurements into
+its slots with their depth cues; neither block exists yet. Until then the aligned rows
+leave on :attr:`RowtrackTop.rows` and the solver takes its measurements from
+:attr:`RowtrackTop.measurements`.
 
 The PS7 is not in here: the top takes AXI4-Lite through a port, so a cocotb bench can
 stand in for the PS, and the board tops (:mod:`hdl.board`) add the PS7 and pins.
@@ -20,13 +29,22 @@ from amaranth.lib.wiring import In, Out
 
 from .camera_input import CameraParams
 from .camera_sync import CameraFrontEnd
-from .pose_packet import PoseOutput, PoseOutputParams
+from .pose_packet import PoseOutput, PoseOutputParams, PoseSource
+from .pose_params import PoseFlag, PoseSolverParams
+from .pose_solver import PoseSolver, measurement_layout
 from .regmap import rowtrack_map
 from .regs import AXI4LiteSignature, RegisterFile
 from .streams import dvp_signature
 from .uart import UartParams, UartTx
 
-__all__ = ["TopParams", "PoseLink", "RowtrackTop", "register_file"]
+__all__ = ["TopParams", "PoseLink", "RowtrackTop", "register_file", "solver_source"]
+
+
+def solver_source(solver):
+    """The pose solver's record formats, as :class:`PoseOutput` takes them."""
+    return PoseSource(position_fmt=solver.position_fmt, quaternion_fmt=solver.quat_fmt,
+                      row_bits=solver.row_bits, time_bits=solver.time_bits,
+                      flag_bits=len(PoseFlag))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -36,7 +54,11 @@ class TopParams:
     Parameters
     ----------
     camera : CameraParams
+    solver : PoseSolverParams
+        ``rows`` must be the cameras' ``max_height`` and ``time_bits`` their
+        ``timestamp_bits``.
     pose_output : PoseOutputParams
+        ``source`` must be :func:`solver_source` of ``solver``.
     uart : UartParams
     clk_hz : int
         System clock (FCLK_CLK0) frequency; sets the reset values of the time-based
@@ -47,7 +69,8 @@ class TopParams:
         Register window on the AXI bus (GP0 spans ``0x4000_0000``–``0x7FFF_FFFF``).
     """
     camera: CameraParams = CameraParams(n_cameras=4)
-    pose_output: PoseOutputParams = PoseOutputParams()
+    solver: PoseSolverParams = PoseSolverParams()
+    pose_output: PoseOutputParams = PoseOutputParams(source=solver_source(PoseSolverParams()))
     uart: UartParams = UartParams()
     clk_hz: int = 100_000_000
     baud: int = 3_000_000
@@ -55,10 +78,19 @@ class TopParams:
     reg_size: int = 0x1000
 
     def __post_init__(self):
-        for name, cls in (("camera", CameraParams), ("pose_output", PoseOutputParams),
-                          ("uart", UartParams)):
+        for name, cls in (("camera", CameraParams), ("solver", PoseSolverParams),
+                          ("pose_output", PoseOutputParams), ("uart", UartParams)):
             if not isinstance(getattr(self, name), cls):
                 raise TypeError(f"{name} must be a {cls.__name__}, not {getattr(self, name)!r}")
+        if self.solver.rows != self.camera.max_height:
+            raise ValueError(f"solver.rows must be camera.max_height ({self.camera.max_height}), "
+                             f"not {self.solver.rows}")
+        if self.solver.time_bits != self.camera.timestamp_bits:
+            raise ValueError(f"solver.time_bits must be camera.timestamp_bits "
+                             f"({self.camera.timestamp_bits}), not {self.solver.time_bits}")
+        if self.pose_output.source != solver_source(self.solver):
+            raise ValueError("pose_output.source must be solver_source(solver), not "
+                             f"{self.pose_output.source!r}")
         for name in ("clk_hz", "baud", "reg_base", "reg_size"):
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool):
@@ -88,7 +120,7 @@ class PoseLink(wiring.Component):
 
     Members
     -------
-    pose : In(stream.Signature(packet.pose_layout()))
+    pose : In(stream.Signature(pose_output.source.layout()))
     cfg : In(pose_output.config_layout())
     divisor : In(uart.divisor_fmt.shape())
     fifo : Out(stream.Signature(packet.record_layout()))
@@ -102,7 +134,7 @@ class PoseLink(wiring.Component):
         self.params = params
         po = params.pose_output
         super().__init__({
-            "pose": In(stream.Signature(po.packet.pose_layout())),
+            "pose": In(stream.Signature(po.source.layout())),
             "cfg": In(po.config_layout()),
             "divisor": In(params.uart.divisor_fmt.shape()),
             "fifo": Out(stream.Signature(po.packet.record_layout())),
@@ -142,6 +174,11 @@ class RowtrackTop(wiring.Component):
         Trigger outputs of the camera sync.
     uart_tx : Out(1)
         Pose packets.
+    rows : Out(stream.Signature(camera.aligned_layout()))
+        Aligned row sets, for the measurement engine (not in the top yet).
+    measurements : In(stream.Signature(measurement_layout(solver)))
+        Per-row measurements into the pose solver, from the measurement engine (not in
+        the top yet).
     """
 
     def __init__(self, params=TopParams(), *, domains=None):
@@ -156,6 +193,8 @@ class RowtrackTop(wiring.Component):
             "dvp": In(dvp_signature(params.camera.pixel_bits)).array(n),
             "trigger": Out(1), "expose": Out(1), "fsin": Out(n),
             "uart_tx": Out(1, init=1),
+            "rows": Out(stream.Signature(params.camera.aligned_layout())),
+            "measurements": In(stream.Signature(measurement_layout(params.solver))),
         })
 
     def elaborate(self, platform):
@@ -163,8 +202,11 @@ class RowtrackTop(wiring.Component):
         m = Module()
         m.submodules.regs = regs = RegisterFile(p.regmap())
         m.submodules.front = front = CameraFrontEnd(p.camera, domains=self.domains)
+        m.submodules.solver = solver = PoseSolver(p.solver)
         m.submodules.pose_link = link = PoseLink(p)
         wiring.connect(m, wiring.flipped(self.axi), regs.axi)
+        wiring.connect(m, front.o, wiring.flipped(self.rows))
+        wiring.connect(m, wiring.flipped(self.measurements), solver.i)
 
         for k in range(p.camera.n_cameras):
             wiring.connect(m, wiring.flipped(self.dvp[k]), front.dvp[k])
@@ -177,6 +219,19 @@ class RowtrackTop(wiring.Component):
             cam.inputs.eq(front.status.inputs),
             self.trigger.eq(front.trigger), self.expose.eq(front.expose),
             self.fsin.eq(front.fsin),
+        ]
+
+        pose, record = link.pose, solver.o
+        coef = regs.solver.coef
+        m.d.comb += [
+            pose.valid.eq(record.valid), record.ready.eq(pose.ready),
+            pose.payload.t_row.eq(record.payload.time), pose.payload.row.eq(record.payload.row),
+            pose.payload.position.eq(record.payload.p),
+            pose.payload.quaternion.eq(record.payload.q),
+            pose.payload.flags.eq(record.payload.flags),
+            solver.coef_write.addr.eq(coef.data.addr), solver.coef_write.index.eq(coef.data.index),
+            solver.coef_write.data.eq(coef.data.data), solver.coef_write.en.eq(coef.stb),
+            regs.solver.counters.eq(solver.counters),
         ]
 
         out = regs.pose_out

@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 
 from emulator import packets
 from hdl.fixed import SQ, UQ
-from hdl.pose_packet import PacketParams, PoseOutputParams
+from hdl.pose_packet import PacketParams, PoseOutputParams, PoseSource
 from hdl.uart import UartParams
 
 P = PacketParams()
@@ -94,6 +94,9 @@ def test_packet_params_checks(kwargs, error, message):
     ({"fifo_depth": 100}, ValueError, "fifo_depth must be a power of two, not 100"),
     ({"fifo_depth": 1}, ValueError, "fifo_depth must be between 2 and 65536, not 1"),
     ({"count_bits": "32"}, TypeError, "count_bits must be an integer"),
+    ({"source": 1}, TypeError, "source must be a PoseSource"),
+    ({"source": PoseSource(row_bits=17)}, ValueError, "source.row_bits must fit the packet's "
+                                                     "row_bits \\(16\\), not 17"),
 ])
 def test_pose_output_params_checks(kwargs, error, message):
     with pytest.raises(error, match=message):
@@ -101,11 +104,25 @@ def test_pose_output_params_checks(kwargs, error, message):
 
 
 def test_keep_poses_decimates_and_numbers():
-    poses = [{"row": k} for k in range(10)]
-    kept = packets.keep_poses(P, poses, 3, seq=65535)
+    poses = [{"t_row": k, "row": k, "position": [0] * 3, "quaternion": [0] * 4, "flags": 0}
+             for k in range(10)]
+    kept = packets.keep_poses(PoseOutputParams(), poses, 3, seq=65535)
     assert [k for k, _ in kept] == [0, 3, 6, 9]
     assert [r["seq"] for _, r in kept] == [65535, 0, 1, 2]
-    assert [k for k, _ in packets.keep_poses(P, poses, 0)] == list(range(10))
+    assert [k for k, _ in packets.keep_poses(PoseOutputParams(), poses, 0)] == list(range(10))
+
+
+def test_narrow_pose_rounds_half_even_and_saturates():
+    source = PoseSource(position_fmt=SQ(10, 26), quaternion_fmt=SQ(2, 16), row_bits=10,
+                        time_bits=40, flag_bits=4)
+    params = PoseOutputParams(source=source)
+    pose = {"t_row": (1 << 35) + 9, "row": 1000, "flags": 5,
+            "position": [2, 6, -(1 << 34)],          # 0.5 and 1.5 LSB of the packet format
+            "quaternion": [1 << 16, 10, 6, -(1 << 17)]}
+    narrowed = packets.narrow_pose(params, pose)
+    assert narrowed["t_row"] == 9 and narrowed["row"] == 1000 and narrowed["flags"] == 5
+    assert narrowed["position"] == [0, 2, -(1 << 31)]          # ties to even, saturated
+    assert narrowed["quaternion"] == [1 << 14, 2, 2, -(1 << 15)]
 
 
 def test_quantize_pose_rounds_and_saturates():

@@ -7,7 +7,8 @@ import pytest
 from amaranth.sim import Simulator
 
 from emulator import packets
-from hdl.pose_packet import Framer, PacketParams, PoseOutput, PoseOutputParams
+from hdl.fixed import SQ
+from hdl.pose_packet import Framer, PacketParams, PoseOutput, PoseOutputParams, PoseSource
 from sim_tests.common.payload import unpack
 from sim_tests.unit.test_packets import random_record
 
@@ -15,9 +16,15 @@ P = PacketParams()
 SEED = 77
 
 
-def random_pose(rng):
-    record = random_record(rng)
-    return {k: v for k, v in record.items() if k not in ("seq", "skipped")}
+def random_pose(rng, source=PoseSource()):
+    """A pose in ``source`` formats, every field over its full range."""
+    def value(bits, signed):
+        lo, hi = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
+        return int(rng.choice([lo, hi, 0, int(rng.integers(lo, hi, endpoint=True))]))
+    return {"t_row": value(source.time_bits, False), "row": value(source.row_bits, False),
+            "flags": value(source.flag_bits, False),
+            "position": [value(source.position_fmt.width, True) for _ in range(3)],
+            "quaternion": [value(source.quaternion_fmt.width, True) for _ in range(4)]}
 
 
 def as_fields(layout, value):
@@ -126,13 +133,29 @@ def test_paced_poses_all_reach_both_sinks(decimation):
     poses = [random_pose(rng) for _ in range(20)]
     cfg = {**CFG, "decimation": decimation}
     data, fifo, status = run_pose_output(poses, spacing=P.packet_bytes + 3, cfg=cfg, pops=True)
-    expected = [record for _, record in packets.keep_poses(P, poses, decimation)]
+    expected = [record for _, record in packets.keep_poses(PoseOutputParams(), poses,
+                                                           decimation)]
     assert data == b"".join(packets.encode_packet(P, r) for r in expected)
     assert fifo == expected
     kept = len(expected)
     assert status["poses"] == 20 and status["records"] == kept
     assert status["decimated"] == 20 - kept and status["packets"] == kept
     assert status["uart_dropped"] == status["fifo_dropped"] == status["fifo_level"] == 0
+
+
+def test_tracker_formats_are_narrowed_like_the_model():
+    """Poses in the pose solver's formats: rounded half-even and saturated into the
+    packet, bit for bit as emulator.packets.narrow_pose does."""
+    source = PoseSource(position_fmt=SQ(10, 32), quaternion_fmt=SQ(2, 40), row_bits=10,
+                        time_bits=32, flag_bits=4)
+    params = PoseOutputParams(source=source)
+    rng = np.random.default_rng(SEED)
+    poses = [random_pose(rng, source) for _ in range(12)]
+    data, fifo, _ = run_pose_output(poses, spacing=P.packet_bytes + 3, cfg=CFG, params=params,
+                                    pops=True)
+    expected = [record for _, record in packets.keep_poses(params, poses, 1)]
+    assert fifo == expected
+    assert data == b"".join(packets.encode_packet(P, r) for r in expected)
 
 
 def test_fast_poses_are_dropped_and_counted_never_silently():
@@ -142,7 +165,7 @@ def test_fast_poses_are_dropped_and_counted_never_silently():
     params = PoseOutputParams(fifo_depth=8)
     data, _, status = run_pose_output(poses, spacing=1, cfg=CFG, params=params, uart_ready=0.5)
     sent = decode_all(data)
-    kept = dict(packets.keep_poses(P, poses, 1))
+    kept = dict(packets.keep_poses(params, poses, 1))
     assert status["records"] == 300 and status["packets"] == len(sent)
     assert status["packets"] + status["uart_dropped"] == status["records"]
     assert 1 < len(sent) < 300

@@ -1,0 +1,12 @@
+"""Runs the register-file cocotb bench (rowtrack's map) on both simulators."""
+
+import pytest
+
+from hdl.top import TopParams, register_file
+from sim_tests.common.cocotb_runner import run_cocotb
+
+
+@pytest.mark.parametrize("sim", ["verilator", "icarus"])
+def test_regs_cocotb(sim):
+    run_cocotb(register_file(TopParams()), name="regs", sim=sim,
+               test_module="sim_tests.cocotb.regs.regs_bench")
