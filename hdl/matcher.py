@@ -156,8 +156,8 @@ class ShiftMatcher(wiring.Component):
         a = centre + p.match.shift_min
         a_top = a + (n - 1)
         lo = Signal(range(width + 1))
-        d_cur = Signal(range(dc_max + 1))
-        d_ref = Signal(range(dr_max + 1))
+        d_cur = Signal(max(dc_max, 1).bit_length())      # at least one bit (Verilog)
+        d_ref = Signal(max(dr_max, 1).bit_length())
         start_pos = Signal(range(2 * width))
         length = Signal(range(width + 1))
         lo_value = r + Mux(a_top > 0, a_top, 0)
@@ -247,7 +247,7 @@ class ShiftMatcher(wiring.Component):
 
         # read: one group of costs per step into the lane registers (index ≥ n: padding
         # above every cost); steps 1 … G (pass 1) and G + 2 … 2G + 1 (pass 2)
-        group = Signal(range(groups))
+        group = Signal(max(groups - 1, 1).bit_length())
         reading = during(1, groups) | during(groups + 2, 2 * groups + 1)
         with m.If(reading):
             m.d.sync += group.eq(Mux(group == groups - 1, 0, group + 1))
@@ -337,7 +337,7 @@ class ShiftMatcher(wiring.Component):
             "confidence": cf.shape(), "textureless": 1, "edge_hit": 1})
         bank = Array(Signal(result_layout, name=f"result{k}") for k in range(p.segments))
         seq_busy = Signal()
-        seq_idx = Signal(range(p.segments))
+        seq_idx = Signal(p.segment_bits)
         seq_row = Signal(data.StructLayout({"meta": meta_layout(p), "no_reference": 1}))
         result_step = step == p.engine_result_step
         with m.If((step != 0) & ~result_step):

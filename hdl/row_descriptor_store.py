@@ -1,7 +1,8 @@
 """Reference store: the previous frame's descriptor row for every row of a camera.
 
-Descriptor bits of columns ``0 … width − R − 1`` of every row in 32-bit words of a
-``lib.memory`` (20 words per 640-pixel row, 9,600 words = 307,200 bits for 640×480),
+Descriptor bits of columns ``0 … width − R − 1`` of every row in 36-bit words of a
+``lib.memory`` (18 words per 640-pixel row, 8,640 words = 311,040 bits for 640×480:
+the width of a block RAM with its parity bits, so the frame fits nine RAMB36),
 plus a tag per row (valid, frame number). Each word is read one column before the row
 reaches it and written back, with the new row's bits, after its last column: the
 read of the previous frame's word always comes first, so reading the reference and
@@ -9,7 +10,7 @@ writing the new row never collide, whatever the window and centre, without a sec
 frame buffer. The matcher lines the bits up with its own delay lines.
 """
 
-from amaranth.hdl import Cat, Module, Mux, Signal
+from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
@@ -19,8 +20,17 @@ from .row_descriptor_params import RowDescriptorParams
 
 __all__ = ["ReferenceStore"]
 
-#: Bits per memory word (a power of two: the bit within a word is the column's low bits).
-WORD_BITS = 32
+#: Bits per memory word (a block RAM's data and parity bits).
+WORD_BITS = 36
+
+
+def _times_constant(value, constant):
+    """``value * constant`` as shifted adds (a few LUTs, no DSP for a row address)."""
+    terms = [value << k for k in range(constant.bit_length()) if constant >> k & 1]
+    total = Const(0)
+    for term in terms:
+        total = total + term
+    return total
 
 
 class ReferenceStore(wiring.Component):
@@ -77,19 +87,25 @@ class ReferenceStore(wiring.Component):
 
         # the row's first word, registered with its first item (R ≥ 2, so the first
         # read, at column −1 = pos R − 1, comes after it)
-        row_base = Signal(range(p.height * self.words_per_row))
+        row_base = Signal(range(p.height * self.words_per_row + 1))
         in_frame = item.meta.row < p.height
         with m.If(accept & item.first):
-            m.d.sync += row_base.eq(item.meta.row * self.words_per_row)
-        column = item.pos - p.radius                       # signed: −R … width − R − 1
-        bit = column[:5]
-        word = column >> 5
-        next_word = (column + 1) >> 5
+            m.d.sync += row_base.eq(_times_constant(item.meta.row, self.words_per_row))
+        # word and bit of this item's column j = pos − R, counted from the row's first
+        # item (column −R: bit WORD_BITS − R of word −1)
+        next_bit = Signal(range(WORD_BITS))
+        next_word = Signal(range(-1, self.words_per_row + 1))
+        bit = Mux(item.first, WORD_BITS - p.radius, next_bit)
+        word = Mux(item.first, -1, next_word)
+        word_end = bit == WORD_BITS - 1
+        column = item.pos - p.radius
+        with m.If(accept):
+            m.d.sync += [next_bit.eq(Mux(word_end, 0, bit + 1)), next_word.eq(word + word_end)]
 
         # read the next word while passing the last column of this one
         m.d.comb += [
-            words_rd.addr.eq(row_base + next_word),
-            words_rd.en.eq(accept & (bit == WORD_BITS - 1) & (column + 1 < stored)),
+            words_rd.addr.eq(row_base + word + 1),
+            words_rd.en.eq(accept & word_end & (column + 1 < stored)),
         ]
         old_word = Signal(WORD_BITS)
         ref_bit = Mux(bit == 0, words_rd.data[0], old_word.bit_select(bit, 1))
@@ -104,7 +120,7 @@ class ReferenceStore(wiring.Component):
         m.d.comb += [
             words_wr.addr.eq(row_base + word), words_wr.data.eq(merged),
             words_wr.en.eq(accept & (column >= 0) & in_frame &
-                           ((bit == WORD_BITS - 1) | (column == stored - 1))),
+                           (word_end | (column == stored - 1))),
             tags_rd.addr.eq(item.meta.row), tags_rd.en.eq(advance),
             tags_wr.addr.eq(item.meta.row),
             tags_wr.data.valid.eq(~item.meta.bad), tags_wr.data.frame.eq(item.meta.frame),

@@ -67,11 +67,13 @@ def frame_beats(frames, *, camera=0, frame0=0, frame_bits=16, t0=0):
 
 
 def inject_faults(rng, beats, width, count):
-    """``beats`` with ``count`` faults at random rows: a short row, a long row, a row
-    missing its ``last`` (interrupted by the next ``first``), reason bits, or stray beats
-    before a row. Returns the new beat list."""
+    """``beats`` with ``count`` faults at random rows (never the last, so the stream
+    ends with a complete row): a short row, a long row, a row missing its ``last``
+    (interrupted by the next ``first``), reason bits, or stray beats before a row.
+    Returns the new beat list."""
     starts = [i for i, b in enumerate(beats) if b["first"]]
-    chosen = set(rng.choice(len(starts), size=min(count, len(starts)), replace=False).tolist())
+    chosen = set(rng.choice(len(starts) - 1, size=min(count, len(starts) - 1),
+                            replace=False).tolist())
     out = []
     for k, start in enumerate(starts):
         row = [dict(b) for b in beats[start:start + width]]

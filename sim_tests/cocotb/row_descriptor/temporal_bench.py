@@ -1,0 +1,51 @@
+"""cocotb bench for hdl.row_descriptor.RowDescriptor (temporal lane): every measurement
+against emulator.row_descriptor.TemporalLaneModel, and its clock cycle at full rate."""
+
+import os
+import random
+
+import cocotb
+import numpy as np
+
+from emulator.row_descriptor import TemporalLaneModel
+from golden.dataset import Dataset
+from sim_tests.common.cocotb_env import load_params, load_sidecar
+
+from .driving import Lane, make_stimulus
+
+
+#: One model for all tests of a simulation: reset does not clear the lane's reference
+#: store, so each test starts from the store the previous one left.
+_MODELS = {}
+
+
+def dataset_rows(params):
+    """Rows of camera 0 of the golden simulator's dataset (path from the runner),
+    cropped to the lane's height and width from the middle of the image."""
+    rows = Dataset.load(os.environ["ROWTRACK_RD_DATASET"]).cameras[0].rows
+    y0, x0 = (rows.shape[1] - params.height) // 2, (rows.shape[2] - params.width) // 2
+    return rows[:, y0:y0 + params.height, x0:x0 + params.width]
+
+
+@cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"],
+                    rows=["textured", "faults", "dataset"])
+async def temporal_lane_matches_model(dut, traffic, rows):
+    params = load_params()
+    busy = traffic == "full_rate"
+    rng = random.Random(cocotb.RANDOM_SEED)
+    np_rng = np.random.default_rng(cocotb.RANDOM_SEED)
+    lane = Lane(dut, params, ["i"], rng, busy=busy)
+    await lane.start()
+    data = dataset_rows(params) if rows == "dataset" else None
+    beat_rows, centres = make_stimulus(params, rows, np_rng, data)
+    beats = [b for row in beat_rows for b in row]
+    per_beat = [c for row, c in zip(beat_rows, centres) for _ in row]
+    model = _MODELS.setdefault("lane", TemporalLaneModel(params))
+    expected = model.run(beats, per_beat)
+    await lane.play_all({"i": beat_rows}, centres)
+    sent = lane.sources["i"].sent
+    if busy and rows != "faults":      # padding a short row holds the input by design
+        cycles = [c for c, _ in sent]
+        assert cycles == list(range(cycles[0], cycles[0] + len(cycles))), "input bubbles"
+    last_cycles = [c for c, b in sent if b["last"]] if rows != "faults" else None
+    await lane.check(expected, load_sidecar()["latency"], busy, last_cycles)

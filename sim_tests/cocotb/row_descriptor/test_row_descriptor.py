@@ -1,0 +1,43 @@
+"""Runs the row-descriptor cocotb benches: the temporal lane on Verilator and Icarus,
+the stereo lane on Verilator. Rows come from seeded textures, injected faults, and the
+golden simulator's dataset."""
+
+import pytest
+
+from golden.descriptor import STEREO_MATCH, MatchParams
+from golden.rig import preset
+from golden.scene import default_scene_spec
+from golden.simulator import simulate
+from golden.trajectory import make_trajectory
+from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor
+from hdl.row_descriptor_params import RowDescriptorParams
+from sim_tests.common.cocotb_runner import BUILD_ROOT, run_cocotb
+
+#: 160-pixel rows, 4 rows per frame, 2 segments; 240-pixel stereo rows (window [10, 70]).
+TEMPORAL = RowDescriptorParams(width=160, height=4, centre_range=4,
+                               match=MatchParams(segments=2))
+STEREO = RowDescriptorParams(width=240, height=3, centre_range=4, match=STEREO_MATCH)
+
+
+@pytest.fixture(scope="module")
+def dataset_path():
+    """Three frames of the golden simulator (radial4 rig, head motion), saved once."""
+    path = BUILD_ROOT / "row_descriptor-dataset.npz"
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        rig = preset("radial4").replace_cameras(noise_sigma=1.5)
+        simulate(rig, default_scene_spec(3), make_trajectory("head", seed=3), 3 / 120,
+                 seed=3).save(path)
+    return path
+
+
+@pytest.mark.parametrize("sim", ["verilator", "icarus"])
+def test_temporal_lane_cocotb(sim, dataset_path):
+    run_cocotb(RowDescriptor(TEMPORAL), name="row_descriptor", sim=sim,
+               test_module="sim_tests.cocotb.row_descriptor.temporal_bench",
+               extra_env={"ROWTRACK_RD_DATASET": str(dataset_path)})
+
+
+def test_stereo_lane_cocotb():
+    run_cocotb(StereoRowDescriptor(STEREO), name="stereo_row_descriptor", sim="verilator",
+               test_module="sim_tests.cocotb.row_descriptor.stereo_bench")
