@@ -20,6 +20,7 @@ BENCHES = {
     "simulator": "emulator.benches.simulator",
     "dt": "emulator.benches.dt",
     "camera": "emulator.benches.camera",
+    "pose_solver": "emulator.benches.pose_solver",
 }
 
 

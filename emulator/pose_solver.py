@@ -23,11 +23,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, mul, resize
+from golden import pose_lsq
 from hdl.pose_params import DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag, seed_tables
 
 __all__ = ["PoseRows", "Value", "StepResult", "accumulate", "scale_system",
            "rsqrt_seed", "solve_rows", "integrate_rows",
-           "pose_solver_model", "upper_pairs", "identity_pose", "flags_from_checks"]
+           "pose_solver_model", "upper_pairs", "identity_pose", "flags_from_checks",
+           "rows_from_float", "rig_solver"]
 
 #: The 21 (i, j), i ≤ j, entries of the symmetric normal matrix, in accumulator order.
 UPPER = tuple((i, j) for i in range(6) for j in range(i, 6))
@@ -434,3 +436,14 @@ def rows_from_float(params, slot, shift, cue, weight, row, time):
                     present=np.ones(np.shape(shift), dtype=bool),
                     row=np.asarray(row, dtype=np.int64),
                     time=np.asarray(time, dtype=np.int64) & ((1 << params.time_bits) - 1))
+
+
+def rig_solver(rig, cue_scale, coef_width=18, **changes):
+    """Parameters and coefficient store for a rig: ``(params, raw coefficients, float
+    table)``, with the coefficient formats picked from the rig's table at ``coef_width``
+    bits and ``changes`` applied to the other parameters."""
+    from hdl.pose_params import PoseSolverParams, coefficient_formats, quantize_coefficients
+    table = pose_lsq.rig_coefficient_table(rig, cue_scale)
+    params = PoseSolverParams(slots=table.shape[0], rows=table.shape[1],
+                              **coefficient_formats(table, coef_width), **changes)
+    return params, quantize_coefficients(params, table), table

@@ -20,6 +20,7 @@ BLOCKS = {
     "camera_sync": "hdl.camera_sync:CameraSync",
     "row_aligner": "hdl.row_aligner:RowAligner",
     "camera_front": "hdl.camera_sync:CameraFrontEnd",
+    "pose_solver": "hdl.pose_solver:PoseSolver",
 }
 
 

@@ -93,9 +93,9 @@ class PoseSolverParams:
     shift_fmt: QFormat = SQ(6, 12)
     cue_fmt: QFormat = UQ(8, 10)
     conf_fmt: QFormat = UQ(2, 8)
-    coef_t_fmt: QFormat = SQ(12, 13)
-    coef_c_fmt: QFormat = SQ(12, 13)
-    coef_r_fmt: QFormat = SQ(12, 13)
+    coef_t_fmt: QFormat = SQ(5, 13)
+    coef_c_fmt: QFormat = SQ(2, 16)
+    coef_r_fmt: QFormat = SQ(11, 7)
     a_fmt: QFormat = SQ(13, 12)
     engine_width: int = 42
     pivot_log2: int = 20
@@ -138,9 +138,6 @@ class PoseSolverParams:
         _check_int("time_bits", self.time_bits, 1, 64)
         _check_int("counter_bits", self.counter_bits, 1, 64)
         _check_int("lanes", self.lanes, 1, 27)
-        if self.min_diagonal_raw < 1:
-            raise ValueError(f"min_diagonal {self.min_diagonal} is below one LSB of the "
-                             f"normal matrix ({self.normal_fmt})")
         if self.min_diagonal_raw > self.normal_fmt.max_raw:
             raise ValueError(f"min_diagonal {self.min_diagonal} does not fit the normal "
                              f"matrix format {self.normal_fmt}")

@@ -8,18 +8,16 @@ its rows are drawn from a seeded generator:
   systems); rows 32–63 are built with a prescribed singular-value spread so that the
   Jacobi-scaled normal matrix has condition 10⁴–10⁶ (near-singular). Rows mix full,
   partial, zero-confidence and over-long (OVERRUN) measurement sets and extreme values.
-* ``stereo8``: eight cameras of the ``stereo20`` preset, the left camera of pairs 0–5,
-  8 and 9 (the two cameras of a pair give near-duplicate equations, so four whole
-  pairs are rank 4), with the pair's disparity as cue; 480 rows, the papers' test
-  motion through the room (simulated sequence).
-* ``radial4``: the ``radial4`` preset (8 segments per row, inverse-depth cue), 480
-  rows, the same motion.
+* ``stereo8`` and ``radial4``: the rig cases of :mod:`emulator.benches.pose_solver`
+  (eight cameras of stereo20 with disparity cues; radial4 with 8 segments per row and
+  inverse-depth cues), 480 rows, the papers' test motion through the room.
 """
 
 import math
 
 import numpy as np
 
+from emulator.benches.pose_solver import rig_case
 from emulator.pose_solver import PoseRows, rows_from_float
 from golden import pose_lsq
 from hdl.pose_params import PoseSolverParams, coefficient_formats, quantize_coefficients
@@ -30,11 +28,6 @@ __all__ = ["CASES", "build_case", "random_rows", "sequence_rows", "mixed_rows"]
 NEAR_SINGULAR_ROWS = range(32, 64)
 #: Condition numbers (of the Jacobi-scaled normal matrix) the near-singular rows aim at.
 NEAR_SINGULAR_CONDITION = (1e4, 1e6)
-#: Inverse-depth cue scale of the radial case (cue = 64/Z fills cue_fmt well).
-RADIAL_CUE_SCALE = 1 / 64
-STEREO_BASELINE = 0.10
-#: Pairs of stereo20 whose left camera the stereo8 case uses.
-STEREO8_PAIRS = (0, 1, 2, 3, 4, 5, 8, 9)
 
 
 def _random_table(rng, slots, rows):
@@ -54,21 +47,6 @@ def _random_table(rng, slots, rows):
     return table
 
 
-def _rig_case(name, cue_scale):
-    from golden.rig import preset
-    rig = preset("stereo20" if name == "stereo8" else name)
-    if name == "stereo8":
-        from golden.rig import Rig
-        rig = Rig(name="stereo8", row_points=1,
-                  cameras=tuple(rig.cameras[2 * k] for k in STEREO8_PAIRS))
-    table = pose_lsq.rig_coefficient_table(rig, cue_scale(rig))
-    return rig, table
-
-
-def _stereo_scale(rig):
-    return [1.0 / (cam.fx * STEREO_BASELINE) for cam in rig.cameras]
-
-
 CASES = ("random", "stereo8", "radial4")
 
 
@@ -80,11 +58,8 @@ def build_case(name):
                                   **coefficient_formats(table, 18))
         return params, quantize_coefficients(params, table), None
     if name in ("stereo8", "radial4"):
-        scale = _stereo_scale if name == "stereo8" else (lambda rig: RADIAL_CUE_SCALE)
-        rig, table = _rig_case(name, scale)
-        params = PoseSolverParams(slots=table.shape[0], rows=table.shape[1],
-                                  **coefficient_formats(table, 18))
-        return params, quantize_coefficients(params, table), rig
+        params, coefficients, _, rig, _ = rig_case(name)
+        return params, coefficients, rig
     raise ValueError(f"case must be one of {', '.join(CASES)}, not {name!r}")
 
 
@@ -124,17 +99,14 @@ def random_rows(params, rng, count):
                     present=present, row=rows.row, time=rows.time), kind
 
 
-def sequence_rows(params, rig, rng, count, cue_scale=None):
+def sequence_rows(params, rig, rng, count):
     """``count`` consecutive rows of ``rig`` on the papers' motion from a random start
     time, with 0.01 px shift noise and some zero weights; returns (rows, synthetic)."""
     from golden.trajectory import make_trajectory
-    scales = cue_scale if cue_scale is not None else (
-        _stereo_scale(rig) if rig.name == "stereo8" else RADIAL_CUE_SCALE)
-    cam = rig.cameras[0]
+    scale = rig_case(rig.name)[4]
     start = float(rng.uniform(0, 0.3))
-    trajectory = make_trajectory("paper")
-    shifted = _Shifted(trajectory, start)
-    synthetic = pose_lsq.simulate_rows(rig, shifted, count * cam.t_r, cue_scale=scales, rng=rng,
+    synthetic = pose_lsq.simulate_rows(rig, _Shifted(make_trajectory("paper"), start),
+                                       count * rig.cameras[0].t_r, cue_scale=scale, rng=rng,
                                        shift_noise=0.01, zero_weight_fraction=0.05)
     ticks = np.round(synthetic.time * 150e6).astype(np.int64)
     rows = rows_from_float(params, synthetic.slot, synthetic.shift, synthetic.cue,
