@@ -1,0 +1,158 @@
+"""cocotb bench for the pose link (PoseOutput + UartTx): a UART monitor decodes the
+``tx`` line and every byte is compared with the emulator's packets."""
+
+import random
+
+import cocotb
+from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
+
+from emulator import packets
+from sim_tests.common.clocking import reset, start_clock
+from sim_tests.common.cocotb_env import load_params
+from sim_tests.common.payload import pack, unpack
+from sim_tests.common.streams import StreamSink
+
+#: Small divisors keep the simulation short; the timing model is the same at any value.
+DIVISORS = {"fast": 16, "fractional": 16 * 3 + 5}
+
+
+class UartMonitor:
+    """Decodes 8N1 frames on ``dut.tx``: a falling edge starts a frame; each later bit
+    is sampled in the middle of its duration (:func:`emulator.packets.uart_bit_clocks`);
+    a frame whose stop bit is not high is a framing error."""
+
+    def __init__(self, dut, uart, divisor):
+        self.dut = dut
+        self.bits = packets.uart_bit_clocks(uart, divisor)
+        self.received = bytearray()
+        self.framing_errors = 0
+        cocotb.start_soon(self._run())
+
+    async def _run(self):
+        clk, tx = self.dut.clk, self.dut.tx
+        starts = [sum(self.bits[:k]) for k in range(len(self.bits))]
+        while True:
+            await RisingEdge(clk)
+            await ReadOnly()
+            if int(tx.value):
+                continue
+            elapsed, samples = 0, [0]         # this clock is the start bit's first
+            for start, clocks in zip(starts[1:], self.bits[1:]):
+                while elapsed < start + clocks // 2:
+                    await RisingEdge(clk)
+                    elapsed += 1
+                await ReadOnly()
+                samples.append(int(tx.value))
+            while elapsed < sum(self.bits) - 1:
+                await RisingEdge(clk)
+                elapsed += 1
+            if samples[-1] != 1:
+                self.framing_errors += 1
+            self.received.append(sum(bit << k for k, bit in enumerate(samples[1:9])))
+
+
+def _random_pose(rng, source):
+    def value(bits, signed):
+        lo, hi = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
+        return rng.choice([lo, hi, 0, rng.randint(lo, hi)])
+    return {"t_row": value(source.time_bits, False), "row": value(source.row_bits, False),
+            "flags": value(source.flag_bits, False),
+            "position": [value(source.position_fmt.width, True) for _ in range(3)],
+            "quaternion": [value(source.quaternion_fmt.width, True) for _ in range(4)]}
+
+
+def _as_payload(pose):
+    return {k: ({i: x for i, x in enumerate(v)} if isinstance(v, list) else v)
+            for k, v in pose.items()}
+
+
+async def _setup(dut, cfg, divisor, *, drain_fifo=False):
+    params = load_params()
+    po = params.pose_output
+    clock = start_clock(dut)
+    dut.pose__valid.value = 0
+    dut.cfg.value = pack(po.config_layout(), cfg)
+    dut.divisor.value = divisor
+    monitor = UartMonitor(dut, params.uart, divisor)
+    fifo = StreamSink(dut, "fifo", po.packet.record_layout(), clock,
+                      ready_prob=1.0 if drain_fifo else 0.0)
+    await reset(dut)
+    return params, monitor, fifo
+
+
+async def _send(dut, layout, pose):
+    dut.pose__payload.value = pack(layout, _as_payload(pose))
+    dut.pose__valid.value = 1
+    await RisingEdge(dut.clk)
+    dut.pose__valid.value = 0
+
+
+async def _quiet(dut, monitor, clocks):
+    """Wait until the line has been idle for ``clocks``."""
+    idle = 0
+    while idle < clocks:
+        await RisingEdge(dut.clk)
+        await ReadOnly()
+        idle = idle + 1 if int(dut.tx.value) else 0
+
+
+def _status(dut, params):
+    return unpack(params.pose_output.status_layout(), dut.status.value)
+
+
+@cocotb.parametrize(divisor=sorted(DIVISORS), decimation=[1, 3])
+async def paced_poses_match_the_model_byte_for_byte(dut, divisor, decimation):
+    """Poses slower than the link: every kept pose is on the line, exactly as modelled."""
+    raw = DIVISORS[divisor]
+    cfg = {"uart_enable": 1, "fifo_enable": 1, "decimation": decimation, "rate_window": 0}
+    params, monitor, _ = await _setup(dut, cfg, raw)
+    po = params.pose_output
+    rng = random.Random(cocotb.RANDOM_SEED)
+    poses = [_random_pose(rng, po.source) for _ in range(12)]
+    packet_clocks = po.packet.packet_bytes * packets.uart_byte_clocks(params.uart, raw)
+    for pose in poses:
+        await _send(dut, po.source.layout(), pose)
+        await ClockCycles(dut.clk, packet_clocks + rng.randint(0, 40))
+    await _quiet(dut, monitor, 3 * max(packets.uart_bit_clocks(params.uart, raw)) * 10)
+    expected = [r for _, r in packets.keep_poses(po, poses, decimation)]
+    assert bytes(monitor.received) == b"".join(packets.encode_packet(po.packet, r)
+                                               for r in expected)
+    assert monitor.framing_errors == 0
+    status = _status(dut, params)
+    assert (status["poses"], status["records"], status["packets"], status["uart_dropped"]) == \
+        (12, len(expected), len(expected), 0)
+
+
+@cocotb.test()
+async def fast_poses_drop_whole_records_and_say_so(dut):
+    """One pose every 25 clocks, far faster than the link: whole packets only, each the
+    model's record, with ``skipped`` accounting for every dropped one; the FIFO keeps
+    every record while it is drained."""
+    raw = DIVISORS["fast"]
+    cfg = {"uart_enable": 1, "fifo_enable": 1, "decimation": 1, "rate_window": 0}
+    params, monitor, fifo = await _setup(dut, cfg, raw, drain_fifo=True)
+    po = params.pose_output
+    rng = random.Random(cocotb.RANDOM_SEED)
+    poses = [_random_pose(rng, po.source) for _ in range(80)]
+    for pose in poses:
+        await _send(dut, po.source.layout(), pose)
+        await ClockCycles(dut.clk, 24)
+    await _quiet(dut, monitor, 200)
+    data = bytes(monitor.received)
+    size = po.packet.packet_bytes
+    assert len(data) % size == 0 and monitor.framing_errors == 0
+    sent = [packets.decode_payload(po.packet, data[k + 3:k + size - 2])
+            for k in range(0, len(data), size)]
+    kept = dict((r["seq"], r) for _, r in packets.keep_poses(po, poses, 1))
+    assert 2 < len(sent) < len(poses)
+    for record in sent:
+        assert packets.encode_packet(po.packet, record) == \
+            packets.encode_packet(po.packet, {**kept[record["seq"]], "skipped": record["skipped"]})
+    for previous, record in zip(sent, sent[1:]):
+        assert record["seq"] == previous["seq"] + 1 + record["skipped"]
+    status = _status(dut, params)
+    assert status["records"] == len(poses)
+    assert status["packets"] == len(sent)
+    assert status["packets"] + status["uart_dropped"] == status["records"]
+    assert [r["seq"] for _, r in fifo.received] == list(range(len(poses)))
+    assert status["fifo_dropped"] == 0
