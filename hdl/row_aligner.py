@@ -15,7 +15,7 @@ one per row. At each new frame every enabled camera is waited for again.
 """
 
 from amaranth.hdl import Cat, Const, Module, Mux, Signal
-from amaranth.lib import data, stream, wiring
+from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .camera_input import CameraParams, saturating_increment, wire

@@ -42,10 +42,13 @@ def _simulate(params):
 
 def measure():
     from hdl.camera_input import CameraInput
-    from hdl.camera_sync import CameraFrontEnd
+    from hdl.camera_sync import CameraFrontEnd, CameraSync
+    from hdl.row_aligner import RowAligner
     params = _params()
     sim = _simulate(params)
     one = synth_report(CameraInput(params, camera=0, domain="pclk"), "camera_input")
+    sync = synth_report(CameraSync(params), "camera_sync8")
+    aligner = synth_report(RowAligner(params), "row_aligner8")
     total = synth_report(CameraFrontEnd(params), "camera_front8")
     n = params.n_cameras
     return {
@@ -58,6 +61,9 @@ def measure():
         "bram36_per_camera": total["bram36"] / n,
         "input.lut": one["lut"], "input.ff": one["ff"], "input.bram36": one["bram36"],
         "input.lut_levels": one["lut_levels"],
+        "sync.lut": sync["lut"], "sync.ff": sync["ff"], "sync.lut_levels": sync["lut_levels"],
+        "aligner.lut": aligner["lut"], "aligner.ff": aligner["ff"],
+        "aligner.lut_levels": aligner["lut_levels"],
         "front_end.lut": total["lut"], "front_end.ff": total["ff"],
         "front_end.bram36": total["bram36"], "front_end.lut_levels": total["lut_levels"],
     }
@@ -94,7 +100,9 @@ the pixels the cameras sent.
 **Resources** from Yosys `synth_xilinx -family xc7` (xc7z020 capacity:
 {XC7Z020['lut']} LUTs, {XC7Z020['ff']} FFs, {XC7Z020['bram36']} BRAM36). `*_per_camera`
 divide the whole front end (inputs, sync, aligner) by {n}; `input.*` is one
-`CameraInput` alone. A RAMB18 counts as half a BRAM36.
+`CameraInput` alone, `sync.*` and `aligner.*` the {n}-camera `CameraSync` and
+`RowAligner` alone. A RAMB18 counts as half a BRAM36. `lut_levels` is the longest
+register-to-register path in LUTs (an estimate of timing; no vendor tool runs here).
 
 | figure | value |
 |---|---|

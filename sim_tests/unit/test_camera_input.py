@@ -78,7 +78,7 @@ def simulate_input(params, cfg, player, cycles, ready, frame_of):
             ctx.set(dut.frame, frame_of(c))
             ctx.set(dut.o.ready, ready(c))
             valid = ctx.get(dut.o.valid)
-            record["offers"].append(_pixel(ctx.get(dut.o.payload)) if valid else None)
+            record["offers"].append(_fields(ctx.get(dut.o.payload)) if valid else None)
             record["events"].append(_fields(ctx.get(dut.event)))
         record["status"] = _fields(ctx.get(dut.status))
 
@@ -95,10 +95,6 @@ def simulate_input(params, cfg, player, cycles, ready, frame_of):
 
 def _fields(view):
     return {name: int(getattr(view, name)) for name, _ in view.shape()}
-
-
-def _pixel(view):
-    return _fields(view)
 
 
 def model_input(params, cfg, player, cycles, ready, frame_of):
@@ -194,19 +190,21 @@ def test_camera_input_matches_model_with_faults(backpressure):
             assert pixels == [int(v) for v in frames[i, row]]
 
 
-def test_good_rows_arrive_bit_exact_at_full_rate():
+@pytest.mark.parametrize("pixel_bits", [8, 10])
+def test_good_rows_arrive_bit_exact_at_full_rate(pixel_bits):
     """No faults, no backpressure: every row arrives whole, with its pixels and indices."""
     rng = random.Random(SEED)
+    params = SMALL.replace(pixel_bits=pixel_bits)
     timing = DvpTiming(width=16, height=4, hblank=2)
-    frames = np.random.default_rng(SEED + 1).integers(0, 256, (2, 4, 16))
+    frames = np.random.default_rng(SEED + 1).integers(0, 1 << pixel_bits, (2, 4, 16))
     player = DvpPlayer(frames=frames, timing=timing, period_ps=10_000, phase_ps=2_345,
                        rng=rng, free_run=120)
     cycles = 400
     ready = lambda c: True
     frame_of = lambda c: 7 + max(0, c - 100) // 120
-    cfg = _cfg(SMALL, timing)
-    got = simulate_input(SMALL, cfg, player, cycles, ready, frame_of)
-    _compare(got, model_input(SMALL, cfg, player, cycles, ready, frame_of), cycles)
+    cfg = _cfg(params, timing)
+    got = simulate_input(params, cfg, player, cycles, ready, frame_of)
+    _compare(got, model_input(params, cfg, player, cycles, ready, frame_of), cycles)
     rows = rows_of(got["offers"], ready)
     assert [(f, r, fl) for f, r, fl, _ in rows] == [(7 + i, y, 0) for i in range(2)
                                                     for y in range(4)]
@@ -216,6 +214,13 @@ def test_good_rows_arrive_bit_exact_at_full_rate():
     beats = [c for c, b in enumerate(got["offers"]) if b is not None]
     first_row = beats[:16]
     assert first_row[-1] - first_row[0] == 15
+    # A row's last pixel is offered `latency` clocks after the word that closes it is
+    # read from the crossing.
+    clock = SystemClock(t0=SYS_PS // 2, period=SYS_PS)
+    ends = [c for c, w in capture_words(params, player.samples, player.times, clock, 16)
+            if w["end"]]
+    lasts = [c for c, b in enumerate(got["offers"]) if b is not None and b["last"]]
+    assert [c - e for c, e in zip(lasts, ends)] == [CameraInput.latency] * len(rows)
 
 
 def test_fast_pclk_overflows_the_crossing():

@@ -11,7 +11,6 @@ counters, cycle for cycle, and the ``truth`` helpers compare against what the ca
 actually sent.
 """
 
-import math
 from dataclasses import dataclass, field
 
 import cocotb
@@ -26,7 +25,7 @@ from sim_tests.common.clocking import CLOCK_PERIOD_NS, reset, start_clock
 from sim_tests.common.dvp import DvpPlayer, DvpTiming, drive_cocotb
 from sim_tests.common.payload import pack, unpack
 
-__all__ = ["SYS_PS", "Scenario", "FrontEndRun", "row_runs", "dataset_images"]
+__all__ = ["SYS_PS", "Scenario", "FrontEndRun", "row_runs", "write_time", "dataset_images"]
 
 SYS_PS = CLOCK_PERIOD_NS * 1000
 
@@ -241,11 +240,3 @@ def row_runs(player, glitch_pclks):
 def write_time(player, sample, glitch_pclks):
     """Time of the PCLK edge that writes the word of ``sample`` into the crossing."""
     return player.times[sample + glitch_pclks + 1]
-
-
-def clocks(ps):
-    return ps / SYS_PS
-
-
-def ceil_clocks(ps):
-    return math.ceil(ps / SYS_PS)
