@@ -17,11 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from golden.descriptor import cost_peaks, describe, hamming_costs, strength, textureless
+from golden.descriptor import (cost_peaks, describe, hamming_costs, match, strength,
+                               textureless)
 from hdl.fixed import UQ, Overflow, Rounding, resize
 
 __all__ = ["FramedRow", "frame_rows", "descriptor_bits", "measure_segments",
-           "ReferenceStoreModel", "TemporalLaneModel", "StereoLaneModel", "stereo_pairs"]
+           "ReferenceStoreModel", "TemporalLaneModel", "StereoLaneModel", "stereo_pairs",
+           "against_golden"]
 
 
 @dataclass
@@ -113,9 +115,9 @@ def measure_segments(cur_bits, ref_bits, centre, params, *, cur_strong=None, bad
 
     ``shift`` (d*), ``subpixel`` (raw ``subpixel_fmt``: |δ| = floor(|C₋ − C₊|·2^f / D)
     rounded half-up on the magnitude, D = C₋ − 2C₀ + C₊; 0 on the window edge),
-    ``confidence`` (raw ``confidence_fmt``: c₂/c₁ floored to one extra fraction bit,
-    saturated, rounded half-up, capped; cap when c₁ = 0 < c₂; 0 when both are 0, and 0
-    when textureless, bad or without reference), and the flags. ``cur_strong``: the
+    ``confidence`` (raw ``confidence_fmt``: (c₂ + κ)/(c₁ + κ) floored to one extra
+    fraction bit, saturated, rounded half-up, capped; cap when c₁ + κ = 0 < c₂ + κ; 0
+    when both are 0, and 0 when textureless, bad or without reference), and the flags. ``cur_strong``: the
     current row's strong columns (see ``golden.descriptor.textureless``).
     """
     c = params.clamp_centre(centre)
@@ -127,11 +129,12 @@ def measure_segments(cur_bits, ref_bits, centre, params, *, cur_strong=None, bad
     mag = _rounded_quotient(np.abs(cm - cp) << f, den, params.subpixel_quotient_bits,
                             UQ(1, f))
     subpixel = np.where(edge, 0, np.where(cm < cp, -mag, mag))
-    cf = params.confidence_fmt
-    ratio = _rounded_quotient(np.asarray(c2) << (cf.frac_bits + 1), c0,
+    cf, kappa = params.confidence_fmt, m.peak_ratio_offset
+    best_k, second_k = c0 + kappa, c2 + kappa
+    ratio = _rounded_quotient(np.asarray(second_k) << (cf.frac_bits + 1), best_k,
                               params.ratio_quotient_bits, cf)
     ratio = np.minimum(ratio, params.cap_raw())
-    ratio = np.where((c0 == 0) & (c2 == 0), 0, ratio)
+    ratio = np.where((best_k == 0) & (second_k == 0), 0, ratio)
     flat = textureless(cur_bits, params.descriptor, m, c, cur_strong)
     ratio = np.where(flat | bad | no_reference, 0, ratio)
     k = params.segments
@@ -139,6 +142,21 @@ def measure_segments(cur_bits, ref_bits, centre, params, *, cur_strong=None, bad
             "confidence": ratio, "textureless": flat.astype(int),
             "edge_hit": edge.astype(int), "bad": np.full(k, int(bad)),
             "no_reference": np.full(k, int(no_reference))}
+
+
+def against_golden(cur, ref, centre, params):
+    """The golden float matcher and this model on the same rows (current and reference
+    pixels, ``(W,)``): returns ``(golden MatchResult, model results, model shift in
+    pixels)``; level 2 of the three levels of truth."""
+    c = params.clamp_centre(centre)
+    d, m = params.descriptor, params.match
+    cur_f, ref_f = np.asarray(cur, dtype=np.float64), np.asarray(ref, dtype=np.float64)
+    golden = match(describe(cur_f, d), describe(ref_f, d), d, m, c,
+                   cur_strong=strength(cur_f, d))
+    cur_bits, cur_strong = descriptor_bits(cur, params)
+    ref_bits, _ = descriptor_bits(ref, params)
+    model = measure_segments(cur_bits, ref_bits, c, params, cur_strong=cur_strong)
+    return golden, model, model["shift"] + params.subpixel_fmt.to_float(model["subpixel"])
 
 
 def _records(row, results):

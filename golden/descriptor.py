@@ -24,7 +24,10 @@ Conventions shared with the emulator and the HDL
   ``|d − d*| ≥ 2`` (the minimum's own slopes are not a rival peak).
 * Sub-pixel: ``δ = (C₋₁ − C₊₁) / (2 (C₋₁ − 2 C₀ + C₊₁))``; ``δ = 0`` when ``d*`` is on the
   window edge (flagged) or the denominator is zero.
-* Peak ratio: ``min(C₂ / C₁, cap)``, ``cap`` when ``C₁ = 0`` and ``C₂ > 0``.
+* Peak ratio: ``min((C₂ + κ) / (C₁ + κ), cap)`` with the offset ``κ =
+  peak_ratio_offset`` columns; ``cap`` when ``C₁ + κ = 0`` and ``C₂ > 0``, 0 when both
+  are 0. Without the offset (κ = 0, the papers' plain ratio) two tiny costs, say 0 and
+  2 noise flips at two aliases of a periodic row, read as a perfect peak.
 * Textureless: a segment of the current row with fewer than ``min_transitions`` bit
   changes, or (when the caller passes the row's strong columns) fewer than
   ``min_strong`` columns whose response magnitude is at least ``strong_response``, is
@@ -99,6 +102,8 @@ class MatchParams:
         Segments per row (virtual cameras), each giving its own measurement.
     peak_ratio_cap : float
         Upper bound of the peak-ratio confidence.
+    peak_ratio_offset : int
+        Columns added to both costs of the peak ratio (0: the plain ratio).
     min_transitions : int
         Fewer bit changes than this in a segment of the current row: textureless.
     min_strong : int
@@ -108,6 +113,7 @@ class MatchParams:
     shift_max: int = 20
     segments: int = 1
     peak_ratio_cap: float = 2.0
+    peak_ratio_offset: int = 16
     min_transitions: int = 4
     min_strong: int = 16
 
@@ -122,6 +128,7 @@ class MatchParams:
         _check_positive_int("segments", self.segments)
         _check_positive_int("min_transitions", self.min_transitions, minimum=0)
         _check_positive_int("min_strong", self.min_strong, minimum=0)
+        _check_positive_int("peak_ratio_offset", self.peak_ratio_offset, minimum=0)
         if not isinstance(self.peak_ratio_cap, (int, float)) or not self.peak_ratio_cap > 1:
             raise ValueError(f"peak_ratio_cap must be a number > 1, not {self.peak_ratio_cap!r}")
 
@@ -310,9 +317,11 @@ def match(cur_bits, ref_bits, desc, match_params, centre=0, cur_strong=None):
     denom = cm - 2 * c0 + cp
     with np.errstate(divide="ignore", invalid="ignore"):
         delta = np.where(edge | (denom == 0), 0.0, (cm - cp) / (2.0 * denom))
-    cap = float(match_params.peak_ratio_cap)
+    cap, kappa = float(match_params.peak_ratio_cap), match_params.peak_ratio_offset
+    best_k, second_k = c0 + kappa, c2 + kappa
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(c0 == 0, np.where(c2 > 0, cap, 0.0), np.minimum(c2 / c0, cap))
+        ratio = np.where(best_k == 0, np.where(second_k > 0, cap, 0.0),
+                         np.minimum(second_k / best_k, cap))
     flat = textureless(cur_bits, desc, match_params, centre, cur_strong)
     ratio = np.where(flat, 0.0, ratio)
     int_shift = centre + match_params.shift_min + best

@@ -5,7 +5,7 @@ bits at all ``n`` shifts of the window at once (``n`` cost counters), so the cos
 complete when the segment's last column has streamed in. A small engine then scans
 the frozen costs ``scan_lanes`` at a time, twice (first minimum, then the second
 minimum at distance ≥ 2 and the minimum's neighbours), and divides twice in parallel
-(peak ratio, parabola vertex) with one-bit-per-clock restoring dividers. A row's K
+(offset peak ratio, parabola vertex) with one-bit-per-clock restoring dividers. A row's K
 results leave together, in segment order, once its last segment is done: only then is
 the row's bad verdict known (a camera reports reason bits with the last pixel).
 """
@@ -305,15 +305,18 @@ class ShiftMatcher(wiring.Component):
         # step 2G + 5: load both dividers; they run for the next Q steps
         edge = (i1 == 0) | (i1 == n - 1)
         cf, fs = p.confidence_fmt, p.subpixel_frac_bits
+        kappa = p.match.peak_ratio_offset
+        offset_width = max(cost_fmt.width, kappa.bit_length()) + 1
         m.submodules.ratio_div = ratio_div = SerialDivider(
-            cost_fmt.width + cf.frac_bits + 1, cost_fmt.width, p.ratio_quotient_bits)
+            offset_width + cf.frac_bits + 1, offset_width, p.ratio_quotient_bits)
         m.submodules.subpx_div = subpx_div = SerialDivider(
             cost_fmt.width + fs, cost_fmt.width + 2, p.subpixel_quotient_bits)
         load = step == load_step
         diff = Mux(cm >= cp, cm - cp, cp - cm)
         m.d.comb += [
-            ratio_div.start.eq(load), ratio_div.num.eq(c2 << (cf.frac_bits + 1)),
-            ratio_div.den.eq(c1),
+            ratio_div.start.eq(load),
+            ratio_div.num.eq((c2 + kappa) << (cf.frac_bits + 1)),
+            ratio_div.den.eq(c1 + kappa),
             subpx_div.start.eq(load),
             subpx_div.num.eq(Mux(edge, 0, diff << fs)),
             subpx_div.den.eq(Mux(edge, 1, cm + cp - (c1 << 1))),
@@ -347,7 +350,7 @@ class ShiftMatcher(wiring.Component):
             m.d.sync += [
                 entry.shift.eq(snap.meta.centre + p.match.shift_min + i1),
                 entry.subpixel.eq(Mux(edge, 0, Mux(cm < cp, -magnitude, magnitude))),
-                entry.confidence.eq(Mux((c1 == 0) & (c2 == 0), 0, capped)),
+                entry.confidence.eq(Mux((c1 + kappa == 0) & (c2 + kappa == 0), 0, capped)),
                 entry.textureless.eq(snap.textureless),
                 entry.edge_hit.eq(edge), step.eq(0),
             ]

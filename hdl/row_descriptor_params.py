@@ -71,7 +71,7 @@ class RowDescriptorParams:
     height: int = 480
     descriptor: DescriptorParams = DescriptorParams()
     match: MatchParams = MatchParams(segments=4)
-    coeff_frac_bits: int = 8
+    coeff_frac_bits: int = 16
     subpixel_frac_bits: int = 6
     confidence_fmt: QFormat = UQ(2, 6)
     centre_range: int = 32
@@ -89,7 +89,7 @@ class RowDescriptorParams:
             raise TypeError(f"descriptor must be a DescriptorParams, not {self.descriptor!r}")
         if not isinstance(self.match, MatchParams):
             raise TypeError(f"match must be a MatchParams, not {self.match!r}")
-        _check_int("coeff_frac_bits", self.coeff_frac_bits, 2, 16)
+        _check_int("coeff_frac_bits", self.coeff_frac_bits, 2, 20)
         _check_int("subpixel_frac_bits", self.subpixel_frac_bits, 1, 12)
         if not isinstance(self.confidence_fmt, QFormat) or self.confidence_fmt.signed:
             raise TypeError(f"confidence_fmt must be an unsigned QFormat, not "

@@ -125,6 +125,22 @@ def test_noisy_flat_rows_are_textureless_given_strength():
     assert not r.textureless.any()
 
 
+def test_peak_ratio_offset_tames_tiny_costs_of_periodic_rows():
+    """Short segments of a noisy periodic row: aliases with 0 and 2 flips would be a
+    perfect peak for the plain ratio; the offset keeps them unconfident."""
+    rng = np.random.default_rng(SEED)
+    desc = DescriptorParams()
+    x = np.arange(640)
+    plain, offset = [], []
+    for _ in range(60):
+        rows = [np.round(128 + 90 * np.sin(2 * np.pi * (x - rng.uniform(0, 7)) / 7)
+                         + rng.normal(0, 2, 640)) for _ in range(2)]
+        cur, ref = describe(rows[1], desc), describe(rows[0], desc)
+        plain += list(match(cur, ref, desc, MatchParams(segments=8, peak_ratio_offset=0)).peak_ratio)
+        offset += list(match(cur, ref, desc, MatchParams(segments=8)).peak_ratio)
+    assert max(plain) == 2.0 and max(offset) < 1.5
+
+
 @pytest.mark.parametrize("kwargs, error, message", [
     ({"sigma": 0.1}, ValueError, "sigma must be between 0.5 and 8 pixels, not 0.1"),
     ({"sigma": "2"}, TypeError, "sigma must be a number"),
@@ -139,6 +155,7 @@ def test_bad_descriptor_params(kwargs, error, message):
     ({"shift_min": 0, "shift_max": 1}, ValueError, "must hold at least 3 shifts"),
     ({"segments": 0}, ValueError, "segments must be an integer ≥ 1, not 0"),
     ({"min_strong": -2}, ValueError, "min_strong must be an integer ≥ 0, not -2"),
+    ({"peak_ratio_offset": 1.5}, TypeError, "peak_ratio_offset must be an integer"),
     ({"shift_min": 1.5}, TypeError, "shift_min must be an integer"),
     ({"peak_ratio_cap": 1.0}, ValueError, "peak_ratio_cap must be a number > 1"),
 ])

@@ -101,7 +101,7 @@ def check_latency(outputs, accepted_last, dut):
     ({"height": "480"}, TypeError, "height must be an integer"),
     ({"descriptor": 2.0}, TypeError, "descriptor must be a DescriptorParams"),
     ({"match": None}, TypeError, "match must be a MatchParams"),
-    ({"coeff_frac_bits": 1}, ValueError, "coeff_frac_bits must be an integer between 2 and 16"),
+    ({"coeff_frac_bits": 1}, ValueError, "coeff_frac_bits must be an integer between 2 and 20"),
     ({"subpixel_frac_bits": 0}, ValueError, "subpixel_frac_bits must be an integer between"),
     ({"confidence_fmt": SQ(2, 6)}, TypeError, "confidence_fmt must be an unsigned QFormat"),
     ({"confidence_fmt": UQ(1, 6)}, ValueError, "cannot hold peak_ratio_cap 2.0"),

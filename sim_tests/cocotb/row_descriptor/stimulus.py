@@ -8,7 +8,8 @@ and the benchmark build the same streams from the same seeds.
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-__all__ = ["moving_rows", "periodic_rows", "row_beats", "frame_beats", "inject_faults"]
+__all__ = ["moving_rows", "periodic_rows", "row_beats", "frame_beats", "inject_faults",
+           "simulator_dataset"]
 
 
 def moving_rows(rng, n_frames, height, width, *, max_step=6.0, blur=2.5, noise=1.0,
@@ -98,3 +99,24 @@ def inject_faults(rng, beats, width, count):
                 out += [dict(row[1], first=0, last=0) for _ in range(int(rng.integers(1, 4)))]
         out += row
     return out
+
+
+def simulator_dataset(path, seed=3):
+    """Path of a golden-simulator dataset, simulated once and kept at ``path`` (under
+    ``build/``): the radial4 rig with 1.5 DN sensor noise yawing at 30°/s about the
+    world's vertical axis for three frames at 120 fps. Cameras 0 and 2 (not rolled) see
+    the scene slide along their rows by about 2 px per frame, so each row matches the
+    same row of the previous frame, as the temporal lane assumes."""
+    import math
+
+    from golden.rig import preset
+    from golden.scene import default_scene_spec
+    from golden.simulator import simulate
+    from golden.trajectory import ScrewTrajectory, SpeedProfile
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        rig = preset("radial4").replace_cameras(noise_sigma=1.5)
+        yaw = ScrewTrajectory(axis=(0, 0, 1), angular_speed=SpeedProfile.constant(
+            math.radians(30)), kind="yaw")
+        simulate(rig, default_scene_spec(seed), yaw, 3 / 120, seed=seed).save(path)
+    return path

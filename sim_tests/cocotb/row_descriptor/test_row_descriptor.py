@@ -5,13 +5,11 @@ golden simulator's dataset."""
 import pytest
 
 from golden.descriptor import STEREO_MATCH, MatchParams
-from golden.rig import preset
-from golden.scene import default_scene_spec
-from golden.simulator import simulate
-from golden.trajectory import make_trajectory
 from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor
 from hdl.row_descriptor_params import RowDescriptorParams
 from sim_tests.common.cocotb_runner import BUILD_ROOT, run_cocotb
+
+from sim_tests.cocotb.row_descriptor.stimulus import simulator_dataset
 
 #: 160-pixel rows, 4 rows per frame, 2 segments; 240-pixel stereo rows (window [10, 70]).
 TEMPORAL = RowDescriptorParams(width=160, height=4, centre_range=4,
@@ -21,14 +19,7 @@ STEREO = RowDescriptorParams(width=240, height=3, centre_range=4, match=STEREO_M
 
 @pytest.fixture(scope="module")
 def dataset_path():
-    """Three frames of the golden simulator (radial4 rig, head motion), saved once."""
-    path = BUILD_ROOT / "row_descriptor-dataset.npz"
-    if not path.exists():
-        path.parent.mkdir(parents=True, exist_ok=True)
-        rig = preset("radial4").replace_cameras(noise_sigma=1.5)
-        simulate(rig, default_scene_spec(3), make_trajectory("head", seed=3), 3 / 120,
-                 seed=3).save(path)
-    return path
+    return simulator_dataset(BUILD_ROOT / "row_descriptor-yaw-dataset.npz")
 
 
 @pytest.mark.parametrize("sim", ["verilator", "icarus"])
