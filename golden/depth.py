@@ -5,7 +5,7 @@
   window (``STEREO_MATCH``, [10, 70] px) in ``blocks`` segments gives one disparity
   ``d`` per segment, ``1/Z = d / (f·b)``. Inverse depth is interpolated linearly between
   segment centres (exact for planes: ``1/Z`` is affine in the normalized coordinates of
-  a plane's points) and held flat beyond the outermost ones. Each camera of the pair gets
+  a plane's points) and unknown beyond the outermost ones. Each camera of the pair gets
   its own map (right against left with the mirrored window).
 * :mod:`golden.depth_maps` (CVPR 2018): per-camera depth maps bootstrapped from the
   overlap of neighbouring cameras and carried from frame to frame.
@@ -88,16 +88,17 @@ class StereoDepth:
     def has_depth(self, camera):
         return camera in self.pair_of
 
-    def inverse_depth(self, pair, left_bits, right_bits):
+    def inverse_depth(self, pair, left_bits, right_bits, left_strong=None):
         """1/Z (B, W) along rows of the left and the right camera of pair ``pair`` from
-        their descriptor bits (B, W); NaN where unknown.
+        their descriptor bits (B, W) (and the left rows' strong columns for the matcher's
+        flat-segment test); NaN where unknown.
 
         The right camera's map is the left one's carried over by the disparity: the
         point at left column ``x`` is at right column ``x − d`` (the same physical points,
         one matcher call per pair).
         """
         _, _, fb = self.pairs[pair]
-        result = match(left_bits, right_bits, self.desc, self.window)
+        result = match(left_bits, right_bits, self.desc, self.window, cur_strong=left_strong)
         ok = ~result.textureless & ~result.edge_hit & (result.peak_ratio >= self.min_peak_ratio)
         inverse = result.shift / fb
         columns = np.arange(self.width)
@@ -106,8 +107,14 @@ class StereoDepth:
         for b in range(len(left_bits)):
             good = ok[b]
             if good.any():
-                left[b] = np.interp(columns, self.centres[good], inverse[b, good])
+                left[b] = _interpolate_inside(columns, self.centres[good], inverse[b, good])
                 moved = self.centres[good] - result.shift[b, good]
                 order = np.argsort(moved)
-                right[b] = np.interp(columns, moved[order], inverse[b, good][order])
+                right[b] = _interpolate_inside(columns, moved[order], inverse[b, good][order])
         return left, right
+
+
+def _interpolate_inside(x, points, values):
+    """Linear interpolation between ``points``; NaN outside their span (no guessing)."""
+    inside = (x >= points[0]) & (x <= points[-1])
+    return np.where(inside, np.interp(x, points, values), np.nan)

@@ -10,15 +10,17 @@ For a series ``m_t`` with forecast ``m_{t|t−1} = m̃_{t−1} + B_{t−1}``:
 * smoothing: ``m̃_t = α m*_t + (1 − α)(m̃_{t−1} + B_{t−1})``,
   ``B_t = β (m̃_t − m̃_{t−1}) + (1 − β) B_{t−1}``.
 
-The tracker uses two pieces (see ``docs/tracker.md``): :class:`RobustScale` judges every
-measurement channel's innovation against the forecast (weight ``ψ(x)/x``, outliers
-replaced by the forecast), and :class:`HoltWinters` smooths the per-row motion.
+The tracker uses these pieces (see ``docs/tracker.md``): :class:`RobustScale` judges
+every measurement channel's innovation against the forecast (weight ``ψ(x)/x``,
+outliers replaced by the forecast), and :class:`HoltWinters` smooths the per-row motion,
+with :func:`information_gain` in place of the scalar α when a measurement constrains some
+directions much less than usual.
 """
 
 import numpy as np
 
 __all__ = ["HUBER_K", "BIWEIGHT_CK", "huber_weight", "biweight_rho",
-           "RobustScale", "HoltWinters"]
+           "RobustScale", "HoltWinters", "information_gain"]
 
 #: Huber and biweight tuning constant (Gelper et al.: k = 2).
 HUBER_K = 2.0
@@ -111,12 +113,29 @@ class HoltWinters:
         """The level expected ``steps`` samples ahead."""
         return self.level + steps * self.trend
 
-    def update(self, value=None):
+    def update(self, value=None, gain=None):
         """Take the next (already cleaned) value, or none (the forecast stands); returns
-        the new level."""
+        the new level. ``gain`` (a matrix) replaces the scalar α: the level moves by
+        ``gain (value − forecast)``."""
         predicted = self.forecast()
-        level = predicted if value is None else \
-            self.alpha * np.asarray(value, dtype=float) + (1 - self.alpha) * predicted
+        if value is None:
+            level = predicted
+        else:
+            innovation = np.asarray(value, dtype=float) - predicted
+            level = predicted + (self.alpha * innovation if gain is None else gain @ innovation)
         self.trend = self.beta * (level - self.level) + (1 - self.beta) * self.trend
         self.level = level
         return level
+
+
+def information_gain(normal, typical, alpha):
+    """Matrix gain of a level update weighted by how much a measurement tells.
+
+    With ``normal`` the information (normal matrix) of this measurement and ``typical``
+    that of a typical one, the gain is ``(Λ + N)⁻¹ N`` with the prior information
+    ``Λ = (1 − α)/α · N_typical``: a typical measurement moves the level by α as in plain
+    Holt–Winters, while in directions a measurement barely constrains (a camera lost,
+    a near-degenerate system) the level keeps its forecast instead of taking the noise.
+    """
+    prior = (1.0 - alpha) / alpha * np.asarray(typical, dtype=float)
+    return np.linalg.solve(prior + normal, normal)

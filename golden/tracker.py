@@ -32,18 +32,23 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from .descriptor import DescriptorParams, MatchParams, describe, match, segment_bounds
+from .descriptor import (DescriptorParams, MatchParams, describe, match, segment_bounds,
+                         strength)
 from .depth import StereoDepth, stereo_pairs
 from .pose_lsq import body_step, normal_equations, solve_normal
 from .reference_rows import HomographyReference, PreviousFrameReference
-from .temporal_filter import HoltWinters, RobustScale
+from .temporal_filter import HoltWinters, RobustScale, information_gain
 from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
 from .tracker_slots import RowSlots
 
-__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "TrackerParams", "TrackResult", "track"]
+__all__ = ["TYPICAL_SMOOTHING", "REFERENCES", "DEPTHS", "SOLVERS", "TrackerParams", "TrackResult", "track"]
 
 REFERENCES = ("homography", "previous")
+
+#: Weight of each new solved system in the running "typical information" that scales
+#: the level update (about the last 50 solved slots).
+TYPICAL_SMOOTHING = 0.02
 DEPTHS = ("auto", "stereo", "overlap", "oracle")
 SOLVERS = ("linear", "nonlinear")
 
@@ -77,6 +82,9 @@ class TrackerParams:
         per camera and row) instead of the same row index.
     sigma : float
         Descriptor σ (pixels).
+    strong_test : bool
+        Also call a segment textureless when it has too few strong columns (the matcher's
+        optional flat-row test; off: bit transitions only).
     window : int
         Half-width of the temporal shift window (pixels), centred on the prediction.
     segments : int
@@ -118,6 +126,7 @@ class TrackerParams:
     parallax: bool = True
     follow_rows: bool = True
     sigma: float = 2.0
+    strong_test: bool = False
     window: int = 20
     segments: int = 8
     depth: str = "auto"
@@ -142,7 +151,7 @@ class TrackerParams:
             if getattr(self, name) not in options:
                 raise ValueError(f"{name} must be one of {', '.join(options)}, "
                                  f"not {getattr(self, name)!r}")
-        for name in ("parallax", "follow_rows"):
+        for name in ("parallax", "follow_rows", "strong_test"):
             if not isinstance(getattr(self, name), bool):
                 raise TypeError(f"{name} must be a bool, not {getattr(self, name)!r}")
         _check("reselect_angle", self.reselect_angle, (int, float), 0, low_open=True)
@@ -271,6 +280,7 @@ class Tracker:
         motion = body_step(rotations[0], positions[0], rotations[-1], positions[-1])
         motion *= slots.period / span
         self.motion = HoltWinters(motion, alpha=self.params.alpha, beta=self.params.beta)
+        self.typical = None
         self.track.set_extrapolation(motion / slots.period)
 
     def _depth_source(self, dataset, provider):
@@ -285,7 +295,12 @@ class Tracker:
             from .depth_maps import OracleDepth
             return OracleDepth(dataset), kind
         from .depth_maps import OverlapDepth
-        return OverlapDepth(self.rig, self.recordings, self.track), kind
+        return OverlapDepth(self.rig, self.recordings, self.track, self.predict), kind
+
+    def predict(self, times):
+        """Rig poses (R, p) the tracker predicts for rows at ``times``: the estimate one
+        frame earlier composed with the motion forecast."""
+        return compose(*self.track.at(times - self.slots.period), self.motion.forecast())
 
     def _cached(self, kind, n, frame, compute):
         """Per-frame values of camera ``n``, kept for this frame and the previous one."""
@@ -301,6 +316,12 @@ class Tracker:
         return self._cached("bits", n, frame,
                             lambda: describe(self.recordings[n].rows[frame], self.desc))
 
+    def frame_strong(self, n, frame):
+        """Strong columns (H, W) of frame ``frame`` of camera ``n`` (the matcher's test
+        for flat, noise-only segments)."""
+        return self._cached("strong", n, frame,
+                            lambda: strength(self.recordings[n].rows[frame], self.desc))
+
     def _inverse_depth(self, n, frame, rows, rotations, positions):
         """1/Z (B, W) of camera n's rows (NaN: unknown)."""
         if not isinstance(self.depth, StereoDepth):
@@ -311,7 +332,8 @@ class Tracker:
         left, right, _ = self.depth.pairs[pair]
         # a whole frame at once: the same values per row, far fewer matcher calls
         maps = self._cached("depth", pair, frame, lambda: self.depth.inverse_depth(
-            pair, self.frame_bits(left, frame), self.frame_bits(right, frame)))
+            pair, self.frame_bits(left, frame), self.frame_bits(right, frame),
+            self.frame_strong(left, frame) if self.params.strong_test else None))
         return maps[0 if n == left else 1][rows]
 
     # --- measurements of a block -----------------------------------------------------
@@ -348,7 +370,8 @@ class Tracker:
         centres = np.clip(np.rint(_row_means(predicted)), -limit, limit).astype(int)
         return _Entry(camera=n, frame=frame, rows=rows, slots=slot_ids,
                       inverse_depth=inverse_depth, ref=ref, predicted=predicted,
-                      centres=centres, bits=self.frame_bits(n, frame)[rows])
+                      centres=centres, bits=self.frame_bits(n, frame)[rows],
+                      strong=self.frame_strong(n, frame)[rows] if self.params.strong_test else None)
 
     def _measure(self, entries):
         """Match the block's rows (grouped by window centre across cameras) and form each
@@ -358,6 +381,8 @@ class Tracker:
         owner = np.concatenate([np.full(len(e.rows), j) for j, e in enumerate(entries)])
         local = np.concatenate([np.arange(len(e.rows)) for e in entries])
         cur = np.concatenate([e.bits for e in entries])
+        strong = np.concatenate([e.strong for e in entries]) if self.params.strong_test \
+            else None
         ref = np.concatenate([e.ref.bits for e in entries])
         for e in entries:
             b = len(e.rows)
@@ -365,7 +390,8 @@ class Tracker:
             e.lo, e.hi = np.zeros((b, p.segments), int), np.zeros((b, p.segments), int)
         for centre in np.unique(centres):
             sel = np.flatnonzero(centres == centre)
-            result = match(cur[sel], ref[sel], self.desc, self.matcher, centre=int(centre))
+            result = match(cur[sel], ref[sel], self.desc, self.matcher, centre=int(centre),
+                           cur_strong=None if strong is None else strong[sel])
             bounds = np.array(segment_bounds(width, self.desc, self.matcher, int(centre)))
             good = ~result.textureless & ~result.edge_hit
             for j in np.unique(owner[sel]):
@@ -465,7 +491,7 @@ class Tracker:
         """Robust weighted solve of slot ``s`` from the block's measurements ``mine``."""
         p = self.params
         forecast = self.motion.forecast()
-        step, condition, used = None, np.nan, 0
+        step, gain, condition, used = None, None, np.nan, 0
         if len(mine):
             design, ratio = table.design[mine], table.ratio[mine]
             residual = table.innovation[mine] - design @ (forecast - linearised_at)
@@ -493,7 +519,10 @@ class Tracker:
                         out["linear_step"][s] = step
                         step = self._refine(parts, forecast, step, confidence, outlier)
                         out["refined_step"][s] = step
-        level = self.motion.update(None if step is None else forecast + step)
+                    self.typical = normal if self.typical is None else \
+                        (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
+                    gain = information_gain(normal, self.typical, p.alpha)
+        level = self.motion.update(None if step is None else forecast + step, gain)
         if step is None:     # no measurement: carry on from the latest pose, at the forecast rate
             last = self.track.count - 1
             dt = self.slots.times[s] - self.track.times[last]
