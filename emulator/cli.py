@@ -25,6 +25,7 @@ COMMANDS = (
     "emulator.commands.simulate",
     "emulator.commands.dts",
     "emulator.commands.dtfilter",
+    "emulator.commands.track",
 )
 
 

@@ -38,6 +38,14 @@ class PoseTrack:
         Largest number of samples.
     """
 
+    @classmethod
+    def from_samples(cls, times, rotations, positions):
+        """A full track holding the given samples (times increasing)."""
+        track = cls(len(times))
+        track.times[:], track.rotations[:], track.positions[:] = times, rotations, positions
+        track.count = len(times)
+        return track
+
     def __init__(self, capacity):
         if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) \
                 or capacity < 1:
@@ -95,8 +103,4 @@ def ground_truth_track(dataset):
     rotations = np.concatenate([rec.rotation.reshape(-1, 3, 3) for rec in dataset.cameras])
     positions = np.concatenate([rec.position.reshape(-1, 3) for rec in dataset.cameras])
     times, first = np.unique(times, return_index=True)
-    track = PoseTrack(len(times))
-    track.times[:], track.rotations[:], track.positions[:] = (times, rotations[first],
-                                                             positions[first])
-    track.count = len(times)
-    return track
+    return PoseTrack.from_samples(times, rotations[first], positions[first])
