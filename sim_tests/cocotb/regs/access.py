@@ -6,6 +6,8 @@ import itertools
 
 from cocotbext.axi import AxiLiteBus, AxiLiteMaster, AxiResp
 
+from sim_tests.common.payload import pack
+
 __all__ = ["Registers", "port_name", "element_bits", "word_bits", "piece_mask", "with_word"]
 
 
@@ -88,7 +90,10 @@ class Registers:
         return value
 
     async def write_register(self, group, name, element, index=0):
-        """Write a whole element, word by word (the last word delivers a command)."""
+        """Write a whole element, word by word (the last word delivers a command);
+        ``element`` is an integer or a field dict of the register's layout."""
+        if isinstance(element, dict):
+            element = pack(self.regmap.find(group, name).register.shape, element)
         for word in self.regmap.words():
             if (word.group.name, word.register.name, word.index) == (group, name, index):
                 assert await self.write(self.address(word), word_bits(word, element)), \

@@ -17,19 +17,21 @@ DIVISORS = {"fast": 16, "fractional": 16 * 3 + 5}
 
 
 class UartMonitor:
-    """Decodes 8N1 frames on ``dut.tx``: a falling edge starts a frame; each later bit
-    is sampled in the middle of its duration (:func:`emulator.packets.uart_bit_clocks`);
-    a frame whose stop bit is not high is a framing error."""
+    """Decodes 8N1 frames on the ``line`` port: a falling edge starts a frame; each
+    later bit is sampled in the middle of its duration
+    (:func:`emulator.packets.uart_bit_clocks`); a frame whose stop bit is not high is a
+    framing error."""
 
-    def __init__(self, dut, uart, divisor):
+    def __init__(self, dut, uart, divisor, *, line="tx"):
         self.dut = dut
+        self.line = getattr(dut, line)
         self.bits = packets.uart_bit_clocks(uart, divisor)
         self.received = bytearray()
         self.framing_errors = 0
         cocotb.start_soon(self._run())
 
     async def _run(self):
-        clk, tx = self.dut.clk, self.dut.tx
+        clk, tx = self.dut.clk, self.line
         starts = [sum(self.bits[:k]) for k in range(len(self.bits))]
         while True:
             await RisingEdge(clk)
@@ -51,7 +53,7 @@ class UartMonitor:
             self.received.append(sum(bit << k for k, bit in enumerate(samples[1:9])))
 
 
-def _random_pose(rng, source):
+def random_pose(rng, source):
     def value(bits, signed):
         lo, hi = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
         return rng.choice([lo, hi, 0, rng.randint(lo, hi)])
@@ -87,13 +89,13 @@ async def _send(dut, layout, pose):
     dut.pose__valid.value = 0
 
 
-async def _quiet(dut, monitor, clocks):
-    """Wait until the line has been idle for ``clocks``."""
+async def wait_idle(dut, monitor, clocks):
+    """Wait until the monitored line has been idle for ``clocks``."""
     idle = 0
     while idle < clocks:
         await RisingEdge(dut.clk)
         await ReadOnly()
-        idle = idle + 1 if int(dut.tx.value) else 0
+        idle = idle + 1 if int(monitor.line.value) else 0
 
 
 def _status(dut, params):
@@ -108,12 +110,12 @@ async def paced_poses_match_the_model_byte_for_byte(dut, divisor, decimation):
     params, monitor, _ = await _setup(dut, cfg, raw)
     po = params.pose_output
     rng = random.Random(cocotb.RANDOM_SEED)
-    poses = [_random_pose(rng, po.source) for _ in range(12)]
+    poses = [random_pose(rng, po.source) for _ in range(12)]
     packet_clocks = po.packet.packet_bytes * packets.uart_byte_clocks(params.uart, raw)
     for pose in poses:
         await _send(dut, po.source.layout(), pose)
         await ClockCycles(dut.clk, packet_clocks + rng.randint(0, 40))
-    await _quiet(dut, monitor, 3 * max(packets.uart_bit_clocks(params.uart, raw)) * 10)
+    await wait_idle(dut, monitor, 3 * max(packets.uart_bit_clocks(params.uart, raw)) * 10)
     expected = [r for _, r in packets.keep_poses(po, poses, decimation)]
     assert bytes(monitor.received) == b"".join(packets.encode_packet(po.packet, r)
                                                for r in expected)
@@ -133,11 +135,11 @@ async def fast_poses_drop_whole_records_and_say_so(dut):
     params, monitor, fifo = await _setup(dut, cfg, raw, drain_fifo=True)
     po = params.pose_output
     rng = random.Random(cocotb.RANDOM_SEED)
-    poses = [_random_pose(rng, po.source) for _ in range(80)]
+    poses = [random_pose(rng, po.source) for _ in range(80)]
     for pose in poses:
         await _send(dut, po.source.layout(), pose)
         await ClockCycles(dut.clk, 24)
-    await _quiet(dut, monitor, 200)
+    await wait_idle(dut, monitor, 200)
     data = bytes(monitor.received)
     size = po.packet.packet_bytes
     assert len(data) % size == 0 and monitor.framing_errors == 0
