@@ -1,0 +1,144 @@
+"""Benchmark of the SoC integration: resources of the pipeline top, the UART link's
+packet rate measured in simulation, and the host tool on a faulty pseudo-terminal link.
+
+Figures (prefixed ``top.`` by the registry): ``lut``, ``ff``, ``bram36``, ``dsp48``,
+``lut_levels`` and their share of the xc7z020; ``link.clocks_per_packet`` and
+``link.packets_per_s`` at 3 Mbaud and 100 MHz; ``host.packets_ok``,
+``host.packets_bad`` (damaged packets the host counted), ``host.packets_sent``,
+``host.packets_damaged`` (what the emulator damaged) and ``host.decode_mb_per_s``.
+"""
+
+import os
+import threading
+import time
+
+import numpy as np
+
+from emulator import packets
+from emulator.synth import XC7Z020, synth_report
+
+#: Packets played into the pseudo-terminal, and the fault probabilities per packet.
+HOST_PACKETS = 2000
+FAULTS = {"flip": 0.04, "drop": 0.04, "truncate": 0.04}
+SEED = 2026
+
+
+def _link_clocks_per_packet(params, divisor, count=3):
+    """Clocks between the start bits of back-to-back packets on the PoseLink's line."""
+    from amaranth.sim import Simulator
+    from hdl.top import PoseLink
+
+    dut = PoseLink(params)
+    po = params.pose_output
+    starts = []
+    frame = sum(packets.uart_bit_clocks(params.uart, divisor))
+    packet_bytes = po.packet.packet_bytes
+
+    async def testbench(ctx):
+        ctx.set(dut.cfg, {"uart_enable": 1, "fifo_enable": 0, "decimation": 1,
+                          "rate_window": 0})
+        ctx.set(dut.divisor, divisor)
+        ctx.set(dut.pose.valid, 1)                 # a pose every clock: the link is the limit
+        previous, cycle, since = 1, 0, frame
+        while len(starts) < count * packet_bytes:
+            line = ctx.get(dut.tx)
+            if previous and not line and since >= frame:
+                starts.append(cycle)               # a start bit (not a 0 data bit)
+                since = 0
+            previous, cycle, since = line, cycle + 1, since + 1
+            await ctx.tick()
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(testbench)
+    sim.run()
+    packet_starts = starts[::packet_bytes]
+    gaps = set(np.diff(packet_starts).tolist())
+    if len(gaps) != 1:
+        raise AssertionError(f"packets are not evenly spaced on a saturated link: {gaps}")
+    return gaps.pop()
+
+
+def _host_on_pty(params):
+    """The host tool on a pseudo-terminal fed with damaged packets."""
+    import serial
+    from emulator.host import run_host
+
+    rng = np.random.default_rng(SEED)
+    packet = params.pose_output.packet
+    records = [{"seq": k & 0xFFFF, "skipped": 0, "t_row": int(rng.integers(0, 2**32)),
+                "row": int(rng.integers(0, 480)), "flags": 0,
+                "position": [int(v) for v in rng.integers(-2**31, 2**31, 3)],
+                "quaternion": [int(v) for v in rng.integers(-2**15, 2**15, 4)]}
+               for k in range(HOST_PACKETS)]
+    data, intact = packets.damaged_stream(packet, records, rng, **FAULTS)
+    master, slave = os.openpty()
+    port = serial.Serial(os.ttyname(slave), params.baud, timeout=0.05)
+
+    def writer():
+        for at in range(0, len(data), 4096):
+            os.write(master, data[at:at + 4096])
+
+    thread = threading.Thread(target=writer, daemon=True)
+    try:
+        thread.start()
+        start = time.perf_counter()
+        stats = run_host(port, count=len(intact), seconds=120, live=False)
+        elapsed = time.perf_counter() - start
+        thread.join()
+    finally:
+        port.close()
+        os.close(master)
+        os.close(slave)
+    if stats.packets_ok != len(intact):
+        raise AssertionError(f"the host decoded {stats.packets_ok} of {len(intact)} intact "
+                             f"packets")
+    return {"host.packets_sent": HOST_PACKETS, "host.packets_damaged": HOST_PACKETS - len(intact),
+            "host.packets_ok": stats.packets_ok, "host.packets_bad": stats.packets_lost,
+            "host.crc_errors": stats.crc_errors,
+            "host.decode_mb_per_s": round(len(data) / elapsed / 1e6, 3)}
+
+
+def measure():
+    from hdl.top import RowtrackTop, TopParams
+    params = TopParams()
+    figures = {}
+    synth = synth_report(RowtrackTop(params), "top")
+    for key in ("lut", "ff", "bram36", "dsp48", "lut_levels"):
+        figures[key] = synth[key]
+    for key, capacity in XC7Z020.items():
+        figures[f"{key}_percent"] = round(100 * synth[key] / capacity, 2)
+    divisor = params.uart.divisor_raw(params.clk_hz, params.baud)
+    clocks = _link_clocks_per_packet(params, divisor)
+    figures["link.clocks_per_packet"] = clocks
+    figures["link.packets_per_s"] = round(params.clk_hz / clocks, 1)
+    figures.update(_host_on_pty(params))
+    return figures
+
+
+def report(figures):
+    from hdl.top import TopParams
+    params = TopParams()
+    rows = "\n".join(f"| {key} | {value} |" for key, value in sorted(figures.items()))
+    return f"""# SoC integration: top-level resources, UART link, host tool
+
+* Resources: Yosys `synth_xilinx -family xc7` of `hdl.top.RowtrackTop` with its default
+  parameters ({params.camera.n_cameras} cameras, {params.camera.max_width}×{params.camera.max_height},
+  the pose solver with {params.solver.slots} slots, pose output and register file; no PS7,
+  pins or GP0 bridge), against the xc7z020 ({XC7Z020['lut']} LUTs, {XC7Z020['ff']} FFs,
+  {XC7Z020['bram36']} BRAM36, {XC7Z020['dsp48']} DSP48E1). The row-descriptor lanes are not
+  in the top yet (see `hdl/top.py`); `rowtrack synth-report` lists them as blocks.
+* Link: Amaranth simulation of the pose output and UART at {params.baud:,} baud and
+  {params.clk_hz / 1e6:g} MHz with a pose every clock (the link saturated): clocks between
+  packet starts, and the packet rate it gives.
+* Host: {HOST_PACKETS} packets from the emulator, each damaged with probability
+  {FAULTS['flip']} (1–3 bit flips), {FAULTS['drop']} (1–3 bytes dropped) or
+  {FAULTS['truncate']} (cut short), written into a pseudo-terminal and read by
+  `emulator.host.run_host` through pyserial. `host.packets_ok` must equal the intact
+  packets (checked) and `host.packets_bad` counts the damaged ones from the sequence
+  numbers.
+
+| figure | value |
+|---|---|
+{rows}
+"""
