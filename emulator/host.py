@@ -12,7 +12,9 @@ writes a CSV log; ``rowtrack host`` is its command line.
 """
 
 import csv
+import os
 import sys
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -21,7 +23,7 @@ from hdl.pose_packet import PacketParams
 
 from .packets import crc16, decode_payload, pose_to_float
 
-__all__ = ["LinkStats", "PacketDecoder", "RateMeter", "run_host", "CSV_COLUMNS"]
+__all__ = ["LinkStats", "PacketDecoder", "RateMeter", "run_host", "PtyLink", "CSV_COLUMNS"]
 
 #: Columns of the CSV log.
 CSV_COLUMNS = ("host_time", "seq", "skipped", "lost_before", "t_row", "row", "x_m", "y_m",
@@ -220,3 +222,42 @@ def run_host(port, *, baud=3_000_000, csv_path=None, count=None, seconds=None,
         print(file=out)
     return decoder.stats
 
+
+
+class PtyLink:
+    """A pseudo-terminal pair standing in for the board's UART: the host tool opens
+    :attr:`path`; :meth:`play` writes ``data`` (what the hardware would send, faults
+    included) into the other side from a thread.
+
+    Open the port before playing: opening a terminal discards what was written before.
+    """
+
+    def __init__(self, data, *, chunk=4096):
+        self.data = bytes(data)
+        self.chunk = chunk
+        self._master, self._slave = os.openpty()
+        self.path = os.ttyname(self._slave)
+        self._thread = None
+
+    def play(self, before=None):
+        """Start writing; ``before()``, if given, runs first in the writer thread."""
+        def writer():
+            if before is not None:
+                before()
+            for at in range(0, len(self.data), self.chunk):
+                os.write(self._master, self.data[at:at + self.chunk])
+
+        self._thread = threading.Thread(target=writer, daemon=True)
+        self._thread.start()
+
+    def close(self):
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+        os.close(self._master)
+        os.close(self._slave)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

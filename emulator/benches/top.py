@@ -8,8 +8,6 @@ Figures (prefixed ``top.`` by the registry): ``lut``, ``ff``, ``bram36``, ``dsp4
 ``host.packets_damaged`` (what the emulator damaged) and ``host.decode_mb_per_s``.
 """
 
-import os
-import threading
 import time
 
 import numpy as np
@@ -62,7 +60,7 @@ def _link_clocks_per_packet(params, divisor, count=3):
 def _host_on_pty(params):
     """The host tool on a pseudo-terminal fed with damaged packets."""
     import serial
-    from emulator.host import run_host
+    from emulator.host import PtyLink, run_host
 
     rng = np.random.default_rng(SEED)
     packet = params.pose_output.packet
@@ -72,24 +70,15 @@ def _host_on_pty(params):
                 "quaternion": [int(v) for v in rng.integers(-2**15, 2**15, 4)]}
                for k in range(HOST_PACKETS)]
     data, intact = packets.damaged_stream(packet, records, rng, **FAULTS)
-    master, slave = os.openpty()
-    port = serial.Serial(os.ttyname(slave), params.baud, timeout=0.05)
-
-    def writer():
-        for at in range(0, len(data), 4096):
-            os.write(master, data[at:at + 4096])
-
-    thread = threading.Thread(target=writer, daemon=True)
-    try:
-        thread.start()
-        start = time.perf_counter()
-        stats = run_host(port, count=len(intact), seconds=120, live=False)
-        elapsed = time.perf_counter() - start
-        thread.join()
-    finally:
-        port.close()
-        os.close(master)
-        os.close(slave)
+    with PtyLink(data) as link:
+        port = serial.Serial(link.path, params.baud, timeout=0.05)
+        try:
+            link.play()
+            start = time.perf_counter()
+            stats = run_host(port, count=len(intact), seconds=120, live=False)
+            elapsed = time.perf_counter() - start
+        finally:
+            port.close()
     if stats.packets_ok != len(intact):
         raise AssertionError(f"the host decoded {stats.packets_ok} of {len(intact)} intact "
                              f"packets")

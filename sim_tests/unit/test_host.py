@@ -6,7 +6,6 @@ import json
 import os
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
@@ -15,7 +14,7 @@ import serial
 
 from emulator import packets
 from emulator.cli import main
-from emulator.host import PacketDecoder, run_host
+from emulator.host import PacketDecoder, PtyLink, run_host
 from hdl.pose_packet import PacketParams
 from sim_tests.unit.test_packets import random_record
 
@@ -104,23 +103,6 @@ def test_hardware_skips_are_not_wire_losses():
     assert decoder.stats.seq_errors == 1
 
 
-def feed_pty(data, *, chunk=997, before=None):
-    """A pseudo-terminal pair and a writer thread that plays ``data`` into the master side
-    once ``before()`` returns (the reader has opened and configured the slave side:
-    opening it flushes what was already written)."""
-    master, slave = os.openpty()
-    path = os.ttyname(slave)
-
-    def writer():
-        if before is not None:
-            before()
-        for at in range(0, len(data), chunk):
-            os.write(master, data[at:at + chunk])
-
-    thread = threading.Thread(target=writer, daemon=True)
-    return master, slave, path, thread
-
-
 def opened_by(pid, path, timeout=30.0):
     """Wait until process ``pid`` has ``path`` open, then a little longer for it to set
     the line up (Linux /proc)."""
@@ -148,17 +130,15 @@ def test_host_on_a_pseudo_terminal_decodes_every_intact_packet(tmp_path):
     rng = np.random.default_rng(SEED)
     recs, data, intact = faulty_stream(400, rng)
     print(f"SEED={SEED}: {len(intact)} intact of {len(recs)}")
-    master, slave, path, thread = feed_pty(data)
     csv_path = tmp_path / "poses.csv"
-    port = serial.Serial(path, 3_000_000, timeout=0.05)
-    try:
-        thread.start()
-        stats = run_host(port, csv_path=csv_path, count=len(intact), seconds=30, live=False)
-        thread.join()
-    finally:
-        port.close()
-        os.close(master)
-        os.close(slave)
+    with PtyLink(data, chunk=997) as link:
+        port = serial.Serial(link.path, 3_000_000, timeout=0.05)
+        try:
+            link.play()
+            stats = run_host(port, csv_path=csv_path, count=len(intact), seconds=30,
+                             live=False)
+        finally:
+            port.close()
     assert stats.packets_ok == len(intact)
     assert stats.packets_lost == len(recs) - len(intact)
     assert stats.seq_errors == 0
@@ -176,22 +156,13 @@ def test_rowtrack_host_command_on_a_pseudo_terminal():
     """The command line, live output and all, in a separate process."""
     rng = np.random.default_rng(SEED + 1)
     recs, data, intact = faulty_stream(120, rng)
-    process = None
-
-    def host_ready():
-        opened_by(process.pid, path)
-
-    master, slave, path, thread = feed_pty(data, before=host_ready)
-    try:
+    with PtyLink(data) as link:
         process = subprocess.Popen(
-            [sys.executable, "-m", "emulator.cli", "host", "--port", path, "--count",
+            [sys.executable, "-m", "emulator.cli", "host", "--port", link.path, "--count",
              str(len(intact)), "--seconds", "60", "--json"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        thread.start()
+        link.play(before=lambda: opened_by(process.pid, link.path))
         out, err = process.communicate(timeout=120)
-    finally:
-        os.close(master)
-        os.close(slave)
     assert process.returncode == 0, err
     stats = json.loads(out.strip().splitlines()[-1])
     assert stats["packets_ok"] == len(intact)
