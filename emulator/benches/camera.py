@@ -9,7 +9,10 @@ every row against the pixels sent.
 
 import json
 import math
+import os
+import sys
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 from emulator.synth import XC7Z020, synth_report
@@ -28,10 +31,25 @@ def _params():
     return CameraParams(n_cameras=N_CAMERAS, max_width=640, max_height=480)
 
 
+@contextmanager
+def _stdout_to_stderr():
+    """Send the simulator's output (printed by child processes to file descriptor 1)
+    to stderr, so that ``rowtrack bench --json`` prints nothing but the JSON."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def _simulate(params):
     from hdl.camera_sync import CameraFrontEnd
     from sim_tests.common.cocotb_runner import run_cocotb
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, _stdout_to_stderr():
         path = Path(tmp) / "figures.json"
         run_cocotb(CameraFrontEnd(params), name="camera_front", tag="perf8", sim="verilator",
                    test_module="sim_tests.cocotb.camera.front_end_bench",
@@ -72,13 +90,14 @@ def measure():
 def report(figures):
     f = figures
     n = N_CAMERAS
+    glitch = _params().glitch_pclks
     verdict = lambda ok: "met" if ok else "**missed**"
     rows = "\n".join(f"| {key} | {value} |" for key, value in sorted(f.items()))
     return f"""# Camera front end: sync, DVP inputs, row aligner
 
 `hdl/camera_sync.py` `CameraFrontEnd` with {n} cameras, 640-pixel rows, default
 `CameraParams` (8-bit pixels, 1024-pixel buffer and a 4-row queue per camera, 8-entry
-clock-crossing FIFOs, glitch filter of 2 PCLKs).
+clock-crossing FIFOs, glitch filter of {glitch} PCLKs).
 
 **Throughput and latency** come from the `performance` cocotb test on the generated
 Verilog (Verilator): every camera runs its PCLK at the system clock frequency, each at
@@ -87,11 +106,11 @@ Every row set is compared with `emulator/camera_sync.py` cycle by cycle, every r
 the pixels the cameras sent.
 
 * `px_per_clock`: pixels per system clock per camera lane while a row set streams
-  (the slowest set; {verdict(f['px_per_clock'] >= RATE_TARGET)} against the target of
-  {RATE_TARGET} with {n} cameras).
+  (the slowest set; {verdict(f['px_per_clock'] >= RATE_TARGET)} against the target
+  of {RATE_TARGET} with {n} cameras).
 * `latency_clocks`: system clocks from the PCLK edge that samples a row's last pixel at
   the pins of the latest camera to the clock edge that takes the set's last pixel from
-  the aligner, including the {2}-PCLK glitch look-ahead, the input register, the
+  the aligner, including the {glitch}-PCLK glitch look-ahead, the input register, the
   clock crossing and the output buffer (worst set; {verdict(f['latency_clocks'] <=
   LATENCY_TARGET)} against the target of ≤ {LATENCY_TARGET}).
 * `skew_error_clocks`: largest difference between a measured frame or row skew and the
