@@ -274,7 +274,7 @@ class CameraInputModel:
 
         self.event = {"frame_start": int(bool(fs)), "frame": frame, "frame_time": now,
                       "row_start": int(bool(new_row and not w["split"] and synced_now)),
-                      "row": w.get("row", 0) if wv else 0, "row_time": now}
+                      "row": w["row"] if new_row else 0, "row_time": now}
 
         if wv or not self.row_open:
             self.idle = 0

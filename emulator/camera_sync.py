@@ -159,7 +159,7 @@ class CameraSyncModel:
         r_hit_c = bool(ev["row_start"] and rm_pend1 and mr == ev["row"])
         row_skew = (skew_of(p, s.rc_t, master["row_time"]) if r_hit_m
                     else skew_of(p, ev["row_time"], mr_t))
-        row = master["row"] if r_hit_m else ev["row"]
+        row = master["row"] if r_hit_m else (ev["row"] if r_hit_c else 0)
         s.rm_pend = rm_pend1 and not r_hit_c
         s.rc_pend = rc_pend1
         if ev["row_start"] and not r_hit_c:

@@ -479,7 +479,7 @@ class CameraInput(wiring.Component):
             self.event.frame.eq(self.frame),
             self.event.frame_time.eq(self.now),
             self.event.row_start.eq(new_row & ~w.split & synced_now),
-            self.event.row.eq(w.row),
+            self.event.row.eq(Mux(new_row, w.row, 0)),
             self.event.row_time.eq(self.now),
         ]
 

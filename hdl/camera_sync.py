@@ -229,7 +229,8 @@ class CameraSync(wiring.Component):
         out = self.skew[k]
         m.d.sync += [
             out.frame_valid.eq(frame_hit), out.frame_skew.eq(frame_skew),
-            out.row_valid.eq(row_hit), out.row.eq(Mux(r_hit_m, master.row, ev.row)),
+            out.row_valid.eq(row_hit),
+            out.row.eq(Mux(r_hit_m, master.row, Mux(r_hit_c, ev.row, 0))),
             out.row_skew.eq(row_skew),
         ]
         with m.If(frame_hit):

@@ -184,7 +184,10 @@ class FrontEndRun:
             f"{len(self.transfers)} transfers on o, the model predicts {len(model.transfers)}")
         for got, exp in zip(self.transfers, model.transfers):
             assert got == exp, f"o differs from the model: got {got}, expected {exp}"
-        assert self.skews == model.skews, "skew measurements differ from the model"
+        for got, exp in zip(self.skews, model.skews):
+            assert got == exp, f"skew strobe differs from the model: got {got}, expected {exp}"
+        assert len(self.skews) == len(model.skews), (
+            f"{len(self.skews)} skew strobes, the model predicts {len(model.skews)}")
         assert self.status == model.status(), "status differs from the model"
         return model
 
