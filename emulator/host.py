@@ -66,6 +66,7 @@ class PacketDecoder:
         self.stats = LinkStats()
         self._buffer = bytearray()
         self._sync = params.sync.to_bytes(2, "big")
+        self._size = params.packet_bytes
         self._last_seq = None
         self._borrowed = False              # the buffer starts with a decoded packet's byte
 
@@ -77,7 +78,7 @@ class PacketDecoder:
         """
         self._buffer += data
         out = []
-        size = self.params.packet_bytes
+        size = self._size
         while True:
             start = self._buffer.find(self._sync)
             if start < 0:
@@ -88,7 +89,7 @@ class PacketDecoder:
             self._drop(start)
             if len(self._buffer) < 3:
                 return out
-            if self._buffer[2] != self.params.payload_bytes:
+            if self._buffer[2] != self._size - 5:
                 self.stats.bad_lengths += 1
                 self._drop(1)
                 continue

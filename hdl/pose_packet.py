@@ -18,6 +18,7 @@ The packet layout is declared once in :class:`PacketParams` and shared with the
 bit-accurate model (:mod:`emulator.packets`) and the host tool (:mod:`emulator.host`).
 """
 
+import functools
 from dataclasses import dataclass, replace
 
 from amaranth.hdl import Cat, Const, Module, Mux, Signal, Value
@@ -108,20 +109,7 @@ class PacketParams:
 
     def fields(self):
         """Payload fields in wire order."""
-        return (
-            PacketField("seq", self.seq_bits, False, 1,
-                        "record number (wraps); consecutive records differ by one"),
-            PacketField("skipped", self.skipped_bits, False, 1,
-                        "records this sink dropped just before this one (saturates)"),
-            PacketField("t_row", self.timestamp_bits, False, 1,
-                        "row time stamp, system clocks (wraps)"),
-            PacketField("row", self.row_bits, False, 1, "row index within the frame"),
-            PacketField("position", self.position_fmt.width, True, 3,
-                        f"x, y, z in metres, raw {self.position_fmt}"),
-            PacketField("quaternion", self.quaternion_fmt.width, True, 4,
-                        f"w, x, y, z, raw {self.quaternion_fmt}"),
-            PacketField("flags", self.flag_bits, False, 1, "pose flags from the tracker"),
-        )
+        return _packet_fields(self)
 
     @property
     def payload_bytes(self):
@@ -140,6 +128,26 @@ class PacketParams:
         from amaranth.hdl import signed, unsigned
         element = signed(field.bits) if field.signed else unsigned(field.bits)
         return element if field.count == 1 else data.ArrayLayout(element, field.count)
+
+
+@functools.cache
+def _packet_fields(params):
+    """The payload fields of a :class:`PacketParams` (cached: the host decodes thousands
+    of packets a second with them)."""
+    return (
+        PacketField("seq", params.seq_bits, False, 1,
+                    "record number (wraps); consecutive records differ by one"),
+        PacketField("skipped", params.skipped_bits, False, 1,
+                    "records this sink dropped just before this one (saturates)"),
+        PacketField("t_row", params.timestamp_bits, False, 1,
+                    "row time stamp, system clocks (wraps)"),
+        PacketField("row", params.row_bits, False, 1, "row index within the frame"),
+        PacketField("position", params.position_fmt.width, True, 3,
+                    f"x, y, z in metres, raw {params.position_fmt}"),
+        PacketField("quaternion", params.quaternion_fmt.width, True, 4,
+                    f"w, x, y, z, raw {params.quaternion_fmt}"),
+        PacketField("flags", params.flag_bits, False, 1, "pose flags from the tracker"),
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
