@@ -130,7 +130,7 @@ CFG = {"uart_enable": 1, "fifo_enable": 1, "decimation": 1, "rate_window": 0}
 def test_paced_poses_all_reach_both_sinks(decimation):
     """Poses slower than a packet: every kept pose is sent and queued, nothing dropped."""
     rng = np.random.default_rng(SEED + decimation)
-    poses = [random_pose(rng) for _ in range(20)]
+    poses = [random_pose(rng) for _ in range(10)]
     cfg = {**CFG, "decimation": decimation}
     data, fifo, status = run_pose_output(poses, spacing=P.packet_bytes + 3, cfg=cfg, pops=True)
     expected = [record for _, record in packets.keep_poses(PoseOutputParams(), poses,
@@ -138,8 +138,8 @@ def test_paced_poses_all_reach_both_sinks(decimation):
     assert data == b"".join(packets.encode_packet(P, r) for r in expected)
     assert fifo == expected
     kept = len(expected)
-    assert status["poses"] == 20 and status["records"] == kept
-    assert status["decimated"] == 20 - kept and status["packets"] == kept
+    assert status["poses"] == 10 and status["records"] == kept
+    assert status["decimated"] == 10 - kept and status["packets"] == kept
     assert status["uart_dropped"] == status["fifo_dropped"] == status["fifo_level"] == 0
 
 
@@ -161,21 +161,21 @@ def test_tracker_formats_are_narrowed_like_the_model():
 def test_fast_poses_are_dropped_and_counted_never_silently():
     """Poses every clock into a UART sink with backpressure and a small unread FIFO."""
     rng = np.random.default_rng(SEED)
-    poses = [random_pose(rng) for _ in range(300)]
+    poses = [random_pose(rng) for _ in range(150)]
     params = PoseOutputParams(fifo_depth=8)
     data, _, status = run_pose_output(poses, spacing=1, cfg=CFG, params=params, uart_ready=0.5)
     sent = decode_all(data)
     kept = dict(packets.keep_poses(params, poses, 1))
-    assert status["records"] == 300 and status["packets"] == len(sent)
+    assert status["records"] == 150 and status["packets"] == len(sent)
     assert status["packets"] + status["uart_dropped"] == status["records"]
-    assert 1 < len(sent) < 300
+    assert 1 < len(sent) < 150
     assert sum(r["skipped"] for r in sent) + len(sent) == sent[-1]["seq"] + 1
     for previous, record in zip(sent, sent[1:]):
         assert record["seq"] == previous["seq"] + 1 + record["skipped"]
     for record in sent:
         expected = {**kept[record["seq"]], "skipped": record["skipped"]}
         assert record == expected
-    assert status["fifo_level"] == 8 and status["fifo_dropped"] == 300 - 8
+    assert status["fifo_level"] == 8 and status["fifo_dropped"] == 150 - 8
 
 
 def test_disabled_sinks_take_and_drop_nothing():
