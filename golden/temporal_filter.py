@@ -86,7 +86,7 @@ class RobustScale:
         weight = huber_weight(x, self.k)
         seen = np.isfinite(x)
         lam = self.smoothing
-        new = scale**2 * (lam * biweight_rho(x[seen], self.k) + (1 - lam))
+        new = scale[seen]**2 * (lam * biweight_rho(x[seen], self.k) + (1 - lam))
         self.scale[channels[seen]] = np.maximum(np.sqrt(new), self.floor)
         return x, np.where(seen, weight, 0.0)
 

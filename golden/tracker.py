@@ -457,8 +457,8 @@ class Tracker:
     def _run_block(self, first, stop, out):
         slots, k = self.slots, self.params.segments
         occupied = np.flatnonzero(slots.occupied[first:stop]) + first
-        ahead = np.cumsum(slots.occupied[first:stop])          # forecast steps per slot
-        block_forecasts = {s: self.motion.forecast(ahead[s - first]) for s in occupied}
+        # one Holt–Winters step per occupied slot (a blanking interval is not extrapolated)
+        block_forecasts = {s: self.motion.forecast(k + 1) for k, s in enumerate(occupied)}
         entries = []
         for n in range(len(self.rig.cameras)):
             frames, rows, slot_ids = slots.members(n, first, stop)
