@@ -100,6 +100,7 @@ def frame_waveform(image, timing, faults, rng):
             row = row[:width - by_row["short", y].arg]
         if ("long", y) in by_row:
             row = row + [rng.randrange(256) for _ in range(by_row["long", y].arg)]
+        row_start = len(out)
         if ("dropout", y) in by_row:
             gap = by_row["dropout", y].arg
             pixels(row[:half])
@@ -108,7 +109,7 @@ def frame_waveform(image, timing, faults, rng):
         else:
             pixels(row)
         if ("stall", y) in by_row:
-            index = len(out) - len(row) + half
+            index = min(row_start + half, len(out) - 1)
             vs, href, value, _ = out[index]
             out[index] = (vs, href, value, by_row["stall", y].arg)
         blank = timing.hblank + (rng.randint(0, timing.hblank_jitter)
