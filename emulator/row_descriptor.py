@@ -23,7 +23,7 @@ from hdl.fixed import UQ, Overflow, Rounding, resize
 
 __all__ = ["FramedRow", "frame_rows", "descriptor_bits", "measure_segments",
            "ReferenceStoreModel", "TemporalLaneModel", "StereoLaneModel", "stereo_pairs",
-           "against_golden"]
+           "against_golden", "subpixel_errors", "confidences"]
 
 
 @dataclass
@@ -157,6 +157,29 @@ def against_golden(cur, ref, centre, params):
     ref_bits, _ = descriptor_bits(ref, params)
     model = measure_segments(cur_bits, ref_bits, c, params, cur_strong=cur_strong)
     return golden, model, model["shift"] + params.subpixel_fmt.to_float(model["subpixel"])
+
+
+def subpixel_errors(cur_rows, ref_rows, centres, params, min_ratio=1.5):
+    """``|model − golden|`` shift (pixels) of every well-textured segment of the row
+    pairs: golden finds it textured, off the window edge, with peak ratio ≥
+    ``min_ratio``."""
+    errors = []
+    for cur, ref, centre in zip(cur_rows, ref_rows, centres):
+        golden, _, shift = against_golden(cur, ref, centre, params)
+        good = ~golden.textureless & ~golden.edge_hit & (golden.peak_ratio >= min_ratio)
+        errors += list(np.abs(shift - golden.shift)[good])
+    return np.array(errors)
+
+
+def confidences(cur_rows, ref_rows, params):
+    """Golden peak ratios and the model's confidences (as numbers) of every segment of
+    the row pairs, centre 0: two flat arrays, for comparing their order."""
+    golden_ratio, model_ratio = [], []
+    for cur, ref in zip(cur_rows, ref_rows):
+        golden, model, _ = against_golden(cur, ref, 0, params)
+        golden_ratio += list(golden.peak_ratio)
+        model_ratio += list(params.confidence_fmt.to_float(model["confidence"]))
+    return np.array(golden_ratio), np.array(model_ratio)
 
 
 def _records(row, results):

@@ -21,6 +21,8 @@ BLOCKS = {
     "row_aligner": "hdl.row_aligner:RowAligner",
     "camera_front": "hdl.camera_sync:CameraFrontEnd",
     "pose_solver": "hdl.pose_solver:PoseSolver",
+    "row_descriptor": "hdl.row_descriptor:RowDescriptor",
+    "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",
 }
 
 

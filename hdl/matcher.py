@@ -121,7 +121,6 @@ class ShiftMatcher(wiring.Component):
     def _front(self, m):
         p = self.params
         n, k_seg, r, width = p.n_shifts, p.segments, p.radius, p.width
-        item = self.i.payload
         cost_shape = p.cost_fmt.shape()
 
         engine_busy = Signal()
@@ -131,8 +130,20 @@ class ShiftMatcher(wiring.Component):
             "seg": p.segment_bits, "meta": meta_layout(p), "no_reference": 1}))
         stall = s2_valid & s2.in_range & s2.seg_end & engine_busy
         advance = ~stall
-        accept = self.i.valid & advance
-        m.d.comb += self.i.ready.eq(advance)
+
+        # skid register: i.ready is a flip-flop, so a stall does not ripple through the
+        # store and the FIR back to the camera input within one clock
+        skid_valid = Signal()
+        skid = Signal(pair_layout(p))
+        item = Signal(pair_layout(p))
+        item_valid = skid_valid | self.i.valid
+        m.d.comb += [self.i.ready.eq(~skid_valid),
+                     item.eq(Mux(skid_valid, skid.as_value(), self.i.payload.as_value()))]
+        with m.If(skid_valid & advance):
+            m.d.sync += skid_valid.eq(0)
+        with m.Elif(~skid_valid & self.i.valid & ~advance):
+            m.d.sync += [skid_valid.eq(1), skid.eq(self.i.payload)]
+        accept = item_valid & advance
 
         # stage 0: delay lines (bit 0 newest), the row's centre
         dc_max, dr_max = p.max_delays
@@ -149,7 +160,7 @@ class ShiftMatcher(wiring.Component):
             with m.If(item.first):
                 m.d.sync += centre.eq(item.meta.centre)
         with m.If(advance):
-            m.d.sync += [s1_valid.eq(self.i.valid), s1.eq(item)]
+            m.d.sync += [s1_valid.eq(item_valid), s1.eq(item)]
 
         # the row's geometry from its centre (registered; settles within two columns,
         # long before the first compared column at pos ≥ 2R)

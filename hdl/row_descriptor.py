@@ -19,14 +19,14 @@ Conventions are ``golden.descriptor``'s; the bit-accurate model is
 ``emulator/row_descriptor.py``; the formats are listed in ``docs/row_descriptor.md``.
 """
 
-from amaranth.hdl import Array, Const, Module, Mux, Signal
+from amaranth.hdl import Const, Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .fixed import UQ, hdl_add, hdl_mul
 from .matcher import ShiftMatcher
-from .row_descriptor_layouts import descriptor_layout, framed_layout, pair_layout
-from .row_descriptor_params import RowDescriptorParams
+from .row_descriptor_layouts import descriptor_layout, framed_layout
+from .row_descriptor_params import STEREO_640X480, RowDescriptorParams
 from .row_descriptor_store import ReferenceStore
 
 __all__ = ["RowFramer", "DescriptorFIR", "StereoJoin", "RowDescriptor",
@@ -59,10 +59,11 @@ class RowFramer(wiring.Component):
         saturated to ``±centre_range``.
     o : Out(stream.Signature(framed_layout(params, 1)))
 
-    Latency 0 (combinational); one beat per clock, except one clock per pad pixel.
+    Latency 1 (output register); one beat per clock, except one clock per pad pixel.
+    Backpressure: ``i`` waits while ``o`` holds an untaken column.
     """
 
-    latency = 0
+    latency = 1
 
     def __init__(self, params):
         self.params = _check_params(params)
@@ -79,43 +80,49 @@ class RowFramer(wiring.Component):
         width = p.width
 
         col = Signal(range(width + 1), init=width)   # width: no incomplete row
+        incomplete = Signal()                         # col != width, registered
+        col_last = Signal()                           # col == width − 1, registered
         pad_mode = Signal()                           # padding a short row
         meta = Signal.like(self.o.payload.meta)
 
-        incomplete = col != width
         pad_now = pad_mode | (self.i.valid & beat.first & incomplete)
         take = ~pad_now & self.i.valid & (beat.first | incomplete)
         opens = take & beat.first
         pos = Mux(opens, 0, col)
-        at_end = pos == width - 1
+        at_end = ~opens & col_last                    # a row is wider than one pixel
         short = take & beat.last & ~at_end
         long_row = take & at_end & ~beat.last
 
         cr = p.centre_range
         centre = Mux(self.centre > cr, cr, Mux(self.centre < -cr, -cr, self.centre))
-        out = self.o.payload
+        item = Signal.like(self.o.payload)
         with m.If(opens):
             m.d.comb += [
-                out.meta.camera.eq(beat.camera), out.meta.frame.eq(beat.frame),
-                out.meta.row.eq(beat.row), out.meta.t_first.eq(beat.t_first),
-                out.meta.centre.eq(centre),
+                item.meta.camera.eq(beat.camera), item.meta.frame.eq(beat.frame),
+                item.meta.row.eq(beat.row), item.meta.t_first.eq(beat.t_first),
+                item.meta.centre.eq(centre),
             ]
         with m.Else():
-            m.d.comb += out.meta.eq(meta)
+            m.d.comb += item.meta.eq(meta)
         row_bad = Mux(opens, beat.row >= p.height, meta.bad)
         m.d.comb += [
-            out.meta.bad.eq(row_bad | pad_now | (take & beat.flags.any()) | short | long_row),
-            out.pixels[0].eq(Mux(pad_now, 0, beat.data)),
-            out.pos.eq(pos), out.first.eq(opens), out.last.eq(at_end),
-            self.o.valid.eq(pad_now | take),
-            self.i.ready.eq(~pad_now & (self.o.ready | ~(beat.first | incomplete))),
+            item.meta.bad.eq(row_bad | pad_now | (take & beat.flags.any()) | short | long_row),
+            item.pixels[0].eq(Mux(pad_now, 0, beat.data)),
+            item.pos.eq(pos), item.first.eq(opens), item.last.eq(at_end),
         ]
-        with m.If(self.o.valid & self.o.ready):
-            m.d.sync += [
-                meta.eq(out.meta),
-                col.eq(Mux(at_end, width, pos + 1)),
-                pad_mode.eq(~at_end & (pad_mode | short)),
-            ]
+
+        # output register; beats outside a row are taken and dropped
+        advance = ~self.o.valid | self.o.ready
+        m.d.comb += self.i.ready.eq(advance & ~pad_now)
+        with m.If(advance):
+            m.d.sync += [self.o.valid.eq(pad_now | take), self.o.payload.eq(item)]
+            with m.If(pad_now | take):
+                m.d.sync += [
+                    meta.eq(item.meta),
+                    col.eq(Mux(at_end, width, pos + 1)),
+                    incomplete.eq(~at_end), col_last.eq(pos == width - 2),
+                    pad_mode.eq(~at_end & (pad_mode | short)),
+                ]
         return m
 
 
@@ -268,10 +275,10 @@ class StereoJoin(wiring.Component):
     a, b : In(stream.Signature(framed_layout(params, 1)))
     o : Out(stream.Signature(framed_layout(params, 2)))
 
-    Latency 0 (combinational); one column pair per clock.
+    Latency 1 (output register); one column pair per clock.
     """
 
-    latency = 0
+    latency = 1
 
     def __init__(self, params):
         self.params = _check_params(params)
@@ -293,16 +300,21 @@ class StereoJoin(wiring.Component):
         pairing = (mode == 1) | ((mode == 0) & same)
         drop_a = (mode == 2) | ((mode == 0) & both & ~same & a_older)
         drop_b = (mode == 3) | ((mode == 0) & both & ~same & ~a_older)
-        out = self.o.payload
+        advance = ~self.o.valid | self.o.ready
+        paired = both & pairing & advance
         m.d.comb += [
-            self.o.valid.eq(both & pairing),
-            out.pixels[0].eq(a.pixels[0]), out.pixels[1].eq(b.pixels[0]),
-            out.pos.eq(a.pos), out.first.eq(a.first), out.last.eq(a.last),
-            out.meta.eq(a.meta), out.meta.bad.eq(a.meta.bad | b.meta.bad),
-            self.a.ready.eq((pairing & self.b.valid & self.o.ready) | drop_a),
-            self.b.ready.eq((pairing & self.a.valid & self.o.ready) | drop_b),
+            self.a.ready.eq((pairing & self.b.valid & advance) | drop_a),
+            self.b.ready.eq((pairing & self.a.valid & advance) | drop_b),
         ]
-        with m.If(self.o.valid & self.o.ready):
+        out = self.o.payload
+        with m.If(advance):
+            m.d.sync += [
+                self.o.valid.eq(both & pairing),
+                out.pixels[0].eq(a.pixels[0]), out.pixels[1].eq(b.pixels[0]),
+                out.pos.eq(a.pos), out.first.eq(a.first), out.last.eq(a.last),
+                out.meta.eq(a.meta), out.meta.bad.eq(a.meta.bad | b.meta.bad),
+            ]
+        with m.If(paired):
             m.d.sync += mode.eq(Mux(a.last, 0, 1))
         with m.Elif(self.a.valid & drop_a):
             m.d.sync += mode.eq(Mux(a.last, 0, 2))
@@ -402,7 +414,7 @@ class StereoRowDescriptor(wiring.Component):
     No memory: the reference is the partner row itself.
     """
 
-    def __init__(self, params):
+    def __init__(self, params=STEREO_640X480):
         self.params = _check_params(params)
         self.framer_a = RowFramer(params)
         self.framer_b = RowFramer(params)

@@ -277,41 +277,12 @@ class RowDescriptorParams:
 
     def measurement_layout(self):
         """The measurement stream (one transfer per segment per row)."""
+        from .streams import row_measurement_layout
         return row_measurement_layout(
             camera_bits=self.camera_bits, frame_bits=self.frame_bits,
             row_bits=self.row_bits, timestamp_bits=self.timestamp_bits,
             segment_bits=self.segment_bits, shift_fmt=self.shift_fmt,
             subpixel_fmt=self.subpixel_fmt, confidence_fmt=self.confidence_fmt)
-
-
-def row_measurement_layout(*, camera_bits, frame_bits, row_bits, timestamp_bits,
-                           segment_bits, shift_fmt, subpixel_fmt, confidence_fmt):
-    """One measurement of one row segment (what the pose solver consumes).
-
-    Fields
-    ------
-    camera, frame, row, t_first
-        The row's metadata as it arrived (``t_first``: time stamp of its first pixel).
-    segment : unsigned(segment_bits)
-        Segment (virtual camera) index, 0 … K − 1; a row's K measurements come in order.
-    shift : shift_fmt, SQ(s, 0)
-        Integer shift d* in pixels (window centre included).
-    subpixel : subpixel_fmt, SQ(1, f)
-        Parabola refinement δ; the measured shift is ``shift + subpixel``.
-    confidence : confidence_fmt, UQ(i, f)
-        Peak ratio min(c₂/c₁, cap); 0 when textureless, bad or without reference.
-    textureless, edge_hit, bad, no_reference : 1
-        Too few bit changes in the segment; d* on the window edge (δ = 0); the input
-        row was bad (reason bits, short or long row); no valid reference row.
-    """
-    from amaranth.lib import data
-    return data.StructLayout({
-        "camera": camera_bits, "frame": frame_bits, "row": row_bits,
-        "t_first": timestamp_bits, "segment": segment_bits,
-        "shift": shift_fmt.shape(), "subpixel": subpixel_fmt.shape(),
-        "confidence": confidence_fmt.shape(),
-        "textureless": 1, "edge_hit": 1, "bad": 1, "no_reference": 1,
-    })
 
 
 #: One 640×480 camera, temporal matching over [−20, 20] around the centre, 4 segments.

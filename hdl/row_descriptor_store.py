@@ -107,10 +107,11 @@ class ReferenceStore(wiring.Component):
             words_rd.addr.eq(row_base + word + 1),
             words_rd.en.eq(accept & word_end & (column + 1 < stored)),
         ]
-        old_word = Signal(WORD_BITS)
-        ref_bit = Mux(bit == 0, words_rd.data[0], old_word.bit_select(bit, 1))
-        with m.If(accept & (bit == 0)):
-            m.d.sync += old_word.eq(words_rd.data)
+        # the stored word, shifted out one bit per column (no wide bit-select mux)
+        old_bits = Signal(WORD_BITS - 1)
+        ref_bit = Mux(bit == 0, words_rd.data[0], old_bits[0])
+        with m.If(accept):
+            m.d.sync += old_bits.eq(Mux(bit == 0, words_rd.data[1:], old_bits >> 1))
 
         # collect the new word; write it with its last column (or the row's last)
         new_word = Signal(WORD_BITS)

@@ -157,3 +157,39 @@ def skew_measurement_layout(*, row_bits, skew_bits):
         "frame_valid": 1, "frame_skew": SQ(skew_bits, 0).shape(),
         "row_valid": 1, "row": row_bits, "row_skew": SQ(skew_bits, 0).shape(),
     })
+
+
+# --- row descriptor measurements (issue 7, hdl/row_descriptor.py) -----------------------
+
+def row_measurement_layout(*, camera_bits, frame_bits, row_bits, timestamp_bits,
+                           segment_bits, shift_fmt, subpixel_fmt, confidence_fmt):
+    """One measurement of one row segment (what the pose solver consumes).
+
+    Fields
+    ------
+    camera, frame, row, t_first
+        The row's metadata as it arrived (``t_first``: time stamp of its first pixel).
+    segment : unsigned(segment_bits)
+        Segment (virtual camera) index, 0 … K − 1; a row's K measurements come in order.
+    shift : shift_fmt, SQ(s, 0)
+        Integer shift d* in pixels (window centre included).
+    subpixel : subpixel_fmt, SQ(1, f)
+        Parabola refinement δ; the measured shift is ``shift + subpixel``.
+    confidence : confidence_fmt, UQ(i, f)
+        Offset peak ratio min((c₂ + κ)/(c₁ + κ), cap); 0 when textureless, bad or
+        without reference.
+    textureless, edge_hit, bad, no_reference : 1
+        Too few bit changes or strong columns in the segment; d* on the window edge
+        (δ = 0); the input row was bad (reason bits, short, long or interrupted row;
+        the same for all K measurements of the row); no valid reference row.
+    """
+    return data.StructLayout({
+        "camera": camera_bits, "frame": frame_bits, "row": row_bits,
+        "t_first": timestamp_bits, "segment": segment_bits,
+        "shift": shift_fmt.shape(), "subpixel": subpixel_fmt.shape(),
+        "confidence": confidence_fmt.shape(),
+        "textureless": 1, "edge_hit": 1, "bad": 1, "no_reference": 1,
+    })
+
+
+__all__ += ["row_measurement_layout"]
