@@ -46,6 +46,8 @@ ARTY_Z7_20 = BoardSpec(
     ),
     uart_tx=_jb(2),
     clock_capable=XC7Z020_CLG400_CLOCK_P,
+    connector_names={("pmod", 0): "Pmod JA pin", ("pmod", 1): "Pmod JB pin",
+                     ("ck_io", 0): "ChipKit"},
     notes="The pose UART's TXD is on Pmod JB pin 2, the TXD position of a Digilent "
           "type-4 (UART) Pmod: a Pmod USBUART (or any 3.3 V USB-serial adapter's RXD) "
           "in the top row of JB receives the packets. The Arty Z7's own USB-UART is "

@@ -36,6 +36,7 @@ MICROZED_7020 = BoardSpec(
     ),
     uart_tx=_jx1(83)[0],
     clock_capable=XC7Z020_CLG400_CLOCK_P,
+    connector_names={("JX1", 0): "JX1 pin"},
     notes="All camera and UART pins are bank-34 pins of the JX1 micro-header; the "
           "carrier card routes them to camera connectors and supplies the bank's VCCO. "
           "The MicroZed's USB-UART belongs to the PS; connect a 3.3 V USB-serial "

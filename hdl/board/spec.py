@@ -53,6 +53,9 @@ class BoardSpec:
         Fastest pixel clock the constraints allow for.
     notes : str
         Wiring notes for ``docs/board.md``.
+    connector_names : dict
+        Board-silkscreen names of amaranth-boards connectors, ``(name, number) -> str``,
+        for the pin table.
     """
     name: str
     title: str
@@ -63,6 +66,7 @@ class BoardSpec:
     iostandard: str = "LVCMOS33"
     pclk_hz: float = 48e6
     notes: str = ""
+    connector_names: dict = None
 
     def __post_init__(self):
         used = [self.uart_tx]
@@ -121,9 +125,12 @@ class BoardSpec:
         """Markdown table: signal, connector pin, package pin."""
         rows = ["| signal | connector pin | package pin |", "|---|---|---|"]
 
+        names = self.connector_names or {}
+
         def row(signal, pin):
             name, number, label = pin
-            rows.append(f"| {signal} | {name}{number} {label} | {self.resolve(pin)} |")
+            connector = names.get((name, number), f"{name}{number}")
+            rows.append(f"| {signal} | {connector} {label} | {self.resolve(pin)} |")
 
         for k, cam in enumerate(self.cameras):
             row(f"camera {k} PCLK", cam.pclk)
