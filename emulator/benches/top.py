@@ -93,6 +93,9 @@ def _host_on_pty(params):
             "host.decoder_packets_per_s": round(decode_rate)}
 
 
+EXTRA_PREFIXES = ("host",)
+
+
 def measure():
     from hdl.top import RowtrackTop, TopParams
     params = TopParams()

@@ -61,3 +61,17 @@ def test_missing_simulator_tool_is_a_clear_error(monkeypatch):
     with pytest.raises(cocotb_runner.SimulatorSetupError, match="needs 'iverilog' on PATH"):
         cocotb_runner.run_cocotb(object(), name="mac", sim="icarus",
                                  test_module="sim_tests.cocotb.mac.mac_bench")
+
+
+def test_bench_keys_are_prefixed_except_declared_extras(monkeypatch):
+    import types
+    from emulator import bench
+    fake = types.ModuleType("fake_bench")
+    fake.EXTRA_PREFIXES = ("host",)
+    fake.measure = lambda: {"lut": 5, "host.packets_ok": 7}
+    fake.report = lambda figures: "\n".join(f"{k}={v}" for k, v in sorted(figures.items()))
+    monkeypatch.setitem(sys.modules, "fake_bench", fake)
+    monkeypatch.setitem(bench.BENCHES, "top", "fake_bench")
+    figures = bench.measure("top")
+    assert figures == {"top.lut": 5, "host.packets_ok": 7}
+    assert "host.packets_ok=7" in bench.report("top", figures) and "lut=5" in bench.report("top", figures)
