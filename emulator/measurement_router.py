@@ -15,12 +15,15 @@ Decisions (each one is a choice the HDL router must copy):
   ``SQ(1, f)``), rounded half-even and saturated into the solver's ``shift_fmt``. Same
   sign: the lane's ``cur[x] ≈ ref[x − d]`` is the image displacement from the reference
   row to the current one, which is the solver's shift.
-* **Cue.** The disparity of the camera's stereo pair at the *same segment* of the same
-  (frame, row): ``shift + subpixel`` of the stereo lane, half-even, saturated into
-  ``cue_fmt``. Both cameras of a pair use it (camera B's segment sees the points of
-  camera A's segment ``d`` pixels further left; the depth difference is neglected), so
-  the coefficient table is built with ``cue_scale = 1/(f·b)``. Every camera must belong
-  to exactly one pair: the depth-map cue of the radial rigs is not modelled.
+* **Cue.** The disparity of the camera's stereo pair in the same (frame, row), from
+  the stereo segment ``k · K_s // K`` for temporal segment ``k`` (K_s stereo segments,
+  K temporal ones: equal parts of the row, a constant table in hardware; with the
+  default K_s = 1 one disparity serves the whole row): ``shift + subpixel`` of the
+  stereo lane, half-even, saturated into ``cue_fmt``. Both cameras of a pair use it
+  (camera B sees the same points ``d`` pixels further left; the depth difference is
+  neglected), so the coefficient table is built with ``cue_scale = 1/(f·b)``. Every
+  camera must belong to exactly one pair: the depth-map cue of the radial rigs is not
+  modelled.
 * **Confidence.** The temporal lane's peak ratio, half-even and saturated into
   ``conf_fmt``. It is set to zero (the measurement adds nothing to the normal
   equations) when the temporal segment hit the shift-window edge (its shift is a
@@ -62,8 +65,9 @@ class RouterParams:
     pairs : tuple of (int, int)
         Stereo pairs ``(A, B)`` in stereo-lane order (A: the camera whose row is the
         lane's current row). Every camera belongs to exactly one pair.
-    descriptor : RowDescriptorParams
-        The lanes' parameters (K, shift and sub-pixel formats).
+    temporal, stereo : RowDescriptorParams
+        The temporal and the stereo lanes' parameters (segments, shift and sub-pixel
+        formats).
     solver : PoseSolverParams
         The solver's parameters (``slots``, input formats, ``time_bits``).
 
@@ -74,7 +78,8 @@ class RouterParams:
     """
     cameras: int
     pairs: tuple
-    descriptor: RowDescriptorParams
+    temporal: RowDescriptorParams
+    stereo: RowDescriptorParams
     solver: PoseSolverParams
     pair_of: dict = field(init=False, repr=False, compare=False)
 
@@ -83,12 +88,13 @@ class RouterParams:
             raise TypeError(f"cameras must be an integer, not {self.cameras!r}")
         if self.cameras < 1:
             raise ValueError(f"cameras must be a positive integer, not {self.cameras}")
-        if not isinstance(self.descriptor, RowDescriptorParams):
-            raise TypeError(f"descriptor must be a RowDescriptorParams, not "
-                            f"{self.descriptor!r}")
+        for name in ("temporal", "stereo"):
+            if not isinstance(getattr(self, name), RowDescriptorParams):
+                raise TypeError(f"{name} must be a RowDescriptorParams, not "
+                                f"{getattr(self, name)!r}")
         if not isinstance(self.solver, PoseSolverParams):
             raise TypeError(f"solver must be a PoseSolverParams, not {self.solver!r}")
-        slots = self.cameras * self.descriptor.segments
+        slots = self.cameras * self.temporal.segments
         if self.solver.slots != slots:
             raise ValueError(f"solver.slots must be cameras × segments = {slots}, not "
                              f"{self.solver.slots}")
@@ -110,30 +116,31 @@ class RouterParams:
         object.__setattr__(self, "pair_of", pair_of)
 
 
-def measured_shift(record, descriptor, dst):
-    """``shift + subpixel`` of a lane measurement, rounded half-even and saturated into
-    ``dst`` (raw integer)."""
-    raw, fmt = add(record["shift"], descriptor.shift_fmt,
-                   record["subpixel"], descriptor.subpixel_fmt)
-    return int(resize(raw, fmt, dst, Rounding.HALF_EVEN, Overflow.SATURATE))
+def _exact_shift(record, lane):
+    """``shift + subpixel`` of a lane measurement, exact: ``(raw, format)``."""
+    return add(record["shift"], lane.shift_fmt, record["subpixel"], lane.subpixel_fmt)
+
+
+def measured_shift(record, lane, dst):
+    """``shift + subpixel`` of a measurement of a lane with parameters ``lane``, rounded
+    half-even and saturated into ``dst`` (raw integer)."""
+    return int(resize(*_exact_shift(record, lane), dst, Rounding.HALF_EVEN,
+                      Overflow.SATURATE))
 
 
 def _cue(params, stereo):
     """Raw cue of a stereo measurement, or ``None`` when it gives no depth."""
     if stereo is None or stereo["confidence"] == 0 or stereo["edge_hit"]:
         return None
-    raw, fmt = add(stereo["shift"], params.descriptor.shift_fmt,
-                   stereo["subpixel"], params.descriptor.subpixel_fmt)
-    if raw <= 0:
+    if _exact_shift(stereo, params.stereo)[0] <= 0:
         return None
-    return int(resize(raw, fmt, params.solver.cue_fmt, Rounding.HALF_EVEN,
-                      Overflow.SATURATE))
+    return measured_shift(stereo, params.stereo, params.solver.cue_fmt)
 
 
 def route_row(params, temporal, stereo):
     """Solver transfers of one row: ``temporal`` and ``stereo`` are the lanes'
     measurement dicts of that (frame, row), any order; returns dicts in stream order."""
-    d, s = params.descriptor, params.solver
+    d, s = params.temporal, params.solver
     disparity = {(m["camera"], m["segment"]): m for m in stereo}
     ordered = sorted(temporal, key=lambda m: (m["camera"], m["segment"]))
     if not ordered:
@@ -141,7 +148,8 @@ def route_row(params, temporal, stereo):
     time = ordered[0]["t_first"] & ((1 << s.time_bits) - 1)
     out = []
     for m in ordered:
-        cue = _cue(params, disparity.get((params.pair_of[m["camera"]], m["segment"])))
+        segment = m["segment"] * params.stereo.segments // d.segments
+        cue = _cue(params, disparity.get((params.pair_of[m["camera"]], segment)))
         usable = cue is not None and not m["edge_hit"]
         conf = int(resize(m["confidence"], d.confidence_fmt, s.conf_fmt,
                           Rounding.HALF_EVEN, Overflow.SATURATE)) if usable else 0

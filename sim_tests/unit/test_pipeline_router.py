@@ -7,15 +7,20 @@ import random
 
 import pytest
 
+from golden.descriptor import STEREO_MATCH
 from emulator.measurement_router import RouterParams, pose_rows, route, route_row
 from hdl.fixed import SQ, UQ
 from hdl.pose_params import PoseSolverParams
 from hdl.row_descriptor_params import RowDescriptorParams
 
 DESC = RowDescriptorParams(width=320, height=8)          # K = 4, subpixel SQ(1, 6)
+#: Two stereo segments: temporal segments 0, 1 take stereo segment 0; 2, 3 segment 1.
+STEREO = RowDescriptorParams(width=320, height=8,
+                             match=dataclasses.replace(STEREO_MATCH, segments=2))
 SOLVER = PoseSolverParams(slots=16, rows=8, shift_fmt=SQ(6, 12), cue_fmt=UQ(8, 10),
                           conf_fmt=UQ(2, 8))
-PARAMS = RouterParams(cameras=4, pairs=((0, 1), (2, 3)), descriptor=DESC, solver=SOLVER)
+PARAMS = RouterParams(cameras=4, pairs=((0, 1), (2, 3)), temporal=DESC, stereo=STEREO,
+                      solver=SOLVER)
 F = DESC.subpixel_frac_bits
 
 
@@ -30,7 +35,7 @@ def meas(camera, segment, *, shift=3, subpixel=0, confidence=96, edge_hit=0, fra
 
 def full_row(**changes):
     temporal = [meas(c, k, **changes) for c in range(4) for k in range(4)]
-    stereo = [meas(a, k, shift=20, subpixel=16) for a in (0, 2) for k in range(4)]
+    stereo = [meas(a, k, shift=20, subpixel=16) for a in (0, 2) for k in range(2)]
     return temporal, stereo
 
 
@@ -62,7 +67,7 @@ def test_shift_saturates_to_solver_format():
     assert all(t["shift"] == SQ(3, 12).max_raw for t in out)
 
 
-def test_cue_is_pair_disparity_of_same_segment_for_both_cameras():
+def test_cue_is_pair_disparity_of_covering_segment_for_both_cameras():
     temporal, stereo = full_row()
     for m in stereo:
         m["shift"] = 10 + m["camera"] * 5 + m["segment"]          # distinct per (pair, k)
@@ -70,7 +75,7 @@ def test_cue_is_pair_disparity_of_same_segment_for_both_cameras():
     for t in out:
         camera, segment = divmod(t["slot"], 4)
         pair_a = 0 if camera < 2 else 2
-        disparity = (10 + pair_a * 5 + segment) + 16 / (1 << F)
+        disparity = (10 + pair_a * 5 + segment // 2) + 16 / (1 << F)
         assert t["cue"] == round(disparity * (1 << 10))
         assert t["conf"] == 96 << 2                    # UQ(2, 6) → UQ(2, 8), exact
 
@@ -80,20 +85,21 @@ def test_cue_is_pair_disparity_of_same_segment_for_both_cameras():
 def test_unusable_measurements_get_zero_weight_but_are_sent(spoil):
     temporal, stereo = full_row()
     if spoil == "no_stereo":
-        stereo = [m for m in stereo if not (m["camera"] == 2 and m["segment"] == 1)]
+        stereo = [m for m in stereo if not (m["camera"] == 2 and m["segment"] == 0)]
     elif spoil == "stereo_zero_conf":
-        next(m for m in stereo if m["camera"] == 2 and m["segment"] == 1)["confidence"] = 0
+        next(m for m in stereo if m["camera"] == 2 and m["segment"] == 0)["confidence"] = 0
     elif spoil == "stereo_edge":
-        next(m for m in stereo if m["camera"] == 2 and m["segment"] == 1)["edge_hit"] = 1
+        next(m for m in stereo if m["camera"] == 2 and m["segment"] == 0)["edge_hit"] = 1
     elif spoil == "negative_disparity":
-        m = next(m for m in stereo if m["camera"] == 2 and m["segment"] == 1)
+        m = next(m for m in stereo if m["camera"] == 2 and m["segment"] == 0)
         m["shift"], m["subpixel"] = 0, -1
     else:
-        next(m for m in temporal if m["camera"] == 2 and m["segment"] == 1)["edge_hit"] = 1
+        next(m for m in temporal if m["camera"] == 2 and m["segment"] == 0)["edge_hit"] = 1
     out = route_row(PARAMS, temporal, stereo)
     assert len(out) == 16
     zero = {t["slot"] for t in out if t["conf"] == 0}
-    assert zero == ({2 * 4 + 1} if spoil == "temporal_edge" else {2 * 4 + 1, 3 * 4 + 1})
+    # stereo segment 0 of pair (2, 3) serves temporal segments 0 and 1 of cameras 2, 3
+    assert zero == ({2 * 4} if spoil == "temporal_edge" else {8, 9, 12, 13})
 
 
 def test_missing_camera_and_missing_row():
@@ -132,11 +138,12 @@ def test_pose_rows_rejects_unterminated_stream():
     ({"pairs": ((0, 1), (1, 2), (3, 0))}, ValueError, "camera 1 is in more than one pair"),
     ({"pairs": ((0, 0), (2, 3))}, ValueError, r"pairs\[0\] must be two different cameras"),
     ({"pairs": ((0, 1), (2, 4))}, ValueError, r"pairs\[1\] names camera 4"),
-    ({"descriptor": None}, TypeError, "descriptor must be a RowDescriptorParams"),
+    ({"temporal": None}, TypeError, "temporal must be a RowDescriptorParams"),
+    ({"stereo": 3}, TypeError, "stereo must be a RowDescriptorParams"),
     ({"solver": None}, TypeError, "solver must be a PoseSolverParams"),
 ])
 def test_parameter_checks(changes, error, message):
-    kwargs = {"cameras": 4, "pairs": ((0, 1), (2, 3)), "descriptor": DESC, "solver": SOLVER,
-              **changes}
+    kwargs = {"cameras": 4, "pairs": ((0, 1), (2, 3)), "temporal": DESC, "stereo": STEREO,
+              "solver": SOLVER, **changes}
     with pytest.raises(error, match=message):
         RouterParams(**kwargs)
