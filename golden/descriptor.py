@@ -42,17 +42,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from hdl.checks import check_int
+
 __all__ = ["DescriptorParams", "MatchParams", "MatchResult", "CostPeaks", "dog2_kernel",
            "response", "describe", "strength", "hamming_costs", "transitions",
            "strong_counts", "textureless", "cost_peaks", "match", "compare_range",
            "segment_bounds"]
-
-
-def _check_positive_int(name, value, minimum=1):
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise TypeError(f"{name} must be an integer, not {value!r}")
-    if value < minimum:
-        raise ValueError(f"{name} must be an integer ≥ {minimum}, not {value}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -125,10 +120,10 @@ class MatchParams:
         if self.shift_max - self.shift_min < 2:
             raise ValueError(f"shift window [{self.shift_min}, {self.shift_max}] must hold at "
                              f"least 3 shifts (parabola fit)")
-        _check_positive_int("segments", self.segments)
-        _check_positive_int("min_transitions", self.min_transitions, minimum=0)
-        _check_positive_int("min_strong", self.min_strong, minimum=0)
-        _check_positive_int("peak_ratio_offset", self.peak_ratio_offset, minimum=0)
+        check_int("segments", self.segments, 1)
+        check_int("min_transitions", self.min_transitions, 0)
+        check_int("min_strong", self.min_strong, 0)
+        check_int("peak_ratio_offset", self.peak_ratio_offset, 0)
         if not isinstance(self.peak_ratio_cap, (int, float)) or not self.peak_ratio_cap > 1:
             raise ValueError(f"peak_ratio_cap must be a number > 1, not {self.peak_ratio_cap!r}")
 

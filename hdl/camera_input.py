@@ -28,18 +28,11 @@ from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.fifo import AsyncFIFO, SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
+from .checks import check_int
 from .streams import (ROW_FLAG_BITS, RowFlag, aligned_row_layout, camera_event_layout,
                       camera_pixel_layout, dvp_signature, skew_measurement_layout)
 
 __all__ = ["CameraParams", "CameraInput", "saturating_increment", "wire"]
-
-
-def _check_int(name, value, low, high=None):
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise TypeError(f"{name} must be an integer, not {value!r}")
-    if value < low or (high is not None and value > high):
-        bound = f"between {low} and {high}" if high is not None else f"at least {low}"
-        raise ValueError(f"{name} must be an integer {bound}, not {value}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,22 +86,22 @@ class CameraParams:
     master: int = 0
 
     def __post_init__(self):
-        _check_int("n_cameras", self.n_cameras, 1, 32)
-        _check_int("max_width", self.max_width, 2)
-        _check_int("max_height", self.max_height, 1)
-        _check_int("pixel_bits", self.pixel_bits, 1, 16)
-        _check_int("frame_bits", self.frame_bits, 1, 32)
-        _check_int("timestamp_bits", self.timestamp_bits, 8, 64)
-        _check_int("timer_bits", self.timer_bits, 4, 32)
-        _check_int("skew_bits", self.skew_bits, 2, self.timestamp_bits)
-        _check_int("count_bits", self.count_bits, 1, 32)
-        _check_int("cdc_depth", self.cdc_depth, 4)
+        check_int("n_cameras", self.n_cameras, 1, 32)
+        check_int("max_width", self.max_width, 2)
+        check_int("max_height", self.max_height, 1)
+        check_int("pixel_bits", self.pixel_bits, 1, 16)
+        check_int("frame_bits", self.frame_bits, 1, 32)
+        check_int("timestamp_bits", self.timestamp_bits, 8, 64)
+        check_int("timer_bits", self.timer_bits, 4, 32)
+        check_int("skew_bits", self.skew_bits, 2, self.timestamp_bits)
+        check_int("count_bits", self.count_bits, 1, 32)
+        check_int("cdc_depth", self.cdc_depth, 4)
         if self.cdc_depth & (self.cdc_depth - 1):
             raise ValueError(f"cdc_depth must be a power of two, not {self.cdc_depth}")
-        _check_int("buffer_depth", self.buffer_depth, 4)
-        _check_int("row_queue_depth", self.row_queue_depth, 2)
-        _check_int("glitch_pclks", self.glitch_pclks, 0, 16)
-        _check_int("master", self.master, 0, self.n_cameras - 1)
+        check_int("buffer_depth", self.buffer_depth, 4)
+        check_int("row_queue_depth", self.row_queue_depth, 2)
+        check_int("glitch_pclks", self.glitch_pclks, 0, 16)
+        check_int("master", self.master, 0, self.n_cameras - 1)
 
     replace = replace
 
@@ -257,7 +250,7 @@ class CameraInput(wiring.Component):
     def __init__(self, params=CameraParams(), *, camera=0, domain="pclk"):
         if not isinstance(params, CameraParams):
             raise TypeError(f"params must be a CameraParams, not {params!r}")
-        _check_int("camera", camera, 0, params.n_cameras - 1)
+        check_int("camera", camera, 0, params.n_cameras - 1)
         if not isinstance(domain, str) or not domain:
             raise TypeError(f"domain must be a non-empty string, not {domain!r}")
         if domain == "sync":

@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 
 from golden.descriptor import STEREO_MATCH, DescriptorParams, MatchParams, dog2_kernel
 
+from .checks import check_int
 from .fixed import SQ, UQ, QFormat, Rounding
 
 __all__ = ["RowDescriptorParams", "TEMPORAL_640X480", "STEREO_640X480"]
@@ -23,14 +24,6 @@ def _signed_bits(lo, hi):
     while not (-(1 << (bits - 1)) <= lo and hi <= (1 << (bits - 1)) - 1):
         bits += 1
     return bits
-
-
-def _check_int(name, value, lo, hi=None):
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise TypeError(f"{name} must be an integer, not {value!r}")
-    if value < lo or (hi is not None and value > hi):
-        bound = f"between {lo} and {hi}" if hi is not None else f"≥ {lo}"
-        raise ValueError(f"{name} must be an integer {bound}, not {value}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -83,27 +76,27 @@ class RowDescriptorParams:
     timestamp_bits: int = 32
 
     def __post_init__(self):
-        _check_int("width", self.width, 8)
-        _check_int("height", self.height, 1)
+        check_int("width", self.width, 8)
+        check_int("height", self.height, 1)
         if not isinstance(self.descriptor, DescriptorParams):
             raise TypeError(f"descriptor must be a DescriptorParams, not {self.descriptor!r}")
         if not isinstance(self.match, MatchParams):
             raise TypeError(f"match must be a MatchParams, not {self.match!r}")
-        _check_int("coeff_frac_bits", self.coeff_frac_bits, 2, 20)
-        _check_int("subpixel_frac_bits", self.subpixel_frac_bits, 1, 12)
+        check_int("coeff_frac_bits", self.coeff_frac_bits, 2, 20)
+        check_int("subpixel_frac_bits", self.subpixel_frac_bits, 1, 12)
         if not isinstance(self.confidence_fmt, QFormat) or self.confidence_fmt.signed:
             raise TypeError(f"confidence_fmt must be an unsigned QFormat, not "
                             f"{self.confidence_fmt!r}")
         if self.match.peak_ratio_cap > self.confidence_fmt.max_value:
             raise ValueError(f"confidence_fmt {self.confidence_fmt} cannot hold "
                              f"peak_ratio_cap {self.match.peak_ratio_cap}")
-        _check_int("centre_range", self.centre_range, 0)
-        _check_int("scan_lanes", self.scan_lanes, 1, 16)
-        _check_int("pixel_bits", self.pixel_bits, 1, 16)
-        _check_int("camera_bits", self.camera_bits, 1, 8)
-        _check_int("frame_bits", self.frame_bits, 1, 32)
-        _check_int("row_bits", self.row_bits, 1, 16)
-        _check_int("timestamp_bits", self.timestamp_bits, 1, 64)
+        check_int("centre_range", self.centre_range, 0)
+        check_int("scan_lanes", self.scan_lanes, 1, 16)
+        check_int("pixel_bits", self.pixel_bits, 1, 16)
+        check_int("camera_bits", self.camera_bits, 1, 8)
+        check_int("frame_bits", self.frame_bits, 1, 32)
+        check_int("row_bits", self.row_bits, 1, 16)
+        check_int("timestamp_bits", self.timestamp_bits, 1, 64)
         if self.height > 1 << self.row_bits:
             raise ValueError(f"row_bits {self.row_bits} cannot index {self.height} rows")
         if self.n_shifts < 4:

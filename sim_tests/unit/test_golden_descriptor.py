@@ -153,8 +153,8 @@ def test_bad_descriptor_params(kwargs, error, message):
 
 @pytest.mark.parametrize("kwargs, error, message", [
     ({"shift_min": 0, "shift_max": 1}, ValueError, "must hold at least 3 shifts"),
-    ({"segments": 0}, ValueError, "segments must be an integer ≥ 1, not 0"),
-    ({"min_strong": -2}, ValueError, "min_strong must be an integer ≥ 0, not -2"),
+    ({"segments": 0}, ValueError, "segments must be an integer at least 1, not 0"),
+    ({"min_strong": -2}, ValueError, "min_strong must be an integer at least 0, not -2"),
     ({"peak_ratio_offset": 1.5}, TypeError, "peak_ratio_offset must be an integer"),
     ({"shift_min": 1.5}, TypeError, "shift_min must be an integer"),
     ({"peak_ratio_cap": 1.0}, ValueError, "peak_ratio_cap must be a number > 1"),

@@ -97,7 +97,7 @@ def check_latency(outputs, accepted_last, dut):
 # --- parameters -------------------------------------------------------------------------
 
 @pytest.mark.parametrize("kwargs, error, message", [
-    ({"width": 7}, ValueError, "width must be an integer ≥ 8, not 7"),
+    ({"width": 7}, ValueError, "width must be an integer at least 8, not 7"),
     ({"height": "480"}, TypeError, "height must be an integer"),
     ({"descriptor": 2.0}, TypeError, "descriptor must be a DescriptorParams"),
     ({"match": None}, TypeError, "match must be a MatchParams"),
@@ -105,7 +105,7 @@ def check_latency(outputs, accepted_last, dut):
     ({"subpixel_frac_bits": 0}, ValueError, "subpixel_frac_bits must be an integer between"),
     ({"confidence_fmt": SQ(2, 6)}, TypeError, "confidence_fmt must be an unsigned QFormat"),
     ({"confidence_fmt": UQ(1, 6)}, ValueError, "cannot hold peak_ratio_cap 2.0"),
-    ({"centre_range": -1}, ValueError, "centre_range must be an integer ≥ 0, not -1"),
+    ({"centre_range": -1}, ValueError, "centre_range must be an integer at least 0, not -1"),
     ({"scan_lanes": 0}, ValueError, "scan_lanes must be an integer between 1 and 16"),
     ({"row_bits": 8}, ValueError, "row_bits 8 cannot index 480 rows"),
     ({"match": MatchParams(shift_min=0, shift_max=2)}, ValueError, "at least 4 shifts"),
