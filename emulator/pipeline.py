@@ -1,0 +1,193 @@
+"""The bit-accurate pipeline: simulated rows → row-descriptor lanes → router → pose solver.
+
+Composed of the per-block models the cocotb benches check the HDL against (their own
+functions and classes, not copies): :class:`emulator.row_descriptor.TemporalLaneModel`
+(one per camera), :class:`emulator.row_descriptor.StereoLaneModel` (one per rectified
+pair), :mod:`emulator.measurement_router` and :func:`emulator.pose_solver.pose_solver_model`.
+
+What enters where the hardware's front end would be: each row of the dataset as a
+:class:`emulator.row_descriptor.FramedRow` (what the framer hands on for a clean row:
+exactly ``width`` pixels, no reason bits), its time stamp the row's exposure time since
+the first row in clocks of ``clk_hz``, the matcher's run-time centre 0. Rows go
+through the lanes as row sets, all cameras' row ``y`` of frame ``i`` together, as the
+row aligner delivers them. The camera-input and aligner models (flags of faulty rows)
+are not in this path yet.
+
+What a step means. The temporal lane compares row ``y`` with row ``y`` of the previous
+frame, so the solved step of a row set is the rig's motion over one frame period, from
+the pose of that row slot one frame earlier, in its body frame (``golden.tracker``'s
+``Y`` with the ``"previous"`` reference). The solver's integrator, however, composes
+each row's step onto the *previous row's* pose; its integrated pose is reported as the
+hardware computes it, but it is not a trajectory estimate for this measurement (see
+``docs/e2e.md``).
+"""
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from golden.depth import stereo_pairs
+from golden.descriptor import STEREO_MATCH, MatchParams, segment_bounds
+from golden.pose_lsq import shift_coefficients
+from hdl.pose_params import PoseSolverParams, coefficient_formats, quantize_coefficients
+from hdl.row_descriptor_params import RowDescriptorParams
+
+from .measurement_router import RouterParams, pose_rows, route_row
+from .pose_solver import pose_solver_model
+from .row_descriptor import FramedRow, StereoLaneModel, TemporalLaneModel
+
+__all__ = ["PipelineConfig", "PipelineResult", "configure", "segment_centres",
+           "coefficient_table", "run"]
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """Everything the pipeline model needs for one rig.
+
+    Members
+    -------
+    router : RouterParams
+        Lane and solver parameters, stereo pairing.
+    coef_raw : ndarray (slots, rows, 9)
+        The solver's coefficient store (raw).
+    table : ndarray (slots, rows, 9)
+        The float coefficients it was quantized from.
+    clk_hz : float
+        System clock: time stamps are clocks of this frequency.
+    """
+    router: RouterParams
+    coef_raw: np.ndarray
+    table: np.ndarray
+    clk_hz: float
+
+
+def segment_centres(lane):
+    """Pixel columns of the centres of a lane's segments (run-time centre 0): where the
+    coefficient of each segment's equation is evaluated."""
+    return np.array([(lo + hi - 1) / 2 for lo, hi in
+                     segment_bounds(lane.width, lane.descriptor, lane.match)])
+
+
+def coefficient_table(rig, lane, cue_scales):
+    """Float coefficient table (cameras · K, rows, 9), camera-major, at the lane's
+    segment centres, each camera with its cue scale ``1/(f·b)``."""
+    rows = np.arange(lane.height, dtype=float)[None, :]
+    centres = segment_centres(lane)[:, None]
+    return np.concatenate([shift_coefficients(cam, centres, rows, scale).table()
+                           for cam, scale in zip(rig.cameras, cue_scales)])
+
+
+def _bits(count):
+    return max(1, (count - 1).bit_length())
+
+
+def configure(rig, *, segments=4, coef_width=18, clk_hz=100e6):
+    """The pipeline for ``rig``: lanes of ``segments`` temporal segments (one stereo
+    segment), one coefficient slot per camera and segment at ``coef_width`` bits.
+
+    Raises
+    ------
+    ValueError
+        If the cameras differ in size, or a camera has no rectified stereo partner (the
+        only depth cue the hardware has).
+    """
+    sizes = {(cam.width, cam.height) for cam in rig.cameras}
+    if len(sizes) != 1:
+        raise ValueError(f"rig cameras must share one image size, not {sorted(sizes)}")
+    (width, height), = sizes
+    common = {"width": width, "height": height, "camera_bits": _bits(len(rig.cameras)),
+              "row_bits": _bits(height)}
+    temporal = RowDescriptorParams(**common, match=MatchParams(segments=segments))
+    stereo = RowDescriptorParams(**common, match=STEREO_MATCH)
+    pairs = stereo_pairs(rig)
+    scales = np.full(len(rig.cameras), np.nan)
+    for left, right, focal_baseline in pairs:
+        scales[[left, right]] = 1.0 / focal_baseline
+    if np.isnan(scales).any():
+        missing = [n for n in range(len(rig.cameras)) if np.isnan(scales[n])]
+        raise ValueError(f"rig {rig.name!r}: cameras {missing} have no rectified stereo "
+                         f"partner, the hardware's only depth cue")
+    table = coefficient_table(rig, temporal, scales)
+    solver = PoseSolverParams(slots=table.shape[0], rows=height,
+                              **coefficient_formats(table, coef_width))
+    router = RouterParams(cameras=len(rig.cameras), pairs=tuple((a, b) for a, b, _ in pairs),
+                          temporal=temporal, stereo=stereo, solver=solver)
+    return PipelineConfig(router=router, coef_raw=quantize_coefficients(solver, table),
+                          table=table, clk_hz=clk_hz)
+
+
+@dataclass(frozen=True)
+class PipelineResult:
+    """What the pipeline model produced.
+
+    Members
+    -------
+    temporal, stereo : list of dict
+        Every lane measurement, in processing order.
+    transfers : list of dict
+        The router's output (the solver's input stream).
+    records : dict of ndarray
+        The solver's pose records (:func:`emulator.pose_solver.pose_solver_model`).
+    frame : ndarray (n,)
+        Dataset frame of each record (``records["row"]`` is its row).
+    seconds : float
+        Wall time of the run; ``rows_per_s`` counts camera rows per second.
+    rows : int
+        Camera rows processed.
+    """
+    temporal: list
+    stereo: list
+    transfers: list
+    records: dict
+    frame: np.ndarray
+    seconds: float
+    rows: int
+
+    @property
+    def rows_per_s(self):
+        return self.rows / self.seconds
+
+    def steps(self, config):
+        """Solved steps (n, 6) as floats (metres, radians); NaN where flagged."""
+        fmt = config.router.solver.step_fmt
+        step = fmt.to_float(np.asarray(self.records["step"]))
+        return np.where(self.records["flags"][:, None] == 0, step, np.nan)
+
+
+def _framed(dataset, camera, frame, row, config):
+    """Dataset row as the framer hands a clean row on."""
+    lane = config.router.temporal
+    t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
+    ticks = int(round((dataset.cameras[camera].time[frame, row] - t0) * config.clk_hz))
+    return FramedRow(pixels=dataset.cameras[camera].rows[frame, row].astype(np.int64),
+                     camera=camera, frame=frame % (1 << lane.frame_bits), row=row,
+                     t_first=ticks % (1 << lane.timestamp_bits), centre=0, bad=False,
+                     padded=False)
+
+
+def run(config, dataset, frames=None):
+    """Run the dataset (first ``frames`` frames, default all) through the pipeline."""
+    router = config.router
+    cams = range(router.cameras)
+    frames = min(len(c.rows) for c in dataset.cameras) if frames is None else frames
+    temporal_lanes = [TemporalLaneModel(router.temporal) for _ in cams]
+    stereo_lanes = [StereoLaneModel(router.stereo) for _ in router.pairs]
+    temporal, stereo, transfers, record_frames = [], [], [], []
+    start = time.perf_counter()
+    for frame in range(frames):
+        for row in range(router.temporal.height):
+            rows = [_framed(dataset, n, frame, row, config) for n in cams]
+            t = [m for n in cams for m in temporal_lanes[n].process_row(rows[n])]
+            s = [m for lane, (a, b) in zip(stereo_lanes, router.pairs)
+                 for m in lane.process_pair(rows[a], rows[b])]
+            out = route_row(router, t, s)
+            temporal += t
+            stereo += s
+            transfers += out
+            record_frames += [frame] if out else []
+    records = pose_solver_model(router.solver, config.coef_raw, pose_rows(router, transfers))
+    seconds = time.perf_counter() - start
+    return PipelineResult(temporal=temporal, stereo=stereo, transfers=transfers,
+                          records=records, frame=np.array(record_frames), seconds=seconds,
+                          rows=frames * router.temporal.height * router.cameras)
