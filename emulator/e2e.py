@@ -10,9 +10,9 @@ steps row on row, which does not match a one-frame motion (``docs/e2e.md``).
 
 import numpy as np
 
-from golden.pose_lsq import UNKNOWNS, body_step
+from golden.pose_lsq import UNKNOWNS, ShiftCoefficients, body_step, solve_step
 
-__all__ = ["true_steps", "golden_steps", "agreement", "compare_steps"]
+__all__ = ["true_steps", "golden_steps", "float_steps", "agreement", "compare_steps"]
 
 #: A row and a golden slot are the same when their times differ by less than this (s):
 #: slot times are recomputed from the row period, so they carry rounding error.
@@ -44,6 +44,18 @@ def golden_steps(track_result, dataset, frames, rows, camera=0):
     return np.where(made_step[:, None], track_result.motion[slot], np.nan)
 
 
+def float_steps(config, rows):
+    """float64 least-squares steps (:func:`golden.pose_lsq.solve_step`) of the routed,
+    quantized measurements ``rows`` with the float coefficients: the emulator's solver
+    without its fixed-point arithmetic and coefficient rounding. NaN where not solved."""
+    solver = config.router.solver
+    coefficients = ShiftCoefficients.from_table(config.table[rows.slot, rows.row[:, None]])
+    weight = np.where(rows.present, solver.conf_fmt.to_float(rows.conf), 0.0)
+    solution = solve_step(coefficients, solver.cue_fmt.to_float(rows.cue),
+                          solver.shift_fmt.to_float(rows.shift), weight)
+    return np.where(solution.ok[:, None], solution.step, np.nan)
+
+
 def agreement(steps, reference):
     """Per-axis RMS and median absolute difference of two (n, 6) step arrays over the
     rows where both are finite, and how many rows that is."""
@@ -59,15 +71,17 @@ def agreement(steps, reference):
 
 
 def compare_steps(config, result, dataset, track_result):
-    """Emulator ↔ golden, emulator ↔ truth and golden ↔ truth step agreement (flat
-    dict of figures, dotted keys), plus the rows the emulator solved."""
+    """Step agreement (flat dict of figures, dotted keys): emulator ↔ float64 solution
+    of the same measurements (the fixed-point error alone), emulator ↔ golden tracker,
+    emulator ↔ truth, golden ↔ truth; plus the fraction of rows the emulator solved."""
     frames, rows = result.frame, result.records["row"]
     emulator = result.steps(config)
     golden = golden_steps(track_result, dataset, frames, rows)
     truth = true_steps(dataset, frames, rows)
     figures = {"solved_fraction": float(np.mean(result.records["flags"] == 0)),
                "emulator_rows_per_s": result.rows_per_s}
-    for name, (a, b) in {"emulator_vs_golden": (emulator, golden),
+    for name, (a, b) in {"emulator_vs_float": (emulator, float_steps(config, result.rows)),
+                         "emulator_vs_golden": (emulator, golden),
                          "emulator_vs_truth": (emulator, truth),
                          "golden_vs_truth": (golden, truth)}.items():
         figures.update({f"{name}.{key}": value for key, value in agreement(a, b).items()})

@@ -127,26 +127,29 @@ class PipelineResult:
         Every lane measurement, in processing order.
     transfers : list of dict
         The router's output (the solver's input stream).
+    rows : PoseRows
+        The same transfers, one row per row set (the solver model's input).
     records : dict of ndarray
         The solver's pose records (:func:`emulator.pose_solver.pose_solver_model`).
     frame : ndarray (n,)
         Dataset frame of each record (``records["row"]`` is its row).
     seconds : float
-        Wall time of the run; ``rows_per_s`` counts camera rows per second.
-    rows : int
-        Camera rows processed.
+        Wall time of the run.
+    camera_rows : int
+        Camera rows processed (``rows_per_s`` counts them per second of wall time).
     """
     temporal: list
     stereo: list
     transfers: list
+    rows: object
     records: dict
     frame: np.ndarray
     seconds: float
-    rows: int
+    camera_rows: int
 
     @property
     def rows_per_s(self):
-        return self.rows / self.seconds
+        return self.camera_rows / self.seconds
 
     def steps(self, config):
         """Solved steps (n, 6) as floats (metres, radians); NaN where flagged."""
@@ -186,8 +189,9 @@ def run(config, dataset, frames=None):
             stereo += s
             transfers += out
             record_frames += [frame] if out else []
-    records = pose_solver_model(router.solver, config.coef_raw, pose_rows(router, transfers))
+    rows = pose_rows(router, transfers)
+    records = pose_solver_model(router.solver, config.coef_raw, rows)
     seconds = time.perf_counter() - start
-    return PipelineResult(temporal=temporal, stereo=stereo, transfers=transfers,
+    return PipelineResult(temporal=temporal, stereo=stereo, transfers=transfers, rows=rows,
                           records=records, frame=np.array(record_frames), seconds=seconds,
-                          rows=frames * router.temporal.height * router.cameras)
+                          camera_rows=frames * router.temporal.height * router.cameras)
