@@ -51,7 +51,7 @@ from hdl.row_descriptor_params import RowDescriptorParams
 
 from .pose_solver import PoseRows
 
-__all__ = ["RouterParams", "measured_shift", "route_row", "route", "pose_rows"]
+__all__ = ["RouterParams", "measured_shifts", "route_row", "route", "pose_rows"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -116,46 +116,52 @@ class RouterParams:
         object.__setattr__(self, "pair_of", pair_of)
 
 
-def _exact_shift(record, lane):
-    """``shift + subpixel`` of a lane measurement, exact: ``(raw, format)``."""
-    return add(record["shift"], lane.shift_fmt, record["subpixel"], lane.subpixel_fmt)
+def _field(records, name):
+    return np.array([m[name] for m in records], dtype=np.int64)
 
 
-def measured_shift(record, lane, dst):
-    """``shift + subpixel`` of a measurement of a lane with parameters ``lane``, rounded
-    half-even and saturated into ``dst`` (raw integer)."""
-    return int(resize(*_exact_shift(record, lane), dst, Rounding.HALF_EVEN,
-                      Overflow.SATURATE))
+def _exact_shifts(records, lane):
+    """``shift + subpixel`` of lane measurements, exact: ``(raw array, format)``."""
+    return add(_field(records, "shift"), lane.shift_fmt,
+               _field(records, "subpixel"), lane.subpixel_fmt)
 
 
-def _cue(params, stereo):
-    """Raw cue of a stereo measurement, or ``None`` when it gives no depth."""
-    if stereo is None or stereo["confidence"] == 0 or stereo["edge_hit"]:
-        return None
-    if _exact_shift(stereo, params.stereo)[0] <= 0:
-        return None
-    return measured_shift(stereo, params.stereo, params.solver.cue_fmt)
+def measured_shifts(records, lane, dst):
+    """``shift + subpixel`` of measurements of a lane with parameters ``lane``, rounded
+    half-even and saturated into ``dst`` (raw int array)."""
+    return resize(*_exact_shifts(records, lane), dst, Rounding.HALF_EVEN, Overflow.SATURATE)
+
+
+def _cues(params, stereo):
+    """``{(camera A, segment): raw cue}`` of the stereo measurements that give a depth."""
+    if not stereo:
+        return {}
+    exact, _ = _exact_shifts(stereo, params.stereo)
+    cue = measured_shifts(stereo, params.stereo, params.solver.cue_fmt)
+    return {(m["camera"], m["segment"]): int(c) for m, c, e in zip(stereo, cue, exact)
+            if m["confidence"] and not m["edge_hit"] and e > 0}
 
 
 def route_row(params, temporal, stereo):
     """Solver transfers of one row: ``temporal`` and ``stereo`` are the lanes'
     measurement dicts of that (frame, row), any order; returns dicts in stream order."""
     d, s = params.temporal, params.solver
-    disparity = {(m["camera"], m["segment"]): m for m in stereo}
     ordered = sorted(temporal, key=lambda m: (m["camera"], m["segment"]))
     if not ordered:
         return []
+    cues = _cues(params, stereo)
     time = ordered[0]["t_first"] & ((1 << s.time_bits) - 1)
+    shift = measured_shifts(ordered, d, s.shift_fmt)
+    conf = resize(_field(ordered, "confidence"), d.confidence_fmt, s.conf_fmt,
+                  Rounding.HALF_EVEN, Overflow.SATURATE)
     out = []
-    for m in ordered:
+    for m, shift_raw, conf_raw in zip(ordered, shift, conf):
         segment = m["segment"] * params.stereo.segments // d.segments
-        cue = _cue(params, disparity.get((params.pair_of[m["camera"]], segment)))
+        cue = cues.get((params.pair_of[m["camera"]], segment))
         usable = cue is not None and not m["edge_hit"]
-        conf = int(resize(m["confidence"], d.confidence_fmt, s.conf_fmt,
-                          Rounding.HALF_EVEN, Overflow.SATURATE)) if usable else 0
         out.append({"slot": m["camera"] * d.segments + m["segment"], "row": m["row"],
-                    "time": time, "shift": measured_shift(m, d, s.shift_fmt),
-                    "cue": cue or 0, "conf": conf, "last": 0})
+                    "time": time, "shift": int(shift_raw), "cue": cue or 0,
+                    "conf": int(conf_raw) if usable else 0, "last": 0})
     out[-1]["last"] = 1
     return out
 
