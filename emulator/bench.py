@@ -21,6 +21,7 @@ BENCHES = {
     "dt": "emulator.benches.dt",
     "camera": "emulator.benches.camera",
     "pose_solver": "emulator.benches.pose_solver",
+    "tracker": "emulator.benches.tracker",
     "top": "emulator.benches.top",
     "row_descriptor": "emulator.benches.row_descriptor",
 }

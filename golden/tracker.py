@@ -11,26 +11,27 @@ What is estimated. The unknown of a slot at time t is ``Y = [T θ]``, the rig's 
 over one frame period, from the estimated pose at ``t − 1/fps`` (the same row slot of
 the previous frame) to the pose at ``t``. Every reference is built from the previous
 frame with the estimated poses of its rows, so a measurement constrains exactly this
-motion and errors chain from frame to frame, not from row to row. The equations are
-linearised about the forecast ``Ŷ`` of a robust Holt–Winters filter on Y
-(:mod:`golden.temporal_filter`): ``s − g(Ŷ) = A δ`` where ``g`` is the exact predicted
-shift of each segment (full projection with the lens) and ``A`` the segment-averaged
-design rows, which depend only on calibration, pixel position and depth (the
-hardware's precomputed coefficients). Then ``Y = Ŷ + δ`` is smoothed by the filter and
-the pose of the slot is the previous frame's pose composed with it.
+motion: errors chain from frame to frame, not from row to row. The equations are
+linearised about the forecast ``Ŷ`` of a Holt–Winters filter on Y
+(:mod:`golden.temporal_filter`): ``s − g(Ŷ) = A δ``, with ``g`` the exact predicted shift
+of each segment (full projection with the lens) and ``A`` the segment-averaged design
+rows, which depend only on calibration, pixel position and depth (the hardware's
+precomputed coefficients).
 
 Per-measurement confidence is the matcher's peak ratio times the Huber consistency
-weight of its innovation ``s − g(Ŷ)`` against the channel's robust scale; an outlier is
-replaced by the forecast. A slot whose measurements all have confidence below
-``min_confidence``, or whose weighted system is rank deficient or has a condition number
-above ``max_condition``, makes no step: its pose follows the forecast. See
-``docs/tracker.md`` for the derivations and the choices.
+weight of its innovation against the channel's robust scale; an outlier is replaced by
+the forecast. A slot steps if a measurement has confidence ≥ ``min_confidence``,
+``min_cameras`` cameras contribute and the weighted system is well conditioned
+(``max_condition``). A step moves the motion filter towards ``Ŷ + δ`` and the slot's
+pose — carried on from the previous slot at the current rate — towards the pose the
+measurement gives, both with gains weighted by how much the slot's system tells
+(:func:`golden.temporal_filter.information_gain`). See ``docs/tracker.md``.
 """
 
 from dataclasses import asdict, dataclass, replace
+from types import SimpleNamespace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .descriptor import (DescriptorParams, MatchParams, describe, match, segment_bounds,
                          strength)
@@ -42,15 +43,21 @@ from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
 from .tracker_slots import RowSlots
 
-__all__ = ["TYPICAL_SMOOTHING", "REFERENCES", "DEPTHS", "SOLVERS", "TrackerParams", "TrackResult", "track"]
+__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "TrackerParams", "TrackResult", "Tracker",
+           "track"]
 
 REFERENCES = ("homography", "previous")
-
-#: Weight of each new solved system in the running "typical information" that scales
-#: the level update (about the last 50 solved slots).
-TYPICAL_SMOOTHING = 0.02
 DEPTHS = ("auto", "stereo", "overlap", "oracle")
 SOLVERS = ("linear", "nonlinear")
+
+#: Gauss–Newton iterations and finite-difference probe (m or rad) of the nonlinear
+#: refinement.
+REFINE_ITERATIONS = 4
+REFINE_PROBE = 1e-6
+
+#: Weight of each new solved system in the running "typical information" that scales
+#: the filter gains (about the last 50 solved slots).
+TYPICAL_SMOOTHING = 0.02
 
 
 def _check(name, value, kind, low=None, high=None, low_open=False):
@@ -99,6 +106,9 @@ class TrackerParams:
         Share of a segment's pixels that need a depth for the segment to count.
     alpha, beta : float
         Holt–Winters level and trend smoothing of the per-slot motion.
+    pose_alpha : float
+        How far a typical slot's pose moves from the pose carried on from the previous
+        slot (at the forecast rate) towards the pose its measurements give.
     huber_k : float
         Huber threshold (robust scales).
     scale_initial, scale_floor : float
@@ -134,6 +144,7 @@ class TrackerParams:
     min_depth_fraction: float = 0.5
     alpha: float = 0.1
     beta: float = 0.01
+    pose_alpha: float = 0.02
     huber_k: float = 2.0
     scale_initial: float = 0.5
     scale_floor: float = 0.1
@@ -163,6 +174,7 @@ class TrackerParams:
         _check("min_depth_fraction", self.min_depth_fraction, (int, float), 0, 1,
                low_open=True)
         _check("alpha", self.alpha, (int, float), 0, 1, low_open=True)
+        _check("pose_alpha", self.pose_alpha, (int, float), 0, 1, low_open=True)
         _check("beta", self.beta, (int, float), 0, 1)
         for name in ("huber_k", "scale_initial", "scale_floor", "scale_smoothing",
                      "max_condition"):
@@ -224,13 +236,6 @@ def _row_means(values):
     return np.where(finite, values, 0.0).sum(axis=-1) / np.maximum(count, 1)
 
 
-class _Entry:
-    """Measurements of one camera over a block's rows of one frame."""
-
-    def __init__(self, **fields):
-        self.__dict__.update(fields)
-
-
 class Tracker:
     """Runs the golden tracker over a dataset (see the module docstring).
 
@@ -238,11 +243,9 @@ class Tracker:
     ----------
     dataset : golden.dataset.Dataset
     params : TrackerParams
-    depth_provider : object, optional
-        Replaces the depth source chosen by ``params.depth`` (used for the oracle).
     """
 
-    def __init__(self, dataset, params, depth_provider=None):
+    def __init__(self, dataset, params):
         self.rig, self.recordings = dataset.rig, dataset.cameras
         self.params = params
         self.slots = RowSlots(dataset)
@@ -252,7 +255,7 @@ class Tracker:
         self.columns = np.arange(0, self.rig.cameras[0].width, params.geometry_stride)
         self.design_tables = [DesignTable(cam, self.columns) for cam in self.rig.cameras]
         self._init_from_ground_truth(dataset)
-        self.depth, self.depth_source = self._depth_source(dataset, depth_provider)
+        self.depth, self.depth_source = self._depth_source(dataset)
         if params.reference == "homography":
             self.reference = HomographyReference(self.rig, self.recordings, self.track,
                                                  self.desc, params.reselect_angle)
@@ -283,9 +286,7 @@ class Tracker:
         self.typical = None
         self.track.set_extrapolation(motion / slots.period)
 
-    def _depth_source(self, dataset, provider):
-        if provider is not None:
-            return provider, "provided"
+    def _depth_source(self, dataset):
         kind = self.params.depth
         if kind == "auto":
             kind = "stereo" if stereo_pairs(self.rig) else "overlap"
@@ -368,10 +369,11 @@ class Tracker:
         predicted = self.columns - vx
         limit = cam.width // 4
         centres = np.clip(np.rint(_row_means(predicted)), -limit, limit).astype(int)
-        return _Entry(camera=n, frame=frame, rows=rows, slots=slot_ids,
+        return SimpleNamespace(camera=n, frame=frame, rows=rows, slots=slot_ids,
                       inverse_depth=inverse_depth, ref=ref, predicted=predicted,
                       centres=centres, bits=self.frame_bits(n, frame)[rows],
-                      strong=self.frame_strong(n, frame)[rows] if self.params.strong_test else None)
+                      strong=(self.frame_strong(n, frame)[rows] if self.params.strong_test
+                              else None))
 
     def _measure(self, entries):
         """Match the block's rows (grouped by window centre across cameras) and form each
@@ -469,7 +471,7 @@ class Tracker:
                                            forecasts))
         if entries:
             self._measure(entries)
-        table = _Entry(
+        table = SimpleNamespace(
             slot=np.concatenate([np.repeat(e.slots, k) for e in entries] or [[]]).astype(int),
             camera=np.concatenate([np.full(e.shift.size, e.camera) for e in entries] or [[]]
                                   ).astype(int),
@@ -523,49 +525,63 @@ class Tracker:
                         (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
                     gain = information_gain(normal, self.typical, p.alpha)
         level = self.motion.update(None if step is None else forecast + step, gain)
-        if step is None:     # no measurement: carry on from the latest pose, at the forecast rate
-            last = self.track.count - 1
-            dt = self.slots.times[s] - self.track.times[last]
-            rotation, position = compose(self.track.rotations[last], self.track.positions[last],
-                                         level * (dt / self.slots.period))
-        else:
-            rotation, position = compose(*previous, level)
+        # the pose carried on from the latest one at the current rate (Y is the motion
+        # over the last frame, i.e. the rate half a frame ago: the trend brings it up to
+        # date) ...
+        last = self.track.count - 1
+        dt = self.slots.times[s] - self.track.times[last]
+        half_frame = 0.5 * self.slots.period / self.slots.t_r
+        rate = (forecast + half_frame * self.motion.trend) / self.slots.period
+        rotation, position = compose(self.track.rotations[last], self.track.positions[last],
+                                     rate * dt)
+        if step is not None:  # ... pulled towards the measured one, weighted by information
+            measured = compose(*previous, forecast + step)
+            pull = information_gain(normal, self.typical, p.pose_alpha)
+            rotation, position = compose(rotation, position,
+                                         pull @ body_step(rotation, position, *measured))
         self.track.append(self.slots.times[s], rotation, position)
         self.track.set_extrapolation(level / self.slots.period)
         out["updated"][s], out["condition"][s] = step is not None, condition
         out["equations"][s], out["motion"][s] = used, level
 
-    def _exact_shifts(self, parts, motion):
-        """Segment shifts predicted by the full projection model for the one-frame motion
-        ``motion`` (the nonlinear counterpart of the design rows)."""
+    def _exact_shifts(self, parts, motions):
+        """Segment shifts (M, equations) predicted by the full projection model for one-
+        frame motions ``motions`` (M, 6): the nonlinear counterpart of the design rows."""
         shifts = []
         for e, i in parts:
             cam = self.rig.cameras[e.camera]
             time = self.recordings[e.camera].time[e.frame, e.rows[i]] - self.slots.period
-            rotation, position = compose(*self.track.at(time), motion)
-            vx, _ = reference_pixels(cam, cam.rays[e.rows[i]][self.columns],
-                                     e.inverse_depth[i], rotation, position,
+            rotation, position = compose(*self.track.at(time), motions)
+            rays = np.broadcast_to(cam.rays[e.rows[i]][self.columns],
+                                   (len(motions), len(self.columns), 3))
+            vx, _ = reference_pixels(cam, rays, e.inverse_depth[i], rotation, position,
                                      e.ref.view_rotation[i], e.ref.source_centre[i])
-            shift = self.columns - vx
             masks = e.masks[i]
-            shifts.append(np.where(masks, shift, 0.0).sum(axis=1)
-                          / np.maximum(masks.sum(axis=1), 1))
-        return np.concatenate(shifts)
+            shifts.append(np.where(masks, self.columns - vx[:, None, :], 0.0).sum(axis=-1)
+                          / np.maximum(masks.sum(axis=-1), 1))
+        return np.concatenate(shifts, axis=-1)
 
     def _refine(self, parts, forecast, step, confidence, outlier):
-        """Weighted nonlinear least squares on the exact model, from the linear step;
-        outliers keep standing for the forecast as in the linear solve."""
+        """Weighted nonlinear least squares on the exact model (Gauss–Newton with a
+        finite-difference Jacobian) from the linear step; outliers keep standing for the
+        forecast as in the linear solve."""
         measured = np.concatenate([e.shift[i] for e, i in parts])
-        measured = np.where(outlier, self._exact_shifts(parts, forecast), measured)
-        weight = np.sqrt(confidence)
+        measured = np.where(outlier, self._exact_shifts(parts, forecast[None])[0], measured)
         use = confidence > 0
+        weight = confidence[use]
+        probe = np.vstack([np.zeros(6), REFINE_PROBE * np.eye(6)])
+        for _ in range(REFINE_ITERATIONS):
+            predicted = self._exact_shifts(parts, forecast + step + probe)[:, use]
+            jacobian = ((predicted[1:] - predicted[0]) / REFINE_PROBE).T
+            residual = measured[use] - predicted[0]
+            weighted = jacobian * weight[:, None]
+            change = np.linalg.solve(weighted.T @ jacobian, weighted.T @ residual)
+            step = step + change
+            if np.abs(change).max() < 1e-9:
+                break
+        return step
 
-        def residuals(delta):
-            return weight[use] * (measured - self._exact_shifts(parts, forecast + delta))[use]
 
-        return least_squares(residuals, step, method="lm", x_scale=np.full(6, 1e-3)).x
-
-
-def track(dataset, params=None, *, progress=False, depth_provider=None):
+def track(dataset, params=None, *, progress=False):
     """Run the golden tracker on ``dataset``; returns a :class:`TrackResult`."""
-    return Tracker(dataset, params or TrackerParams(), depth_provider).run(progress)
+    return Tracker(dataset, params or TrackerParams()).run(progress)

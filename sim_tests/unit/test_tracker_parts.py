@@ -38,7 +38,8 @@ def truth_only_dataset(rig, trajectory, frames):
         recordings.append(CameraRecording(
             rows=np.zeros(shape + (cam.width,), np.uint8), time=times,
             rotation=rotation.reshape(shape + (3, 3)), position=position.reshape(shape + (3,)),
-            velocity=velocity.reshape(shape + (3,)), angular_velocity=angular.reshape(shape + (3,))))
+            velocity=velocity.reshape(shape + (3,)),
+            angular_velocity=angular.reshape(shape + (3,))))
     return Dataset(rig=rig, cameras=recordings, info={})
 
 
