@@ -12,16 +12,16 @@ from golden.rotations import exp_so3
 from golden.tracker import TrackResult
 from golden.tracker_motion import ground_truth_track
 from golden.trajectory import make_trajectory
-from sim_tests.unit.test_tracker_parts import truth_only_dataset
+from sim_tests.unit.test_tracker_parts import short_sequence
 
 FRAMES = 3
 
 
 @pytest.fixture(scope="module")
 def dataset():
-    """Ground truth of a small stereo rig over three frames (rows left black)."""
+    """Three frames of stereo20 cut down to 16 rows (only the ground truth is used)."""
     rig = preset("stereo20").replace_cameras(height=16, cy=7.5, t_r=1 / (120 * 16))
-    return truth_only_dataset(rig, make_trajectory("paper"), FRAMES)
+    return short_sequence(rig, make_trajectory("paper"), FRAMES)
 
 
 def _result(dataset, rotations, positions):

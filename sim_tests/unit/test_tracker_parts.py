@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from golden.camera import Camera
-from golden.dataset import CameraRecording, Dataset
 from golden.depth import StereoDepth, stereo_pairs
 from golden.depth_maps import OracleDepth, OverlapDepth
 from golden.descriptor import DescriptorParams, MatchParams, describe, match, segment_bounds
@@ -19,7 +18,7 @@ from golden.reference_rows import HomographyReference
 from golden.rig import RADIAL_CAMERAS, Rig, preset
 from golden.rotations import exp_so3, orientation_ypr
 from golden.scene import default_scene_spec
-from golden.simulator import schedule, simulate
+from golden.simulator import simulate
 from golden.tracker_geometry import reference_pixels, segment_means
 from golden.tracker_motion import PoseTrack, compose, ground_truth_track
 from golden.tracker_slots import RowSlots
@@ -28,19 +27,10 @@ from golden.trajectory import make_trajectory
 SEED = int(os.environ.get("SEED", "3"))
 
 
-def truth_only_dataset(rig, trajectory, frames):
-    """A dataset with the ground truth of ``frames`` frames and black rows (no render)."""
-    recordings = []
-    for cam, times in zip(rig.cameras, schedule(rig, frames / rig.cameras[0].fps, seed=0)):
-        rotation, position = trajectory.pose(times.ravel())
-        velocity, angular = trajectory.velocity(times.ravel())
-        shape = times.shape
-        recordings.append(CameraRecording(
-            rows=np.zeros(shape + (cam.width,), np.uint8), time=times,
-            rotation=rotation.reshape(shape + (3, 3)), position=position.reshape(shape + (3,)),
-            velocity=velocity.reshape(shape + (3,)),
-            angular_velocity=angular.reshape(shape + (3,))))
-    return Dataset(rig=rig, cameras=recordings, info={})
+def short_sequence(rig, trajectory, frames):
+    """``frames`` frames of ``rig`` moving along ``trajectory`` in the default room."""
+    return simulate(rig, default_scene_spec(SEED), trajectory, frames / rig.cameras[0].fps,
+                    seed=SEED)
 
 
 def _small_camera(name, **kwargs):
@@ -52,7 +42,7 @@ def _small_camera(name, **kwargs):
 def test_synchronised_cameras_share_slots():
     rig = Rig(name="pair", cameras=(_small_camera("a"), _small_camera("b", position=(0.1, 0, 0))),
               allow_unobservable=True)
-    slots = RowSlots(truth_only_dataset(rig, make_trajectory("static"), 3))
+    slots = RowSlots(short_sequence(rig, make_trajectory("static"), 3))
     assert len(slots) == 48 and slots.first_tracked == 16 and slots.occupied.all()
     frames, rows, ids = slots.members(1, 20, 24)
     assert list(frames) == [1] * 4 and list(rows) == [4, 5, 6, 7] and list(ids) == [20, 21, 22, 23]
@@ -62,7 +52,7 @@ def test_trigger_offsets_stagger_rows_across_slots():
     t_r = 1 / (120 * 16)
     cams = (_small_camera("a"), _small_camera("b", trigger_offset=5.2 * t_r))
     rig = Rig(name="staggered", cameras=cams, allow_unobservable=True)
-    slots = RowSlots(truth_only_dataset(rig, make_trajectory("static"), 3))
+    slots = RowSlots(short_sequence(rig, make_trajectory("static"), 3))
     frames, rows, ids = slots.members(1, 16, 17)              # camera b in slot 16
     assert (frames[0], rows[0]) == (0, 11)                      # its frame 0, row 11
     assert slots.first_tracked == 16 + 5                        # b's frame 1 starts later
@@ -72,7 +62,7 @@ def test_cameras_with_different_row_times_are_rejected():
     cams = (_small_camera("a"), _small_camera("b", fps=60.0))
     rig = Rig(name="mixed", cameras=cams, allow_unobservable=True)
     with pytest.raises(ValueError, match="one fps"):
-        RowSlots(truth_only_dataset(rig, make_trajectory("static"), 3))
+        RowSlots(short_sequence(rig, make_trajectory("static"), 3))
 
 
 # --- pose tracks and geometry --------------------------------------------------------------
