@@ -28,15 +28,11 @@ from hdl.pose_params import DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag, see
 
 __all__ = ["PoseRows", "Value", "StepResult", "accumulate", "scale_system",
            "rsqrt_seed", "solve_rows", "integrate_rows",
-           "pose_solver_model", "upper_pairs", "identity_pose", "flags_from_checks",
-           "rows_from_float", "rig_solver"]
+           "pose_solver_model", "identity_pose", "flags_from_checks",
+           "rows_from_float", "rig_solver", "solve_trace"]
 
 #: The 21 (i, j), i ≤ j, entries of the symmetric normal matrix, in accumulator order.
 UPPER = tuple((i, j) for i in range(6) for j in range(i, 6))
-
-
-def upper_pairs():
-    return UPPER
 
 
 @dataclass(frozen=True)
@@ -261,8 +257,9 @@ def rsqrt_seed(params, pivot):
     shift = params.seed_fmt.frac_bits - SEED_TABLE_FMT.frac_bits   # y0·2**k, exact
     seed_raw = np.array([int(v) << int(e + shift) for v, e in
                          zip(np.asarray(y0.raw).tolist(), k)], dtype=object)
+    # wraps only for pivots below 2**-pivot_log2 (flagged ILL), as the hardware does
     wide = QFormat(True, params.seed_fmt.int_bits + params.mantissa_bits, params.seed_fmt.frac_bits)
-    return Value(resize(seed_raw, wide, params.seed_fmt, Rounding.FLOOR, Overflow.SATURATE),
+    return Value(resize(seed_raw, wide, params.seed_fmt, Rounding.FLOOR, Overflow.WRAP),
                  params.seed_fmt)
 
 
@@ -341,6 +338,18 @@ def _cholesky_solve(params, scaled, rhs, scales, trace=None):
             partial[j] = op(f"u{j}_{k}", sol, partial[j], [(-1, low[(k, j)], x[k])])
     step = [op(f"Y{j}", params.step_fmt, terms=[(1, x[j], scales[j])]) for j in range(6)]
     return step, ill, saturated
+
+
+def solve_trace(params, coef_raw, rows):
+    """Every intermediate of the solve of every row: dict name -> Value (the names of
+    :func:`hdl.pose_program.build_row_program`; ``N``/``b``/``s`` for the scaled inputs)."""
+    normal, rhs = accumulate(params, coef_raw, rows)
+    scaled, scaled_rhs, scales, _, _ = scale_system(params, normal, rhs)
+    trace = {f"N{i}{j}": v for (i, j), v in zip(UPPER, scaled)}
+    trace.update({f"b{i}": v for i, v in enumerate(scaled_rhs)})
+    trace.update({f"s{i}": v for i, v in enumerate(scales)})
+    _cholesky_solve(params, scaled, scaled_rhs, scales, trace)
+    return trace
 
 
 def solve_rows(params, coef_raw, rows):

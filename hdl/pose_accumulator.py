@@ -7,14 +7,14 @@ When a row's last measurement is in, it computes the Jacobi exponents of the dia
 and holds the sums until the engine has read them (``release``).
 """
 
-from amaranth.hdl import Array, Const, Module, Mux, Signal, signed
+from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .fixed import Overflow, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
 from .pose_params import PoseSolverParams
 
-__all__ = ["measurement_layout", "PAIRS", "PoseAccumulator", "exponent_bits"]
+__all__ = ["measurement_layout", "PAIRS", "PoseAccumulator", "exponent_bits", "leading_one"]
 
 #: The 27 accumulated products: (i, j) with i ≤ j < 6 for N (row by row), then (i, 6)
 #: for the right-hand side (6 stands for the shift).
@@ -55,13 +55,24 @@ def exponent_bits(params):
     return max(abs(low), abs(high)).bit_length() + 1
 
 
-def _bit_length(m, value, width):
-    """Combinational bit length of the non-negative ``value`` (a priority encoder)."""
-    length = Signal(range(width + 1))
-    for k in range(width):
-        with m.If(value[k]):
-            m.d.comb += length.eq(k + 1)
-    return length
+def leading_one(value, width):
+    """Index of the highest set bit of the low ``width`` bits of ``value`` (0 when none
+    is set: callers treat a zero value apart): a balanced tree, ``log2(width)`` mux
+    levels deep where a priority chain would be ``width`` deep. The bit length of a
+    non-zero value is the index plus one."""
+    size = 1 << (width - 1).bit_length()
+    bits = Cat(value[:width], Const(0, size - width)) if size > width else value[:width]
+
+    def tree(low, count):
+        """(any bit set, index of the highest set bit) of bits[low:low + count]."""
+        if count == 1:
+            return bits[low], Const(0, 0)
+        half = count // 2
+        any_low, index_low = tree(low, half)
+        any_high, index_high = tree(low + half, half)
+        return any_low | any_high, Mux(any_high, Cat(index_high, 1), Cat(index_low, 0))
+
+    return tree(0, size)[1]
 
 
 class PoseAccumulator(wiring.Component):
@@ -126,8 +137,9 @@ class PoseAccumulator(wiring.Component):
 
     @property
     def tail(self):
-        """Clocks from a row's last transfer to ``done``."""
-        return self.FRONT + self.period + 1
+        """Clocks from a row's last transfer to ``done``: the front, the products, the
+        diagonal's bit lengths and the exponents."""
+        return self.FRONT + self.period + 2
 
     def elaborate(self, platform):
         p = self.params
@@ -255,23 +267,28 @@ class PoseAccumulator(wiring.Component):
         entries = Array(rings[k % lanes][k // lanes] for k in range(len(PAIRS)))
         m.d.comb += self.read_data.eq(entries[self.read_index])
 
-        # --- row end: exponents and the EMPTY check from the diagonal
-        finished = Signal()
-        m.d.sync += finished.eq(c_end)
+        # --- row end: bit lengths of the diagonal (one clock), then the exponents and the
+        # EMPTY check (the next)
+        finished, lengths_ready = Signal(), Signal()
+        m.d.sync += [finished.eq(c_end), lengths_ready.eq(finished)]
         low, high = p.exponent_range
         empty = Const(0)
         for i in range(6):
             k = PAIRS.index((i, i))
             diag = rings[k % lanes][k // lanes]
-            length = Signal(signed(acc_fmt.width.bit_length() + 2), name=f"length{i}")
-            m.d.comb += length.eq(_bit_length(m, diag, acc_fmt.width))
-            exponent = Signal(signed(length.shape().width + 1), name=f"exponent{i}")
-            # ceil((length − F) / 2) = −floor((F − length) / 2)
-            m.d.comb += exponent.eq(-((acc_fmt.frac_bits - length) >> 1))
-            clamped = Mux(exponent < low, low, Mux(exponent > high, high, exponent))
+            top = Signal(signed(acc_fmt.width.bit_length() + 2), name=f"top{i}")
+            small = Signal(name=f"small{i}")
             with m.If(finished):
+                m.d.sync += [top.eq(leading_one(diag, acc_fmt.width)),
+                             small.eq(diag < p.min_diagonal_raw)]
+            exponent = Signal(signed(top.shape().width + 1), name=f"exponent{i}")
+            # ceil((length − F) / 2) = −floor((F − length) / 2) with length = top + 1; a
+            # zero diagonal (length 0, not 1) clamps to the same lowest exponent
+            m.d.comb += exponent.eq(-((acc_fmt.frac_bits - 1 - top) >> 1))
+            clamped = Mux(exponent < low, low, Mux(exponent > high, high, exponent))
+            with m.If(lengths_ready):
                 m.d.sync += self.exponents[i].eq(clamped)
-            empty = empty | (diag < p.min_diagonal_raw)
-        with m.If(finished):
+            empty = empty | small
+        with m.If(lengths_ready):
             m.d.sync += [self.done.eq(1), self.empty.eq(empty)]
         return m

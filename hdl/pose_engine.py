@@ -21,7 +21,7 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from .fixed import SQ, UQ, Overflow, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
-from .pose_accumulator import PAIRS, exponent_bits
+from .pose_accumulator import PAIRS, exponent_bits, leading_one
 from .pose_params import (DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag,
                           PoseSolverParams, seed_tables)
 from .pose_program import (MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, STATE_NAMES,
@@ -79,6 +79,11 @@ class _Words:
         ops = [op for op in self.program.ops]
         self.init_shifts = sorted({op.init_shift for op in ops if op.kind == "mac" and op.init})
         self.out_shifts = sorted({op.out_shift for op in ops if op.kind == "mac"})
+        #: the (init, out) shift pairs that occur, as ((code, shift), (code, shift))
+        self.init_out_pairs = sorted({
+            ((self.init_shifts.index(op.init_shift), op.init_shift),
+             (self.out_shifts.index(op.out_shift), op.out_shift))
+            for op in ops if op.kind == "mac" and op.init})
         self.max_terms = max(op.slots for op in ops)
         self.index_bits = max(len(self.program.inputs), self.program.work_depth,
                               len(STATE_NAMES)).bit_length()
@@ -201,15 +206,22 @@ class PoseEngine(wiring.Component):
         with m.If(self.o.valid & self.o.ready):
             m.d.sync += self.o.valid.eq(0)
 
-        # The word of program cycle t is on `word` in cycle t (the issue stage).
-        rom = Memory(shape=words.layout.size, depth=len(words.words), init=words.words)
+        # The word of program cycle t is on `word` in cycle t (the issue stage): the ROM's
+        # registered address is t + 1 in cycle t, and 0 while idle (word 0 is ready).
+        rom = Memory(shape=words.layout.size, depth=len(words.words), init=words.words,
+                     attrs={"rom_style": "block", "ram_style": "block"})
         m.submodules.rom = rom
         fetch = rom.read_port()
-        m.d.comb += fetch.addr.eq(Mux(go, 0, pc + 1))
+        with m.If(go):
+            m.d.sync += fetch.addr.eq(1)
+        with m.Elif(running & (pc != length - 1)):
+            m.d.sync += fetch.addr.eq(fetch.addr + 1)
+        with m.Else():
+            m.d.sync += fetch.addr.eq(0)
         word = Signal(words.layout)
         m.d.comb += word.eq(Mux(running, fetch.data, 0))
         stages = [word]
-        for k in range(6):
+        for k in range(7):
             stage = Signal(words.layout, name=f"ctrl{k + 1}")
             m.d.sync += stage.eq(stages[-1])
             stages.append(stage)
@@ -249,7 +261,8 @@ class PoseEngine(wiring.Component):
         # --- normalizer: cycles 0..26 read and scale the sums, 27..32 write the scales ---
         count_in = len(PAIRS) + 6
         low, high = p.exponent_range
-        m.d.comb += [self.read_index.eq(Mux(pc < len(PAIRS), pc, 0)),
+        # (reads past the last sum are ignored: no guard in the index path)
+        m.d.comb += [self.read_index.eq(pc),
                      self.release.eq(running & (pc == len(PAIRS) - 1))]
         n_shift = Signal(range(2 * (high - low) + 1))
         n_scale = Signal(range(p.scale_fmt.frac_bits - low + 1))
@@ -269,71 +282,86 @@ class PoseEngine(wiring.Component):
         m.d.sync += [n_value.eq(self.read_data), n_valid.eq(running & (pc < count_in)),
                      n_addr.eq(pc)]
 
+        # one clock for the barrel shift, one for the rounding
+        src = p.normal_fmt
+        shifted = Signal(signed(src.width + 2 * (high - low) + 1))
+        kind2, scale2, valid2, addr2 = (Signal.like(n_kind), Signal.like(n_scale), Signal(),
+                                        Signal.like(n_addr))
+        m.d.sync += [shifted.eq(n_value << n_shift), kind2.eq(n_kind), scale2.eq(n_scale),
+                     valid2.eq(n_valid), addr2.eq(n_addr)]
+
         def scaled(span, shift_high, dst):
-            src = p.normal_fmt
             wide_src = SQ(max(1, src.int_bits + span - shift_high) + 1, src.frac_bits + shift_high)
-            shifted = Signal(wide_src.shape())
-            m.d.comb += shifted.eq(n_value << n_shift)
-            return _round_saturating(m, shifted, wide_src, dst)
+            return _round_saturating(m, shifted[:wide_src.width], wide_src, dst)
 
         norm, norm_sat = scaled(2 * (high - low), 2 * high, p.unit_fmt)
         rhs, rhs_sat = scaled(high - low, high, p.solution_fmt)
-        scale = Const(1, 1) << n_scale
+        scale = Const(1, 1) << scale2
         n_data, n_sat, n_write, n_waddr = Signal(raw), Signal(), Signal(), Signal.like(n_addr)
-        m.d.sync += [n_data.eq(Mux(n_kind == 0, norm, Mux(n_kind == 1, rhs, scale))),
-                     n_sat.eq(n_valid & Mux(n_kind == 0, norm_sat, Mux(n_kind == 1, rhs_sat, 0))),
-                     n_write.eq(n_valid), n_waddr.eq(n_addr)]
-        assert NORMALIZER_LATENCY == 2
+        m.d.sync += [n_data.eq(Mux(kind2 == 0, norm, Mux(kind2 == 1, rhs, scale))),
+                     n_sat.eq(valid2 & Mux(kind2 == 0, norm_sat, Mux(kind2 == 1, rhs_sat, 0))),
+                     n_write.eq(valid2), n_waddr.eq(addr2)]
+        assert NORMALIZER_LATENCY == 3
         m.d.comb += [w_in.en.eq(n_write), w_in.addr.eq(n_waddr), w_in.data.eq(n_data)]
 
         # --- multiply-accumulate unit -----------------------------------------------------
-        # issue t: read; t+1: operands; t+2: multiply; t+3: product; t+4: accumulate;
-        # t+5: round, saturate, write (the op's last term issued at t).
+        # issue t: read; t+1: operands; t+2: multiply; t+3: product aligned to the op's
+        # rounding position; t+4: accumulate; t+5: round, saturate, write (the op's last
+        # term issued at t). Products and init are shifted left by r_max − out_shift, so
+        # the sum always has r_max fraction bits beyond the destination's.
+        r_max = words.out_shifts[-1]
         init_max = max(words.init_shifts, default=0)
-        acc_width = max(2 * W, W + init_max) + (words.max_terms + 2).bit_length() + 1
+        span = r_max - words.out_shifts[0]
+        acc_width = max(2 * W, W + init_max) + span + (words.max_terms + 2).bit_length() + 1
         mul_a, mul_b = Signal(raw), Signal(raw)
-        c_aligned = Signal(signed(acc_width))
         m.d.sync += [mul_a.eq(op_a), mul_b.eq(op_b)]
-        with m.Switch(stages[1].init_code):
-            for code, shift in enumerate(words.init_shifts):
-                with m.Case(code):
-                    m.d.sync += c_aligned.eq(Mux(stages[1].has_init, op_c << shift, 0))
+        c_aligned = Signal(signed(acc_width))
+        m.d.sync += c_aligned.eq(0)
+        with m.If(stages[1].has_init):
+            with m.Switch(Cat(stages[1].init_code, stages[1].out_code)):
+                for (init_code, init_shift), (out_code, out_shift) in words.init_out_pairs:
+                    with m.Case(init_code | (out_code << len(stages[1].init_code))):
+                        m.d.sync += c_aligned.eq(op_c << (init_shift + r_max - out_shift))
         product_fmt = mul_format(SQ(W, 0), SQ(W, 0))
-        product_m, product_p = Signal(product_fmt.shape()), Signal(product_fmt.shape())
-        m.d.sync += [product_m.eq(hdl_mul(mul_a, SQ(W, 0), mul_b, SQ(W, 0))[0]),
-                     product_p.eq(product_m)]
+        product_m = Signal(product_fmt.shape())
+        m.d.sync += product_m.eq(hdl_mul(mul_a, SQ(W, 0), mul_b, SQ(W, 0))[0])
+        product_p = Signal(signed(acc_width))
+        with m.Switch(stages[3].out_code):
+            for code, shift in enumerate(words.out_shifts):
+                with m.Case(code):
+                    m.d.sync += product_p.eq(product_m << (r_max - shift))
         c_aligned3, c_aligned4 = Signal.like(c_aligned), Signal.like(c_aligned)
         m.d.sync += [c_aligned3.eq(c_aligned), c_aligned4.eq(c_aligned3)]
         acc = Signal(signed(acc_width))
         base = Mux(stages[4].first, c_aligned4, acc)
         m.d.sync += acc.eq(Mux(stages[4].negate, base - product_p, base + product_p))
-        r_max, r_min = words.out_shifts[-1], words.out_shifts[0]
-        widened = Signal(signed(acc_width + r_max - r_min))
-        with m.Switch(stages[5].out_code):
-            for code, shift in enumerate(words.out_shifts):
-                with m.Case(code):
-                    m.d.comb += widened.eq(acc << (r_max - shift))
-        mac_data, mac_sat = _round_saturating(m, widened, SQ(acc_width - r_min, r_max), SQ(W, 0))
+        mac_data, mac_sat = _round_saturating(m, acc, SQ(acc_width - r_max, r_max), SQ(W, 0))
         mac_write = stages[5].issue & ~stages[5].seed & stages[5].last
         assert MAC_LATENCY == 5
 
         # --- seed unit -----------------------------------------------------------------
-        # t+1: pivot, its bit length, the ILL check; t+2: normalize (even shift), table
-        # address; t+3: table data, slope·delta; t+4: interpolate; t+5: denormalize;
-        # t+6: write. As emulator.pose_solver.rsqrt_seed.
+        # t+1: pivot in; t+2: ILL check, bit length; t+3: normalize (even shift), table
+        # address; t+4: table data, slope·delta; t+5: interpolate; t+6: denormalize;
+        # t+7: write. As emulator.pose_solver.rsqrt_seed.
         unit = p.unit_fmt
-        with m.If(stages[1].issue & stages[1].seed
-                  & (op_a < int(unit.quantize(2.0 ** -p.pivot_log2)))):
+        pivot1, seed1 = Signal(raw), Signal()
+        m.d.sync += [pivot1.eq(op_a), seed1.eq(stages[1].issue & stages[1].seed)]
+        with m.If(seed1 & (pivot1 < int(unit.quantize(2.0 ** -p.pivot_log2)))):
             m.d.sync += ill.eq(1)
-        clamped = Signal(W - 1)
-        m.d.comb += clamped.eq(Mux(op_a < 1, 1, op_a))
-        bits = Signal(range(W))
-        for k in range(W - 1):
-            with m.If(clamped[k]):
-                m.d.comb += bits.eq(k + 1)
-        # excess = F − bits ≥ −1, k = floor(excess / 2), m = D·2**(2k): half = k + 1 ≥ 0
+        # a pivot at or below zero counts as the smallest positive one (the row is ILL);
+        # the test runs beside the bit-length tree, not before it
+        nonpositive = pivot1[W - 1] | ~pivot1.any()
+        clamped, top = Signal(W - 1), Signal(range(W))
+        m.d.comb += [clamped.eq(Mux(nonpositive, 1, pivot1)),
+                     top.eq(Mux(nonpositive, 0, leading_one(pivot1, W - 1)))]
+        # bit length top + 1; excess = F − length ≥ −1, k = floor(excess / 2),
+        # m = D·2**(2k): half = k + 1 ≥ 0
         pivot2, half2 = Signal(W - 1), Signal(range(W))
-        m.d.sync += [pivot2.eq(clamped), half2.eq((unit.frac_bits + 2 - bits) >> 1)]
+        m.d.sync += [pivot2.eq(clamped), half2.eq((unit.frac_bits + 1 - top) >> 1)]
+        # seed = y0·2**k in seed_fmt: a shift by (half − 1) + (seed frac − table frac)
+        extra = p.seed_fmt.frac_bits - SEED_TABLE_FMT.frac_bits - 1
+        shift3 = Signal(range(W + extra + 1))
+        m.d.sync += shift3.eq(half2 + extra)
         mantissa = Signal(p.mantissa_bits)
         m.d.comb += mantissa.eq(pivot2 << (half2 << 1))
         low_bit = p.mantissa_bits - p.seed_bits
@@ -343,31 +371,30 @@ class PoseEngine(wiring.Component):
         lookup = table.read_port()
         m.d.comb += lookup.addr.eq(mantissa[low_bit:])
         delta_fmt = UQ(0, p.seed_bits + DELTA_BITS)
-        delta3, half3 = Signal(DELTA_BITS), Signal.like(half2)
-        m.d.sync += [delta3.eq(mantissa[low_bit - DELTA_BITS:low_bit]), half3.eq(half2)]
+        delta3 = Signal(DELTA_BITS)
+        m.d.sync += delta3.eq(mantissa[low_bit - DELTA_BITS:low_bit])
         slope_fmt = mul_format(SLOPE_FMT, delta_fmt)
-        slope4, t0_4, half4 = (Signal(slope_fmt.shape()), Signal(SEED_TABLE_FMT.width),
-                               Signal.like(half2))
+        slope4, t0_4, shift4 = (Signal(slope_fmt.shape()), Signal(SEED_TABLE_FMT.width),
+                                Signal.like(shift3))
         m.d.sync += [slope4.eq(hdl_mul(lookup.data[SEED_TABLE_FMT.width:], SLOPE_FMT, delta3,
                                        delta_fmt)[0]),
-                     t0_4.eq(lookup.data[:SEED_TABLE_FMT.width]), half4.eq(half3)]
+                     t0_4.eq(lookup.data[:SEED_TABLE_FMT.width]), shift4.eq(shift3)]
         total, total_fmt = hdl_add(t0_4, SEED_TABLE_FMT, -slope4,
                                    SQ(slope_fmt.int_bits + 1, slope_fmt.frac_bits))
-        y0_5, half5 = Signal(SEED_TABLE_FMT.shape()), Signal.like(half2)
+        y0_5, shift5 = Signal(SEED_TABLE_FMT.shape()), Signal.like(shift3)
         m.d.sync += [y0_5.eq(_round_saturating(m, total, total_fmt, SEED_TABLE_FMT)[0]),
-                     half5.eq(half4)]
-        # seed = y0·2**k in seed_fmt: shift by (half − 1) + (seed frac − table frac)
-        extra = p.seed_fmt.frac_bits - SEED_TABLE_FMT.frac_bits - 1
+                     shift5.eq(shift4)]
+        # (wraps only for pivots below 2**-pivot_log2, which flag ILL)
         seed_data = Signal(raw)
-        m.d.sync += seed_data.eq(hdl_resize(y0_5 << (half5 + extra),
+        m.d.sync += seed_data.eq(hdl_resize(y0_5 << shift5,
                                             UQ(SEED_TABLE_FMT.width + W + extra, 0),
-                                            SQ(W, 0), Rounding.FLOOR, Overflow.SATURATE))
-        seed_write = stages[6].issue & stages[6].seed
-        assert SEED_LATENCY == 6
+                                            SQ(W, 0), Rounding.FLOOR, Overflow.WRAP))
+        seed_write = stages[7].issue & stages[7].seed
+        assert SEED_LATENCY == 7
 
         # --- write-back ------------------------------------------------------------------
         wb = Signal(words.layout)
-        m.d.comb += wb.eq(Mux(seed_write, stages[6].as_value(), stages[5].as_value()))
+        m.d.comb += wb.eq(Mux(seed_write, stages[7].as_value(), stages[5].as_value()))
         w_data = Signal(raw)
         m.d.comb += w_data.eq(Mux(seed_write, seed_data, mac_data))
         write = seed_write | mac_write

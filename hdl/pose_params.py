@@ -163,11 +163,6 @@ class PoseSolverParams:
     def coef_width(self):
         return self.coef_t_fmt.width
 
-    @property
-    def count_bits(self):
-        """Measurement counter width: counts to ``slots + 1`` (then saturates)."""
-        return (self.slots + 1).bit_length()
-
     # --- accumulator formats -----------------------------------------------------------
 
     @property

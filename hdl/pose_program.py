@@ -35,9 +35,9 @@ STATE_NAMES = ("qw", "qx", "qy", "qz", "px", "py", "pz")
 #: two multiplier stages, the accumulator, the rounding).
 MAC_LATENCY = 5
 #: Clocks from a seed op's issue to its write-back.
-SEED_LATENCY = 6
+SEED_LATENCY = 7
 #: Clocks from the normalizer's n-th output to its write into the input bank.
-NORMALIZER_LATENCY = 2
+NORMALIZER_LATENCY = 3
 
 
 @dataclass(frozen=True)

@@ -109,11 +109,6 @@ class PoseSolver(wiring.Component):
         return self._accumulator.tail + 1 + self._engine.length
 
     @property
-    def measurement_interval(self):
-        """Clocks between measurements at full rate."""
-        return self._accumulator.period
-
-    @property
     def row_interval(self):
         """Clocks per row when rows of ``slots`` measurements come back to back and
         records are taken at once. Either the engine bounds it (its program, the clock

@@ -2,14 +2,17 @@
 emulator.pose_solver in the Amaranth simulator (the cocotb bench runs the long mixes)."""
 
 import os
+import random
 
 import numpy as np
 import pytest
+from amaranth.hdl import Module, Signal
 from amaranth.sim import Simulator
 
 from emulator import pose_solver as E
 from hdl.fixed import SQ, UQ
-from hdl.pose_params import (PoseSolverParams, coefficient_formats, quantize_coefficients)
+from hdl.pose_accumulator import leading_one
+from hdl.pose_params import PoseSolverParams, coefficient_formats, quantize_coefficients
 from hdl.pose_program import (MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY,
                               build_row_program, schedule)
 from hdl.pose_solver import PoseSolver
@@ -64,6 +67,28 @@ def test_coefficients_are_checked():
         PoseSolver("default")
 
 
+# --- building blocks ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("width", [1, 5, 41, 63])
+def test_leading_one_finds_the_highest_set_bit(width):
+    rng = random.Random(SEED + width)
+    values = [0, 1, (1 << width) - 1] + [rng.getrandbits(rng.randint(1, width)) for _ in range(200)]
+    m = Module()
+    value, index = Signal(width), Signal(8)
+    m.d.comb += index.eq(leading_one(value, width))
+    got = []
+
+    async def bench(ctx):
+        for v in values:
+            ctx.set(value, v)
+            got.append(ctx.get(index))
+
+    sim = Simulator(m)
+    sim.add_testbench(bench)
+    sim.run()
+    assert got == [max(v.bit_length() - 1, 0) for v in values]
+
+
 # --- program and schedule -------------------------------------------------------------------
 
 def test_schedule_respects_every_dependency():
@@ -100,15 +125,13 @@ def test_program_mirrors_the_model_value_names():
     """The program's values carry the model's trace names (the trace test relies on it)."""
     params, coefficients, _ = build_case("random")
     rows = mixed_rows("random", params, None, np.random.default_rng(SEED), 2)
-    normal, rhs = E.accumulate(params, coefficients, rows)
-    trace = {}
-    E._cholesky_solve(params, *E.scale_system(params, normal, rhs)[:3], trace=trace)
+    trace = E.solve_trace(params, coefficients, rows)
     program = build_row_program(params)
     solve = {name for name in program.work if name not in program.constants
              and not name.startswith(("R", "q1", "gain", "px", "py", "pz"))}
     # term-less ops of an operand into its own format are that operand (no register)
     aliases = {"D0", "c0"} | {f"W{i}0" for i in range(1, 6)}
-    assert solve == set(trace) - aliases
+    assert solve == set(trace) - aliases - set(program.inputs)
     for name in solve:
         assert program.work[name].fmt == trace[name].fmt, name
 
@@ -171,9 +194,7 @@ def test_engine_registers_match_the_model_trace():
     """Every solve intermediate of a row, read out of the engine's register bank."""
     params, coefficients, _ = build_case("random")
     rows = mixed_rows("random", params, None, np.random.default_rng(SEED), 1)
-    normal, rhs = E.accumulate(params, coefficients, rows)
-    trace = {}
-    E._cholesky_solve(params, *E.scale_system(params, normal, rhs)[:3], trace=trace)
+    trace = E.solve_trace(params, coefficients, rows)
     dut = PoseSolver(params, coefficients)
     engine = dut._engine
     names = [n for n in trace if n in engine.program.work]
