@@ -1,5 +1,9 @@
 """Per-camera depth for rigs without stereo pairs (CVPR 2018 §3.3), and the oracle.
 
+:class:`OverlapDepth` keeps one inverse-depth map per camera, bootstrapped by a plane
+sweep against the cameras that overlap it and carried from frame to frame (the papers'
+depth source for the radial rigs; see its docstring for what is and is not the paper).
+
 :class:`OracleDepth` is the simulator's true depth (ray cast into the dataset's scene at
 the true row poses). It exists for ablations only — it tells how much of the tracker's
 error comes from depth — and every result made with it is labelled ``oracle``.
@@ -10,7 +14,7 @@ import numpy as np
 
 from .descriptor import cost_peaks
 from .scene import scene_from_config
-from .tracker_geometry import project, rotate
+from .tracker_geometry import camera_poses, project, rotate
 
 __all__ = ["OracleDepth", "scene_depth", "overlap_neighbours", "OverlapDepth"]
 
@@ -47,19 +51,12 @@ class OracleDepth:
         self.spec = scene_from_config(dataset.info["scene"], "dataset scene")
         self.rig, self.recordings = dataset.rig, dataset.cameras
 
-    def inverse_depth(self, n, frame, rows, rotations=None, positions=None):
+    def inverse_depth(self, n, frame, rows):
         """1/Z (B, W) of rows ``rows`` of frame ``frame`` of camera ``n`` at their true
-        poses (the tracker's predicted poses are ignored)."""
+        poses."""
         cam, rec = self.rig.cameras[n], self.recordings[n]
-        rotation, position = rec.rotation[frame, rows], rec.position[frame, rows]
-        directions = rotate(rotation @ cam.R, cam.rays[rows])
-        origins = (position + rotation @ cam.c)[:, None, :]
-        return 1.0 / scene_depth(self.spec, origins, directions)
-
-
-def _row_poses(camera, rotations, positions):
-    """Camera-to-world rotations (..., 3, 3) and centres (..., 3) from rig poses."""
-    return rotations @ camera.R, positions + rotations @ camera.c
+        rotation, centre = camera_poses(cam, rec.rotation[frame, rows], rec.position[frame, rows])
+        return 1.0 / scene_depth(self.spec, centre[:, None, :], rotate(rotation, cam.rays[rows]))
 
 
 def _rolling_terms(rotations, centres, start, points):
@@ -160,7 +157,7 @@ class OverlapDepth:
         self._maps = {}
         self.swept_pixels = 0
 
-    def inverse_depth(self, n, frame, rows, rotations=None, positions=None):
+    def inverse_depth(self, n, frame, rows):
         """1/Z (B, W) of rows ``rows`` of frame ``frame`` of camera ``n`` (NaN: unknown)."""
         state = self._maps.get(n)
         if state is None or state["frame"] != frame:
@@ -170,7 +167,7 @@ class OverlapDepth:
 
     def _poses(self, n, frame, predicted=False):
         cam, times = self.rig.cameras[n], self.recordings[n].time[frame]
-        return _row_poses(cam, *(self.predict(times) if predicted else self.track.at(times)))
+        return camera_poses(cam, *(self.predict(times) if predicted else self.track.at(times)))
 
     def _carry(self, n, frame):
         """The map of frame ``frame`` from the previous frame's map, completed first."""

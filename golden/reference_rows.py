@@ -29,7 +29,7 @@ import numpy as np
 
 from .descriptor import describe
 from .rotations import rotation_angle
-from .tracker_geometry import project, rotate
+from .tracker_geometry import camera_poses, project, rotate
 
 __all__ = ["Reference", "HomographyReference", "PreviousFrameReference"]
 
@@ -60,11 +60,6 @@ def _interpolate_columns(values, grid, width):
     k = np.clip(np.searchsorted(grid, full, side="right") - 1, 0, len(grid) - 2)
     frac = (full - grid[k]) / (grid[k + 1] - grid[k])
     return values[:, k] * (1 - frac) + values[:, k + 1] * frac
-
-
-def _row_centres(camera, rotations, positions):
-    """Camera centres (world) of rows with rig poses (..., 3, 3), (..., 3)."""
-    return positions + rotations @ camera.c
 
 
 def _sample(image, x, y):
@@ -130,7 +125,7 @@ class HomographyReference:
             "frame": frame, "rotation": reference_rotation,
             "image": _sample(rec.rows[frame].astype(np.float32), x, y),
             "valid": inside.astype(np.float32), "source_row": y.astype(np.float32),
-            "centres": _row_centres(cam, rot_q, pos_q)}
+            "centres": camera_poses(cam, rot_q, pos_q)[1]}
         self.rebuilds += 1
 
     def rows(self, n, frame, rows, rotations, positions, columns, inverse_depth=None):
@@ -171,7 +166,7 @@ class HomographyReference:
         valid = _sample(state["valid"], x, y) > 0.999
         if inverse_depth is not None:     # the reference now shows the predicted row
             return Reference(bits=bits, valid=valid, view_rotation=rotations,
-                             source_centre=_row_centres(cam, rotations, positions)[:, None])
+                             source_centre=camera_poses(cam, rotations, positions)[1][:, None])
         source_row = _sample(state["source_row"], x[:, columns], y[:, columns])
         return Reference(bits=bits, valid=valid, view_rotation=rotations,
                          source_centre=self._centres(state, source_row))
@@ -210,4 +205,4 @@ class PreviousFrameReference:
         bits = self.frame_bits(n, frame - 1)[source_rows]
         return Reference(bits=bits, valid=np.ones(bits.shape, dtype=bool),
                          view_rotation=rotation,
-                         source_centre=_row_centres(cam, rotation, position)[:, None, :])
+                         source_centre=camera_poses(cam, rotation, position)[1][:, None, :])

@@ -323,10 +323,10 @@ class Tracker:
         return self._cached("strong", n, frame,
                             lambda: strength(self.recordings[n].rows[frame], self.desc))
 
-    def _inverse_depth(self, n, frame, rows, rotations, positions):
+    def _inverse_depth(self, n, frame, rows):
         """1/Z (B, W) of camera n's rows (NaN: unknown)."""
         if not isinstance(self.depth, StereoDepth):
-            return self.depth.inverse_depth(n, frame, rows, rotations, positions)
+            return self.depth.inverse_depth(n, frame, rows)
         if not self.depth.has_depth(n):
             return np.full((len(rows), self.rig.cameras[n].width), np.nan)
         pair = self.depth.pair_of[n]
@@ -361,7 +361,7 @@ class Tracker:
         times = rec.time[frame, rows]
         prev_rot, prev_pos = self.track.at(times - self.slots.period)
         rotations, positions = compose(prev_rot, prev_pos, forecasts)
-        full_depth = self._inverse_depth(n, frame, rows, rotations, positions)
+        full_depth = self._inverse_depth(n, frame, rows)
         inverse_depth = full_depth[:, self.columns]
         ref = self._reference(n, frame, rows, rotations, positions, full_depth)
         vx, _ = reference_pixels(cam, cam.rays[rows][:, self.columns], inverse_depth,
@@ -369,11 +369,11 @@ class Tracker:
         predicted = self.columns - vx
         limit = cam.width // 4
         centres = np.clip(np.rint(_row_means(predicted)), -limit, limit).astype(int)
+        strong = self.frame_strong(n, frame)[rows] if self.params.strong_test else None
         return SimpleNamespace(camera=n, frame=frame, rows=rows, slots=slot_ids,
-                      inverse_depth=inverse_depth, ref=ref, predicted=predicted,
-                      centres=centres, bits=self.frame_bits(n, frame)[rows],
-                      strong=(self.frame_strong(n, frame)[rows] if self.params.strong_test
-                              else None))
+                               inverse_depth=inverse_depth, ref=ref, predicted=predicted,
+                               centres=centres, bits=self.frame_bits(n, frame)[rows],
+                               strong=strong)
 
     def _measure(self, entries):
         """Match the block's rows (grouped by window centre across cameras) and form each

@@ -21,7 +21,7 @@ import numpy as np
 
 from .pose_lsq import ShiftCoefficients, design_rows, shift_coefficients
 
-__all__ = ["rotate", "project", "reference_pixels", "DesignTable", "segment_means"]
+__all__ = ["rotate", "project", "camera_poses", "reference_pixels", "DesignTable", "segment_means"]
 
 
 def rotate(matrices, vectors):
@@ -42,6 +42,13 @@ def project(camera, points):
     with np.errstate(divide="ignore", invalid="ignore"):
         x, y = camera.normalized_to_pixel(points[..., 0] / z, points[..., 1] / z)
     return np.where(ahead, x, np.nan), np.where(ahead, y, np.nan)
+
+
+def camera_poses(camera, rotations, positions):
+    """Camera-to-world rotations (..., 3, 3) and camera centres (..., 3) of ``camera``
+    for rig poses (world-from-rig ``rotations``, ``positions``)."""
+    rotations = np.asarray(rotations, dtype=float)
+    return rotations @ camera.R, positions + rotations @ camera.c
 
 
 def reference_pixels(camera, rays, inverse_depth, rotation, position, view_rotation,
