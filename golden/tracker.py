@@ -55,6 +55,11 @@ SOLVERS = ("linear", "nonlinear")
 REFINE_ITERATIONS = 4
 REFINE_PROBE = 1e-6
 
+#: Columns beyond the descriptor kernel on each side of a segment's predicted reference
+#: columns that must hold scene content (the parabola's neighbours); reference pixels
+#: further out only raise the costs of far shifts.
+REFERENCE_MARGIN = 2
+
 #: Weight of each new solved system in the running "typical information" that scales
 #: the filter gains (about the last 50 solved slots).
 TYPICAL_SMOOTHING = 0.02
@@ -415,7 +420,7 @@ class Tracker:
         lo, hi = -(-e.lo // stride), -(-e.hi // stride)     # strided columns in [lo, hi)
         e.design, share = segment_means(design, usable, lo, hi)
         e.expected, _ = segment_means(e.predicted, usable, lo, hi)
-        margin = p.window + self.desc.radius
+        margin = self.desc.radius + REFERENCE_MARGIN
         invalid = np.cumsum(np.concatenate([np.zeros((len(e.rows), 1)), ~e.ref.valid],
                                            axis=1), axis=1)
         offset = e.centres[:, None]
