@@ -76,7 +76,7 @@ class _Words:
     def __init__(self, params):
         self.program = build_row_program(params)
         self.schedule = schedule(self.program)
-        ops = [op for op in self.program.ops]
+        ops = self.program.ops
         self.init_shifts = sorted({op.init_shift for op in ops if op.kind == "mac" and op.init})
         self.out_shifts = sorted({op.out_shift for op in ops if op.kind == "mac"})
         #: the (init, out) shift pairs that occur, as ((code, shift), (code, shift))
@@ -232,8 +232,10 @@ class PoseEngine(wiring.Component):
         work_init = [0] * depth_work
         for operand, value in prog.constants.values():
             work_init[operand.index] = int(operand.fmt.quantize(value))
-        bank_in = Memory(shape=raw, depth=depth_in, init=[])
-        bank_work = Memory(shape=raw, depth=depth_work, init=work_init)
+        # LUT RAM: block RAM is the scarcer resource (reference rows, coefficients)
+        distributed = {"ram_style": "distributed"}
+        bank_in = Memory(shape=raw, depth=depth_in, init=[], attrs=distributed)
+        bank_work = Memory(shape=raw, depth=depth_work, init=work_init, attrs=distributed)
         m.submodules.bank_in, m.submodules.bank_work = bank_in, bank_work
         self._banks = (bank_in, bank_work)  # for inspection by tests
         w_in, w_work = bank_in.write_port(), bank_work.write_port()

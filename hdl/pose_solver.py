@@ -4,9 +4,9 @@ integrated pose, in fixed point.
 Measurements (one per camera or row segment) stream in; each row's last measurement
 closes the row, and one pose record per row streams out. Inside:
 
-* the coefficient store (:class:`amaranth.lib.memory.Memory`, one entry of nine
-  coefficients per slot and row; initial contents at build time, rewritable at run
-  time through ``coef_write``);
+* the coefficient store (nine :class:`amaranth.lib.memory.Memory`, one per
+  coefficient, one entry per slot and row; initial contents at build time, rewritable
+  at run time through ``coef_write``);
 * :class:`hdl.pose_accumulator.PoseAccumulator`: the weighted normal equations;
 * :class:`hdl.pose_engine.PoseEngine`: Jacobi scaling, the LDLᵀ solve with its pivot
   check, and the pose integration.
@@ -16,8 +16,8 @@ bit-accurate model is :mod:`emulator.pose_solver`.
 """
 
 import numpy as np
-from amaranth.hdl import Module, Signal, signed
-from amaranth.lib import data, stream, wiring
+from amaranth.hdl import Module, signed
+from amaranth.lib import stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out, connect
 
@@ -125,17 +125,15 @@ class PoseSolver(wiring.Component):
         m.submodules.accumulator = acc = self._accumulator
         m.submodules.engine = engine = self._engine
 
-        lane = data.ArrayLayout(signed(p.coef_width), 9)
-        init = [[int(v) for v in entry] for entry in self.coefficients.reshape(-1, 9)]
-        store = Memory(shape=lane, depth=p.entries, init=init)
-        m.submodules.coefficients = store
-        read = store.read_port()
-        write = store.write_port(granularity=1)
-        m.d.comb += [read.addr.eq(acc.coef_addr), acc.coef_data.eq(read.data),
-                     write.addr.eq(self.coef_write.addr)]
+        # one memory per coefficient: 18-bit lanes pack into 2048×18 block RAMs
         for k in range(9):
-            m.d.comb += [write.data[k].eq(self.coef_write.data),
-                         write.en[k].eq(self.coef_write.en & (self.coef_write.index == k))]
+            store = Memory(shape=signed(p.coef_width), depth=p.entries,
+                           init=[int(v) for v in self.coefficients[..., k].reshape(-1)])
+            m.submodules[f"coefficients{k}"] = store
+            read, write = store.read_port(), store.write_port()
+            m.d.comb += [read.addr.eq(acc.coef_addr), acc.coef_data[k].eq(read.data),
+                         write.addr.eq(self.coef_write.addr), write.data.eq(self.coef_write.data),
+                         write.en.eq(self.coef_write.en & (self.coef_write.index == k))]
 
         connect(m, wiring.flipped(self.i), acc.i)
         connect(m, engine.o, wiring.flipped(self.o))

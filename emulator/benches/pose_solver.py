@@ -189,9 +189,11 @@ def measure():
     figures["row_rate_khz"] = round(CLOCK_MHZ * 1e3 / timing["clocks_per_row"], 1)
     figures["latency_us"] = round(timing["latency_clocks"] / CLOCK_MHZ, 3)
     for name, key in (("stereo20", "cameras20"), ("radial4", "radial4")):
-        _, _, other = _timing_case(name)
+        params, coefficients, other = _timing_case(name)
         figures[f"{key}.clocks_per_row"] = other["clocks_per_row"]
         figures[f"{key}.latency_clocks"] = other["latency_clocks"]
+        synth = synth_report(PoseSolver(params, coefficients), f"pose_solver_{name}")
+        figures.update({f"{key}.{k}": synth[k] for k in ("lut", "bram36", "dsp48")})
     synth = synth_report(PoseSolver(params8, coefficients8), "pose_solver")
     figures.update({key: synth[key] for key in ("lut", "ff", "bram36", "dsp48", "carry4",
                                                 "lutram", "lut_levels")})
@@ -213,6 +215,9 @@ def report(figures):
     def row(label, key, unit="", target=None):
         value = figures[key]
         text = f"{value:.3g}" if isinstance(value, float) else str(value)
+        if key.endswith(".bram36"):  # the other builds: BRAM36 / LUT / DSP48 in one cell
+            build = key[:-len(".bram36")]
+            text = f"{value:g} / {figures[build + '.lut']} / {figures[build + '.dsp48']}"
         goal = f"≤ {target}" if target is not None else ""
         met = "" if target is None else (" ✓" if value <= target else " ✗")
         return f"| {label} | {text} {unit} | {goal}{met} |"
@@ -227,8 +232,10 @@ def report(figures):
         row("latency at 150 MHz", "latency_us", "µs"),
         row("DSP48E1", "dsp48", "", TARGETS["dsp48"]),
         row("LUT", "lut"), row("FF", "ff"), row("BRAM36", "bram36"),
-        row("LUT RAM cells", "lutram"), row("CARRY4", "carry4"),
+        row("LUT RAM cells (RAM64M, 4 LUTs each)", "lutram"), row("CARRY4", "carry4"),
         row("LUT levels (longest path)", "lut_levels"),
+        row("BRAM36 / LUT / DSP48, 20 cameras", "cameras20.bram36"),
+        row("BRAM36 / LUT / DSP48, radial4", "radial4.bram36"),
         row("trajectory error, worst rig", "traj_err_cm", "cm", TARGETS["traj_err_cm"]),
         row("orientation error, worst rig", "traj_err_deg", "°", TARGETS["traj_err_deg"]),
     ])
@@ -239,6 +246,10 @@ def report(figures):
                     f"{f['step_rel_err_median']:.2g} / {f['step_rel_err_max']:.2g} | "
                     f"{f['flagged_rows']} | {f['condition_max']:.3g} | "
                     f"{f['golden_vs_truth_cm']:.3g} cm, {f['golden_vs_truth_deg']:.3g}° |")
+    ranges = [f"| {CLASSES[c]} (`{c}`) | {figures[f'range.stereo20.{c}.max']:.3g} | "
+              f"{figures[f'range.stereo20.{c}.headroom_bits']} | "
+              f"{figures[f'range.radial4.{c}.max']:.3g} | "
+              f"{figures[f'range.radial4.{c}.headroom_bits']} |" for c in CLASSES]
     return f"""# Pose solver
 
 `hdl/pose_solver.py` (coefficient store, accumulator, Cholesky engine; see
@@ -246,8 +257,8 @@ def report(figures):
 the block with rows sent back to back at full rate (records checked against
 `emulator/pose_solver.py`): 8 cameras (one camera of each of eight stereo20 pairs,
 18-bit coefficient store, 480 rows), the full stereo20 rig (20 cameras) and radial4
-(4 cameras × 8 segments). Resources are Yosys `synth_xilinx -family xc7` of the
-8-camera build (xc7z020: {XC7Z020['lut']} LUTs, {XC7Z020['dsp48']} DSP48E1,
+(4 cameras × 8 segments). Resources are Yosys `synth_xilinx -family xc7` of each
+build, the main figures for the 8-camera one (xc7z020: {XC7Z020['lut']} LUTs, {XC7Z020['dsp48']} DSP48E1,
 {XC7Z020['bram36']} BRAM36); there is no vendor timing, so logic depth stands in for it.
 
 | figure | value | target |
@@ -266,4 +277,16 @@ coefficient store. "Step error" is |Y_fixed − Y_float| / |Y_float| per solved 
 | rig | rows | position error (cm) | orientation error (°) | step error median / max | flagged rows | worst condition | golden vs truth |
 |---|---|---|---|---|---|---|---|
 {chr(10).join(rigs)}
+
+## Dynamic range of the solve
+
+Largest magnitude of each value class over 3,000 rows of each rig (papers' motion,
+0.01 px shift noise, 5 % zero weights, solved rows), and the headroom: bits between it
+and the limit of the value's format (`docs/fixed_point.md`). Smallest pivot: stereo20
+{figures['range.stereo20.D.min']:.3g}, radial4 {figures['range.radial4.D.min']:.3g} (the
+pivot check's threshold is 2^-20 ≈ 9.5e-7).
+
+| value | stereo20 max | headroom (bits) | radial4 max | headroom (bits) |
+|---|---|---|---|---|
+{chr(10).join(ranges)}
 """

@@ -1,7 +1,6 @@
 """emulator.pose_solver against golden.pose_lsq: the fixed-point design is accurate
 enough (level 2 of the three levels of truth), and its checks flag what they must."""
 
-import math
 import os
 
 import numpy as np
