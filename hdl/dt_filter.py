@@ -44,7 +44,7 @@ __all__ = ["SIGMA_FMT", "COEF_FMT", "GUIDE_BITS", "COEF_NUMERATOR", "TABLE_ADDR_
            "DtFilterParams", "Reciprocal", "WeightUnit", "DomainTransformFilter"]
 
 #: Run-time registers ``sigma_s`` (pixels) and ``sigma_r`` (guide LSBs); values below 1.0
-#: are clamped to 1.0 by the hardware.
+#: are clamped to 1.0 by the hardware and reported on ``DomainTransformFilter.clamped``.
 SIGMA_FMT = UQ(10, 6)
 #: ``k = sqrt(2) / ln(2) / sigma``, the weight exponent per unit of distance (log2 units).
 COEF_FMT = UQ(2, 28)
@@ -353,6 +353,10 @@ class DomainTransformFilter(wiring.Component):
         Spatial standard deviation in pixels (``UQ(10, 6)``, at least 1.0).
     sigma_r : In(SIGMA_FMT)
         Range standard deviation in guide LSBs (``UQ(10, 6)``, at least 1.0).
+    clamped : Out(2)
+        Bit 0 (``sigma_s``) and bit 1 (``sigma_r``): the register is below 1.0 and the
+        block is filtering with 1.0 instead; a status flag, so that a bad register value
+        is seen, not silently replaced (the emulator rejects such values).
 
     Both sigmas are run-time registers: they are turned into coefficients continuously
     and each frame uses the values latched at its first pixel, once they have been
@@ -383,6 +387,7 @@ class DomainTransformFilter(wiring.Component):
             "o": Out(stream.Signature(params.output_layout())),
             "sigma_s": In(SIGMA_FMT.shape()),
             "sigma_r": In(SIGMA_FMT.shape()),
+            "clamped": Out(2),
         })
 
     @property
@@ -414,7 +419,9 @@ class DomainTransformFilter(wiring.Component):
         # --- run-time coefficients --------------------------------------------------------
         m.submodules.recip_s = recip_s = Reciprocal()
         m.submodules.recip_r = recip_r = Reciprocal()
-        m.d.comb += [recip_s.sigma.eq(self.sigma_s), recip_r.sigma.eq(self.sigma_r)]
+        m.d.comb += [recip_s.sigma.eq(self.sigma_s), recip_r.sigma.eq(self.sigma_r),
+                     self.clamped.eq(Cat(self.sigma_s < SIGMA_MIN_RAW,
+                                         self.sigma_r < SIGMA_MIN_RAW))]
 
         # --- input control: real rows, filler rows, the advance -----------------------------
         k_in = Signal(range(width))

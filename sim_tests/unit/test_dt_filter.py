@@ -192,3 +192,21 @@ def test_bad_parameters_are_named():
         model.sigma_register("sigma_r", 0.5)
     with pytest.raises(ValueError, match=r"guide and value must both be \(H, 16\) arrays"):
         model.filter_frame(CASES["window1"], np.zeros((2, 15), int), np.zeros((2, 15), int), 64, 64)
+
+
+@pytest.mark.parametrize("sigma_s, sigma_r, expected", [
+    (1.0, 1.0, 0b00), (0.5, 12.0, 0b01), (20.0, 0.984375, 0b10), (0.0, 0.0, 0b11),
+    (SIGMA_FMT.max_value, 1.015625, 0b00)])
+def test_clamped_sigmas_are_flagged(sigma_s, sigma_r, expected):
+    dut = DomainTransformFilter(DtFilterParams(width=16, window=1))
+
+    async def bench(ctx):
+        ctx.set(dut.sigma_s, int(SIGMA_FMT.quantize(sigma_s)))
+        ctx.set(dut.sigma_r, int(SIGMA_FMT.quantize(sigma_r)))
+        await ctx.tick()
+        assert ctx.get(dut.clamped) == expected
+
+    sim = Simulator(dut)
+    sim.add_clock(CLOCK)
+    sim.add_testbench(bench)
+    sim.run()
