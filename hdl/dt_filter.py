@@ -37,6 +37,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from .checks import check_int
 from .fixed import (Overflow, Rounding, SQ, UQ, add_format, hdl_add, hdl_mul, hdl_resize,
                     mul_format)
 
@@ -72,16 +73,6 @@ def weight_tables(table_fmt):
     return [int(v) for v in high], [int(v) for v in low]
 
 
-def _check_int(name, value, minimum, maximum=None, choices=None):
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise TypeError(f"{name} must be an integer, not {value!r}")
-    if choices is not None and value not in choices:
-        raise ValueError(f"{name} must be one of {', '.join(map(str, choices))}, not {value}")
-    if value < minimum or (maximum is not None and value > maximum):
-        bound = f"at least {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
-        raise ValueError(f"{name} must be {bound}, not {value}")
-
-
 @dataclass(frozen=True, kw_only=True)
 class DtFilterParams:
     """Build parameters of :class:`DomainTransformFilter` (plain data: the model uses it too).
@@ -104,10 +95,12 @@ class DtFilterParams:
     frac_bits: int = 8
 
     def __post_init__(self):
-        _check_int("value_bits", self.value_bits, 8, choices=(8, 16))
-        _check_int("window", self.window, 1, 64)
-        _check_int("frac_bits", self.frac_bits, 0, 16)
-        _check_int("width", self.width, max(16, self.window + 8), 1 << 16)
+        check_int("value_bits", self.value_bits)
+        if self.value_bits not in (8, 16):
+            raise ValueError(f"value_bits must be one of 8, 16, not {self.value_bits}")
+        check_int("window", self.window, 1, 64)
+        check_int("frac_bits", self.frac_bits, 0, 16)
+        check_int("width", self.width, max(16, self.window + 8), 1 << 16)
 
     replace = replace
 

@@ -110,6 +110,6 @@ def test_dtfilter_bad_input_is_a_clear_error(files, capsys):
     assert "--hardware filters single-channel images only" in capsys.readouterr().err
     assert main(["dtfilter", str(paths["t8"]), "-o", str(directory / "x.png"), "--hardware",
                  "--window", "0"]) == 2
-    assert "--window must be in [1, 64], not 0" in capsys.readouterr().err
+    assert "--window must be an integer between 1 and 64, not 0" in capsys.readouterr().err
     assert main(["dtfilter", str(paths["t8"]), "-o", str(directory / "x.unknownext")]) == 2
     assert "OpenCV cannot write this file type" in capsys.readouterr().err
