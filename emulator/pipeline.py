@@ -169,17 +169,22 @@ def _framed(dataset, camera, frame, row, config):
                      padded=False)
 
 
-def run(config, dataset, frames=None):
-    """Run the dataset (first ``frames`` frames, default all) through the pipeline."""
+def run(config, dataset, frames=None, *, progress=False):
+    """Run the dataset (first ``frames`` frames, default all) through the pipeline;
+    ``progress`` shows a bar over the row sets."""
+    from tqdm import tqdm
     router = config.router
     cams = range(router.cameras)
     frames = min(len(c.rows) for c in dataset.cameras) if frames is None else frames
     temporal_lanes = [TemporalLaneModel(router.temporal) for _ in cams]
     stereo_lanes = [StereoLaneModel(router.stereo) for _ in router.pairs]
     temporal, stereo, transfers, record_frames = [], [], [], []
+    bar = tqdm(total=frames * router.temporal.height, desc="emulator", unit="row set",
+               disable=not progress, leave=False)
     start = time.perf_counter()
     for frame in range(frames):
         for row in range(router.temporal.height):
+            bar.update()
             rows = [_framed(dataset, n, frame, row, config) for n in cams]
             t = [m for n in cams for m in temporal_lanes[n].process_row(rows[n])]
             s = [m for lane, (a, b) in zip(stereo_lanes, router.pairs)
@@ -189,6 +194,7 @@ def run(config, dataset, frames=None):
             stereo += s
             transfers += out
             record_frames += [frame] if out else []
+    bar.close()
     rows = pose_rows(router, transfers)
     records = pose_solver_model(router.solver, config.coef_raw, rows)
     seconds = time.perf_counter() - start

@@ -1,24 +1,262 @@
 """``rowtrack run``: the main job (what ``make run`` calls).
 
-Until the end-to-end pipeline exists this writes the Verilog of every block.
+Simulate a rig and trajectory (or load a dataset), track it with the golden float
+tracker, run the bit-accurate emulator and its float counterpart on the same rows,
+co-simulate a slice of the HDL top, and write ``build/report/`` (report.md, PNG plots,
+metrics.json). Every input is checked before the long work starts; the exit status is 1
+when a comparison fails, with one line per failure saying where.
 """
 
+import argparse
+import math
+import time
+from dataclasses import dataclass
 from pathlib import Path
 
+from emulator.errors import UsageError
+
 NAME = "run"
-HELP = "the main job: build every block's Verilog (the end-to-end run comes with the pipeline)"
+HELP = "the main job: simulate, track (golden and bit-accurate emulator), co-simulate a " \
+       "slice of the HDL, compare, and write build/report/"
+
+#: Default scenario: the full stereo20 rig (640×480), four frames of the papers' motion
+#: (1,440 solved row sets; about 1.5 minutes on one core, see docs/results/e2e.md).
+DEFAULT_FRAMES = 4
+DEFAULT_TRAJECTORY = "paper"
+#: Co-simulated slice: rows of frames 0 and 1 (frame 1 has its reference) of the first
+#: cameras, enough for a dozen pose records through the HDL top.
+DEFAULT_COSIM = {"rows": 4, "cameras": 2, "frames": 2}
+SEGMENTS = 4
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, not {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be non-negative, not {value}")
+    return value
 
 
 def add_arguments(parser):
-    parser.add_argument("-o", "--out", default="build/verilog", type=Path,
-                        help="output directory (default: %(default)s)")
+    from golden.rig import PRESETS
+    from golden.trajectory import MOTIONS
+    source = parser.add_argument_group("input (simulated unless --dataset)")
+    source.add_argument("--rig", help=f"preset ({', '.join(PRESETS)}) or a .yaml/.toml rig "
+                                      f"file (default: stereo20)")
+    source.add_argument("--dataset", type=Path,
+                        help="use this dataset (.npz from `rowtrack simulate`) instead of "
+                             "simulating")
+    source.add_argument("--trajectory", choices=MOTIONS,
+                        help=f"motion to simulate (default: {DEFAULT_TRAJECTORY})")
+    length = source.add_mutually_exclusive_group()
+    length.add_argument("--frames", type=_positive_int,
+                        help=f"frames to simulate or to use (default: {DEFAULT_FRAMES})")
+    length.add_argument("--duration", type=float,
+                        help="seconds to simulate, instead of --frames")
+    source.add_argument("--rows", type=_positive_int,
+                        help="cut the simulated rig to its middle ROWS rows, read out over "
+                             "the same frame period (default: the full height)")
+    source.add_argument("--seed", type=int, default=1,
+                        help="seed of the room, the motion and the co-simulation "
+                             "(default: %(default)s)")
+    cosim = parser.add_argument_group("co-simulation of the HDL top")
+    cosim.add_argument("--cosim-rows", type=_positive_int, default=DEFAULT_COSIM["rows"],
+                       help="rows per frame of the co-simulated slice; 0 skips the "
+                            "co-simulation (default: %(default)s)")
+    cosim.add_argument("--cosim-cameras", type=_positive_int,
+                       default=DEFAULT_COSIM["cameras"],
+                       help="cameras of the slice (the first ones; default: %(default)s)")
+    cosim.add_argument("--cosim-frames", type=_positive_int, default=DEFAULT_COSIM["frames"],
+                       help="frames of the slice (default: %(default)s)")
+    cosim.add_argument("--sim", choices=("verilator", "icarus"), default="verilator",
+                       help="HDL simulator (default: %(default)s)")
+    cosim.add_argument("--waves", action="store_true", help="record waveforms")
+    parser.add_argument("-o", "--out", type=Path, default=Path("build/report"),
+                        help="report directory (default: %(default)s)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+@dataclass(frozen=True)
+class Job:
+    """Checked inputs of one run: a loaded dataset or what to simulate."""
+    rig: object
+    config: object
+    frames: int
+    dataset: object = None
+    trajectory: str = DEFAULT_TRAJECTORY
+    seed: int = 1
+    cosim: dict = None
+    sim: str = "verilator"
+    waves: bool = False
+    out: Path = Path("build/report")
+
+
+def _cut_rows(rig, rows):
+    """``rig`` with its middle ``rows`` rows, read out over the same frame period."""
+    if rows is None:
+        return rig
+    height = {cam.height for cam in rig.cameras}
+    if len(height) != 1:
+        raise UsageError("--rows needs cameras of one height")
+    height, = height
+    if not 3 <= rows <= height:
+        raise UsageError(f"--rows must be between 3 and the rig's height {height}, not {rows}")
+    fps = rig.cameras[0].fps
+    try:
+        return rig.replace_cameras(height=rows, cy=(rows - 1) / 2, t_r=1 / (fps * rows))
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"--rows {rows}: {exc}") from None
+
+
+def _frames(args, rig, available=None):
+    """Frames to use, checked against what the dataset holds."""
+    fps = rig.cameras[0].fps
+    if args.duration is not None:
+        if not (math.isfinite(args.duration) and args.duration > 0):
+            raise UsageError(f"--duration must be a positive number of seconds, not "
+                             f"{args.duration}")
+        frames = rig.cameras[0].frame_count(args.duration)
+    else:
+        frames = available if args.frames is None and available else \
+            (args.frames if args.frames is not None else DEFAULT_FRAMES)
+    if frames < 2:
+        raise UsageError(f"the run needs at least 2 frames (the first has no reference "
+                         f"row), not {frames} (--frames/--duration at {fps:g} fps)")
+    if available is not None and frames > available:
+        raise UsageError(f"--frames {frames}: the dataset holds {available} frames")
+    return frames
+
+
+def _configure(rig):
+    from emulator.pipeline import configure
+    try:
+        return configure(rig, segments=SEGMENTS)
+    except ValueError as exc:
+        raise UsageError(f"rig {rig.name!r} cannot run on the hardware pipeline: {exc}") \
+            from None
+
+
+def _simulation_inputs(args, rig, frames):
+    """Fail now on a trajectory that takes a camera into a wall."""
+    from golden.scene import default_scene_spec
+    from golden.simulator import check_clearance, schedule
+    from golden.trajectory import make_trajectory
+    trajectory = make_trajectory(args.trajectory or DEFAULT_TRAJECTORY, seed=args.seed)
+    try:
+        check_clearance(rig, default_scene_spec(args.seed), trajectory,
+                        schedule(rig, frames / rig.cameras[0].fps, args.seed))
+    except ValueError as exc:
+        raise UsageError(f"--trajectory {args.trajectory or DEFAULT_TRAJECTORY}: {exc}") \
+            from None
+
+
+def _cosim_slice(args, config, frames):
+    """The co-simulated slice, checked against the run; None for --cosim-rows 0."""
+    if args.cosim_rows == 0:
+        return None
+    router = config.router
+    checks = (("--cosim-rows", args.cosim_rows, router.temporal.height, "rows per frame"),
+              ("--cosim-cameras", args.cosim_cameras, router.cameras, "cameras"),
+              ("--cosim-frames", args.cosim_frames, frames, "frames in the run"))
+    for flag, value, limit, what in checks:
+        if not 1 <= value <= limit:
+            raise UsageError(f"{flag} must be between 1 and the {limit} {what}, not {value}")
+    try:
+        import emulator.cosim  # noqa: F401  (helper H6's co-simulation runner)
+    except ImportError as exc:
+        raise UsageError(f"the co-simulation (emulator.cosim) is not available: {exc}; "
+                         f"--cosim-rows 0 runs without it") from None
+    return {"rows": args.cosim_rows, "cameras": args.cosim_cameras,
+            "frames": args.cosim_frames}
+
+
+def _output(path):
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"--out {str(path)!r} exists and is not a directory")
+    return path
+
+
+def check_inputs(args):
+    """Every input checked, nothing long done yet: a :class:`Job`."""
+    from golden.rig import load_rig
+    from emulator.commands.track import _load
+    if args.dataset is not None:
+        for flag in ("rig", "trajectory", "rows", "duration"):
+            if getattr(args, flag) is not None:
+                raise UsageError(f"--{flag} applies to a simulated run, not to --dataset")
+        dataset = _load(args.dataset)
+        rig = dataset.rig
+        frames = _frames(args, rig, min(len(c.rows) for c in dataset.cameras))
+    else:
+        dataset = None
+        try:
+            rig = load_rig(args.rig or "stereo20")
+        except (OSError, TypeError, ValueError) as exc:
+            raise UsageError(f"--rig {args.rig}: {exc}") from None
+        rig = _cut_rows(rig, args.rows)
+        frames = _frames(args, rig)
+    config = _configure(rig)
+    if dataset is None:
+        _simulation_inputs(args, rig, frames)
+    return Job(rig=rig, config=config, frames=frames, dataset=dataset,
+               trajectory=args.trajectory or DEFAULT_TRAJECTORY, seed=args.seed,
+               cosim=_cosim_slice(args, config, frames), sim=args.sim, waves=args.waves,
+               out=_output(args.out))
+
+
+def run_job(job, progress=True):
+    """The long work of a checked :class:`Job`: simulate, track, emulate, compare,
+    co-simulate. Returns :class:`emulator.report.Outcome`."""
+    from emulator import e2e, pipeline
+    from emulator.report import Outcome
+    from golden.metrics import evaluate
+    from golden.scene import default_scene_spec
+    from golden.simulator import simulate
+    from golden.tracker import track
+    from golden.trajectory import make_trajectory
+    walls = {}
+    start = time.perf_counter()
+    dataset = job.dataset
+    if dataset is None:
+        dataset = simulate(job.rig, default_scene_spec(job.seed),
+                           make_trajectory(job.trajectory, seed=job.seed),
+                           job.frames / job.rig.cameras[0].fps, seed=job.seed,
+                           progress=progress)
+    walls["simulate"] = time.perf_counter() - start
+    start = time.perf_counter()
+    golden = track(dataset, progress=progress)
+    accuracy = evaluate(golden, dataset)
+    walls["golden"] = time.perf_counter() - start
+    emulated = pipeline.run(job.config, dataset, job.frames, progress=progress)
+    walls["emulator"] = emulated.seconds
+    start = time.perf_counter()
+    scheme = e2e.scheme_steps(job.config, dataset, job.frames)
+    comparison = e2e.compare_steps(job.config, emulated, dataset, golden, scheme)
+    _, worst = e2e.measurement_agreement(job.config, emulated, scheme)
+    failures = e2e.check_tolerances(comparison, worst)
+    walls["compare"] = time.perf_counter() - start
+    cosim = None
+    if job.cosim is not None:
+        from emulator.cosim import cosim_slice
+        cosim = cosim_slice(dataset, **job.cosim, sim=job.sim, waves=job.waves,
+                            seed=job.seed, build_dir=Path("build/cosim"), progress=progress)
+        walls["cosim"] = cosim.wall_s
+    return Outcome(job=job, dataset=dataset, golden=golden, accuracy=accuracy,
+                   emulated=emulated, scheme=scheme, comparison=comparison,
+                   failures=failures, cosim=cosim, walls=walls)
 
 
 def run(args):
-    from hdl import catalog
-    from emulator.commands.verilog import write_blocks
-    paths = write_blocks(catalog.names(), args.out)
-    for path in paths:
-        print(f"wrote {path}")
-    print(f"{len(paths)} block(s) written to {args.out}/")
-    return 0
+    from emulator.report import write_report
+    job = check_inputs(args)
+    started = time.perf_counter()
+    outcome = run_job(job, progress=not args.no_progress)
+    outcome.walls["total"] = time.perf_counter() - started
+    paths = write_report(outcome, job.out)
+    print(outcome.summary())
+    print(f"wrote {', '.join(str(p) for p in paths)}")
+    for failure in outcome.all_failures():
+        print(f"rowtrack run: FAILED: {failure}")
+    return 1 if outcome.all_failures() else 0

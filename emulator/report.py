@@ -1,0 +1,302 @@
+"""``build/report/`` of ``rowtrack run``: ``report.md``, PNG plots and ``metrics.json``.
+
+The figures come from one :class:`Outcome` (what :func:`emulator.commands.run.run_job`
+produced); :func:`metrics` is also what ``rowtrack bench --only e2e`` reports. Resource
+estimates are not measured here: they are read from ``docs/results/figures.json``
+(``top.*``, written by ``rowtrack bench --only top``), and the report says so.
+"""
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from golden.metrics import AXES
+from golden.pose_lsq import UNKNOWNS
+
+__all__ = ["Outcome", "metrics", "cosim_failures", "resources", "write_report",
+           "FIGURES_JSON"]
+
+FIGURES_JSON = Path(__file__).resolve().parent.parent / "docs" / "results" / "figures.json"
+
+#: Accuracy figures of golden.metrics.evaluate carried into metrics.json.
+ACCURACY = ("rms_t_cm", "rms_r_deg", "abs_t_cm", "abs_r_deg", "render_px",
+            "render_px_max", "update_fraction")
+
+
+@dataclass
+class Outcome:
+    """Everything one run produced (see :func:`emulator.commands.run.run_job`)."""
+    job: object
+    dataset: object
+    golden: object                   # golden.tracker.TrackResult
+    accuracy: dict                   # golden.metrics.evaluate
+    emulated: object                 # emulator.pipeline.PipelineResult
+    scheme: object                   # emulator.e2e.SchemeResult
+    comparison: dict                 # emulator.e2e.compare_steps
+    failures: list                   # emulator ↔ golden scheme tolerance failures
+    cosim: object = None             # emulator.cosim.CosimResult, None when skipped
+    walls: dict = field(default_factory=dict)
+
+    def all_failures(self):
+        return list(self.failures) + cosim_failures(self.cosim)
+
+    def summary(self):
+        m = metrics(self)
+        lines = [f"{m['rig']}: {m['cameras']} cameras × {m['frames']} frames × {m['rows']} "
+                 f"rows in {m['wall_s.total']:.1f} s" if "wall_s.total" in m else m["rig"],
+                 f"golden tracker vs truth: per-row Y RMS T "
+                 f"{_triple(m, 'golden.rms_t_cm', 4)} cm, θ {_triple(m, 'golden.rms_r_deg', 4)}°",
+                 f"emulator vs truth: step RMS {_six(m, 'emulator_vs_truth.rms')}",
+                 f"emulator vs golden scheme: step RMS {_six(m, 'emulator_vs_scheme.rms')}; "
+                 f"{m['measurement.within_subpixel']:.1%} of well-textured shifts within "
+                 f"1/16 px",
+                 f"emulator: {m['emulator_rows_per_s']:.0f} camera rows/s"]
+        if self.cosim is None:
+            lines.append("HDL co-simulation: skipped (--cosim-rows 0)")
+        else:
+            lines.append(f"HDL co-simulation: {m['hdl_records']} records, "
+                         f"{m['hdl_mismatches']} mismatches; {m['pose_rate_hz']:.4g} row sets/s "
+                         f"and {m['latency_us']:.3g} µs latency at "
+                         f"{m['clk_hz'] / 1e6:g} MHz; {m['hdl_cycles_per_s']:.3g} cycles/s "
+                         f"simulated; emulator/HDL speed {m['speed_ratio']:.3g}×")
+        return "\n".join(lines)
+
+
+def _triple(m, key, digits):
+    return "/".join(f"{m[f'{key}.{a}']:.{digits}f}" for a in AXES)
+
+
+def _six(m, key):
+    return " ".join(f"{m[f'{key}.{n}']:.2g}" for n in UNKNOWNS)
+
+
+def cosim_failures(cosim):
+    """Failure messages of a co-simulated slice (none when skipped)."""
+    if cosim is None:
+        return []
+    failures = []
+    if not len(cosim.records):
+        failures.append("HDL ↔ emulator: the co-simulated slice produced no pose record")
+    if cosim.mismatches:
+        failures.append(f"HDL ↔ emulator: {cosim.mismatches} mismatching record(s); first: "
+                        f"{cosim.first_mismatch}")
+    if not cosim.uart_packets_match:
+        failures.append("HDL ↔ emulator: the UART packets differ from the emulator's")
+    return failures
+
+
+def _flat(prefix, values):
+    """A metrics entry: lists of three become ``prefix.x/.y/.z``."""
+    if isinstance(values, list) and len(values) == 3:
+        return {f"{prefix}.{a}": v for a, v in zip(AXES, values)}
+    return {prefix: values}
+
+
+def metrics(outcome):
+    """The run's figures, flat dotted keys without the ``e2e.`` prefix (metrics.json
+    and the e2e benchmark add it)."""
+    job, dataset, cosim = outcome.job, outcome.dataset, outcome.cosim
+    router = job.config.router
+    camera = dataset.rig.cameras[0]
+    m = {"rig": dataset.rig.name, "cameras": router.cameras, "frames": job.frames,
+         "rows": router.temporal.height, "segments": router.temporal.segments,
+         "row_sets_needed_per_s": camera.fps * camera.height,
+         "emulator_rows_per_s": outcome.emulated.rows_per_s,
+         "emulator_camera_rows": outcome.emulated.camera_rows}
+    for name in ACCURACY:
+        m.update(_flat(f"golden.{name}", outcome.accuracy[name]))
+    m.update({k: v for k, v in outcome.comparison.items() if k != "emulator_rows_per_s"})
+    m.update({f"wall_s.{k}": v for k, v in outcome.walls.items()})
+    m["tolerance_failures"] = len(outcome.failures)
+    if cosim is not None:
+        hdl_rows_per_s = cosim.row_sets * job.cosim["cameras"] / cosim.wall_s
+        m.update({"hdl_mismatches": int(cosim.mismatches), "hdl_records": len(cosim.records),
+                  "hdl_expected": len(cosim.expected), "clk_hz": cosim.clk_hz,
+                  "clocks_per_row_set": cosim.clocks_per_row_set,
+                  "pose_rate_hz": cosim.clk_hz / cosim.clocks_per_row_set,
+                  "latency_clocks": cosim.latency_clocks,
+                  "latency_us": 1e6 * cosim.latency_clocks / cosim.clk_hz,
+                  "hdl_clocks": cosim.clocks, "hdl_wall_s": cosim.wall_s,
+                  "hdl_cycles_per_s": cosim.cycles_per_s,
+                  "hdl_rows_per_s": hdl_rows_per_s,
+                  "speed_ratio": outcome.emulated.rows_per_s / hdl_rows_per_s,
+                  "uart_packets_match": bool(cosim.uart_packets_match),
+                  "cosim.rows": job.cosim["rows"], "cosim.cameras": job.cosim["cameras"],
+                  "cosim.frames": job.cosim["frames"]})
+    return m
+
+
+def _json_safe(value):
+    if isinstance(value, (np.integer, np.floating, np.bool_)):
+        value = value.item()
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def resources(path=FIGURES_JSON):
+    """The top's synthesis estimates ``top.*`` from ``docs/results/figures.json`` (empty
+    when the file or the figures are missing)."""
+    try:
+        figures = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return {}
+    return {k[4:]: v for k, v in figures.items()
+            if k.startswith("top.") and k.count(".") == 1}
+
+
+def _ms(times):
+    return 1000 * (np.asarray(times) - times[0])
+
+
+def _plots(outcome, out):
+    """Write the PNGs; returns their file names."""
+    from emulator.commands.track import plot_trajectory
+    from emulator.e2e import golden_steps, true_steps
+
+    from .report_plots import emulator_camera_confidence, plot_confidence, plot_steps
+    job, dataset, emulated = outcome.job, outcome.dataset, outcome.emulated
+    frames, rows = emulated.frame, emulated.records["row"]
+    times = dataset.cameras[0].time[frames, rows]
+    ms = 1000 * (times - dataset.cameras[0].time[0, 0])
+    scheme = np.full((len(frames), 6), np.nan)
+    scheme[frames > 0] = outcome.scheme.steps
+    truth = true_steps(dataset, frames, rows)
+    golden = golden_steps(outcome.golden, dataset, frames, rows)
+    emulator = emulated.steps(job.config)
+    plot_trajectory(out / "golden_trajectory.png", outcome.golden, dataset, outcome.accuracy)
+    plot_steps(out / "steps.png", ms,
+               {"truth": truth, "golden tracker": golden, "golden scheme (float)": scheme,
+                "emulator": emulator},
+               "one-frame step Y of every row set: truth, golden tracker, the hardware "
+               "scheme in float, the bit-accurate emulator")
+    plot_steps(out / "step_errors.png", ms,
+               {"golden tracker − truth": golden - truth, "emulator − truth": emulator - truth,
+                "emulator − golden scheme": emulator - scheme},
+               "per-axis error of the one-frame step over time")
+    plot_confidence(out / "confidence.png", _ms(outcome.golden.times),
+                    outcome.golden.camera_confidence, ms,
+                    emulator_camera_confidence(job.config, emulated))
+    return ["golden_trajectory.png", "steps.png", "step_errors.png", "confidence.png"]
+
+
+def _table(rows):
+    return "\n".join(["| figure | value |", "|---|---|"]
+                     + [f"| {name} | {value} |" for name, value in rows])
+
+
+def _axes_row(m, key, names, fmt):
+    return " / ".join(format(m[f"{key}.{n}"], fmt) for n in names)
+
+
+def _markdown(outcome, m, plots):
+    from emulator.e2e import (SHIFT_BOUND, STEP_TOLERANCE, SUBPIXEL_SHARE,
+                              SUBPIXEL_TOLERANCE, WELL_TEXTURED)
+    job = outcome.job
+    source = (f"dataset `{job.dataset}`" if outcome.job.dataset is not None
+              else f"simulated, `{job.trajectory}` motion, seed {job.seed}")
+    failures = outcome.all_failures()
+    six = lambda key: _axes_row(m, key, UNKNOWNS, ".2e")  # noqa: E731
+    parts = [
+        "# rowtrack run",
+        "",
+        f"**{'FAILED' if failures else 'PASSED'}**"
+        + "".join(f"\n- {f}" for f in failures),
+        "",
+        f"Rig `{m['rig']}`: {m['cameras']} cameras, {m['rows']} rows, {m['frames']} frames "
+        f"({source}); K = {m['segments']} segments per camera row.",
+        "",
+        "## Accuracy",
+        "",
+        "Golden float tracker (default parameters) against ground truth "
+        "(`golden.metrics.evaluate`):",
+        "",
+        _table([("per-row Y RMS, T x/y/z (cm)", _axes_row(m, "golden.rms_t_cm", AXES, ".4f")),
+                ("per-row Y RMS, θ x/y/z (deg)",
+                 _axes_row(m, "golden.rms_r_deg", AXES, ".4f")),
+                ("trajectory RMS, T x/y/z (cm)",
+                 _axes_row(m, "golden.abs_t_cm", AXES, ".4f")),
+                ("trajectory RMS, θ x/y/z (deg)",
+                 _axes_row(m, "golden.abs_r_deg", AXES, ".4f")),
+                ("render error RMS / max (px)",
+                 f"{m['golden.render_px']:.3f} / {m['golden.render_px_max']:.3f}")]),
+        "",
+        "One-frame steps Y = [Tx Ty Tz θx θy θz] (m, rad) per row set, RMS per axis "
+        "(`emulator.e2e.compare_steps`):",
+        "",
+        _table([("emulator ↔ truth", six("emulator_vs_truth.rms")),
+                ("golden scheme (float) ↔ truth", six("scheme_vs_truth.rms")),
+                ("golden tracker ↔ truth", six("golden_vs_truth.rms")),
+                ("emulator ↔ golden scheme", six("emulator_vs_scheme.rms")),
+                ("emulator ↔ golden scheme, largest", six("emulator_vs_scheme.max_abs")),
+                ("emulator ↔ float64 solve of its own measurements",
+                 six("emulator_vs_float.rms")),
+                ("rows solved by the emulator", f"{m['solved_fraction']:.1%}")]),
+        "",
+        "The hardware measures each row against the same row of the previous frame with "
+        "search centre 0; the golden tracker forecasts the window and follows the rows. "
+        "With vertical image motion the same-row reference shows other content, so the "
+        "hardware scheme is worse against truth (docs/e2e.md). The *golden scheme* is the "
+        "hardware's scheme in float64 (`emulator.e2e.scheme_steps`): what the emulator "
+        "must equal up to its fixed-point arithmetic.",
+        "",
+        "## Emulator ↔ golden scheme tolerance",
+        "",
+        _table([("well-textured measurements (float peak ratio ≥ "
+                 f"{WELL_TEXTURED})", m["measurement.well_textured"]),
+                (f"within {SUBPIXEL_TOLERANCE} px (tolerance: ≥ {SUBPIXEL_SHARE:.0%})",
+                 f"{m['measurement.within_subpixel']:.2%}"),
+                (f"largest difference (tolerance: ≤ {SHIFT_BOUND} px)",
+                 f"{m['measurement.max_shift_px']:.3f} px"),
+                ("weight zero in one, not the other", f"{m['measurement.weight_disagrees']:.3%}"),
+                (f"step RMS per axis (tolerance: ≤ {STEP_TOLERANCE:g})",
+                 six("emulator_vs_scheme.rms"))]),
+        "",
+        "## Hardware (co-simulated slice of the HDL top)",
+        "",
+    ]
+    if outcome.cosim is None:
+        parts.append("Skipped (`--cosim-rows 0`): no HDL figures in this report.")
+    else:
+        parts += [_table([
+            ("slice", f"{m['cosim.cameras']} cameras × {m['cosim.frames']} frames × "
+                      f"{m['cosim.rows']} rows, {job.sim}"),
+            ("pose records HDL / expected", f"{m['hdl_records']} / {m['hdl_expected']}"),
+            ("HDL ↔ emulator mismatches", m["hdl_mismatches"]),
+            ("UART packets equal the emulator's", m["uart_packets_match"]),
+            ("clocks per row set", m["clocks_per_row_set"]),
+            ("pose rate at the configured clock",
+             f"{m['pose_rate_hz']:,.0f} row sets/s = clk_hz / clocks_per_row_set at "
+             f"{m['clk_hz'] / 1e6:g} MHz (the cameras need {m['row_sets_needed_per_s']:,.0f})"),
+            ("latency", f"{m['latency_clocks']} clocks = {m['latency_us']:.3f} µs"),
+            ("HDL simulation speed", f"{m['hdl_cycles_per_s']:,.0f} cycles/s, "
+                                     f"{m['hdl_rows_per_s']:,.1f} camera rows/s"),
+            ("emulator speed", f"{m['emulator_rows_per_s']:,.0f} camera rows/s"),
+            ("emulator / HDL simulation speed", f"{m['speed_ratio']:,.1f}× (issue: ≥ 100×)")])]
+    res = resources()
+    parts += ["", "## Resource estimates", ""]
+    if res:
+        parts += ["From `docs/results/figures.json` (`top.*`, yosys `synth_xilinx` of the "
+                  "pipeline top, measured by `rowtrack bench --only top`; not by this run):",
+                  "", _table([(k, v) for k, v in sorted(res.items())])]
+    else:
+        parts.append("`docs/results/figures.json` holds no `top.*` figures; run "
+                     "`rowtrack bench --only top --write-docs docs/results`.")
+    parts += ["", "## Wall time", "",
+              _table([(k[7:], f"{v:.1f} s") for k, v in m.items() if k.startswith("wall_s.")]),
+              "", "## Plots", ""] + [f"![{p}]({p})" for p in plots]
+    return "\n".join(parts) + "\n"
+
+
+def write_report(outcome, out):
+    """Write report.md, the PNGs and metrics.json (keys prefixed ``e2e.``) to ``out``;
+    returns the paths of report.md and metrics.json."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    plots = _plots(outcome, out)
+    m = metrics(outcome)
+    (out / "metrics.json").write_text(json.dumps(
+        {f"e2e.{k}": _json_safe(v) for k, v in m.items()}, indent=1, sort_keys=True))
+    (out / "report.md").write_text(_markdown(outcome, m, plots))
+    return [out / "report.md", out / "metrics.json"]
