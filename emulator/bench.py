@@ -24,6 +24,7 @@ BENCHES = {
     "tracker": "emulator.benches.tracker",
     "top": "emulator.benches.top",
     "row_descriptor": "emulator.benches.row_descriptor",
+    "e2e": "emulator.benches.e2e",
 }
 
 

@@ -46,7 +46,7 @@ class Outcome:
     def summary(self):
         m = metrics(self)
         lines = [f"{m['rig']}: {m['cameras']} cameras × {m['frames']} frames × {m['rows']} "
-                 f"rows in {m['wall_s.total']:.1f} s" if "wall_s.total" in m else m["rig"],
+                 f"rows in {m['wall_s.total']:.1f} s",
                  f"golden tracker vs truth: per-row Y RMS T "
                  f"{_triple(m, 'golden.rms_t_cm', 4)} cm, θ {_triple(m, 'golden.rms_r_deg', 4)}°",
                  f"emulator vs truth: step RMS {_six(m, 'emulator_vs_truth.rms')}",
@@ -73,12 +73,17 @@ def _six(m, key):
     return " ".join(f"{m[f'{key}.{n}']:.2g}" for n in UNKNOWNS)
 
 
+def _count(records):
+    """Number of pose records in a dict of raw arrays."""
+    return len(np.asarray(records["row"]))
+
+
 def cosim_failures(cosim):
     """Failure messages of a co-simulated slice (none when skipped)."""
     if cosim is None:
         return []
     failures = []
-    if not len(cosim.records):
+    if not _count(cosim.records):
         failures.append("HDL ↔ emulator: the co-simulated slice produced no pose record")
     if cosim.mismatches:
         failures.append(f"HDL ↔ emulator: {cosim.mismatches} mismatching record(s); first: "
@@ -113,8 +118,8 @@ def metrics(outcome):
     m["tolerance_failures"] = len(outcome.failures)
     if cosim is not None:
         hdl_rows_per_s = cosim.row_sets * job.cosim["cameras"] / cosim.wall_s
-        m.update({"hdl_mismatches": int(cosim.mismatches), "hdl_records": len(cosim.records),
-                  "hdl_expected": len(cosim.expected), "clk_hz": cosim.clk_hz,
+        m.update({"hdl_mismatches": int(cosim.mismatches), "hdl_records": _count(cosim.records),
+                  "hdl_expected": _count(cosim.expected), "clk_hz": cosim.clk_hz,
                   "clocks_per_row_set": cosim.clocks_per_row_set,
                   "pose_rate_hz": cosim.clk_hz / cosim.clocks_per_row_set,
                   "latency_clocks": cosim.latency_clocks,

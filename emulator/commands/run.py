@@ -164,7 +164,7 @@ def _cosim_slice(args, config, frames):
         if not 1 <= value <= limit:
             raise UsageError(f"{flag} must be between 1 and the {limit} {what}, not {value}")
     try:
-        import emulator.cosim  # noqa: F401  (helper H6's co-simulation runner)
+        from emulator.cosim import cosim_slice  # noqa: F401  (checked before long work)
     except ImportError as exc:
         raise UsageError(f"the co-simulation (emulator.cosim) is not available: {exc}; "
                          f"--cosim-rows 0 runs without it") from None
@@ -182,6 +182,7 @@ def check_inputs(args):
     """Every input checked, nothing long done yet: a :class:`Job`."""
     from golden.rig import load_rig
     from emulator.commands.track import _load
+    out = _output(args.out)
     if args.dataset is not None:
         for flag in ("rig", "trajectory", "rows", "duration"):
             if getattr(args, flag) is not None:
@@ -203,7 +204,7 @@ def check_inputs(args):
     return Job(rig=rig, config=config, frames=frames, dataset=dataset,
                trajectory=args.trajectory or DEFAULT_TRAJECTORY, seed=args.seed,
                cosim=_cosim_slice(args, config, frames), sim=args.sim, waves=args.waves,
-               out=_output(args.out))
+               out=out)
 
 
 def run_job(job, progress=True):
@@ -217,7 +218,7 @@ def run_job(job, progress=True):
     from golden.tracker import track
     from golden.trajectory import make_trajectory
     walls = {}
-    start = time.perf_counter()
+    started = start = time.perf_counter()
     dataset = job.dataset
     if dataset is None:
         dataset = simulate(job.rig, default_scene_spec(job.seed),
@@ -243,6 +244,7 @@ def run_job(job, progress=True):
         cosim = cosim_slice(dataset, **job.cosim, sim=job.sim, waves=job.waves,
                             seed=job.seed, build_dir=Path("build/cosim"), progress=progress)
         walls["cosim"] = cosim.wall_s
+    walls["total"] = time.perf_counter() - started
     return Outcome(job=job, dataset=dataset, golden=golden, accuracy=accuracy,
                    emulated=emulated, scheme=scheme, comparison=comparison,
                    failures=failures, cosim=cosim, walls=walls)
@@ -251,9 +253,7 @@ def run_job(job, progress=True):
 def run(args):
     from emulator.report import write_report
     job = check_inputs(args)
-    started = time.perf_counter()
     outcome = run_job(job, progress=not args.no_progress)
-    outcome.walls["total"] = time.perf_counter() - started
     paths = write_report(outcome, job.out)
     print(outcome.summary())
     print(f"wrote {', '.join(str(p) for p in paths)}")

@@ -1,0 +1,192 @@
+"""``rowtrack run`` (emulator/commands/run.py, emulator/report.py) on a tiny
+configuration: stereo20 cut to its 32 middle rows, three frames of the papers' motion.
+
+The end-to-end test runs the command with the co-simulation of the HDL top (skipped,
+saying so, while ``emulator.cosim.cosim_slice`` does not exist); the report tests use a
+run without it plus a :class:`emulator.cosim.CosimResult` built here, so the report's HDL
+part is checked either way. Every bad-input message is checked before any long work
+starts. SEED replays a run.
+"""
+
+import dataclasses
+import json
+import os
+import re
+
+import numpy as np
+import pytest
+
+from emulator.cli import build_parser, main
+from emulator.commands import run as run_command
+from emulator.report import cosim_failures, metrics, write_report
+
+SEED = int(os.environ.get("SEED", "1"))
+TINY = ["--rows", "32", "--frames", "3", "--seed", str(SEED), "--no-progress"]
+PLOTS = ("golden_trajectory.png", "steps.png", "step_errors.png", "confidence.png")
+REQUIRED = ("e2e.hdl_mismatches", "e2e.pose_rate_hz", "e2e.latency_us",
+            "e2e.emulator_rows_per_s", "e2e.hdl_cycles_per_s", "e2e.golden.rms_t_cm.x",
+            "e2e.golden.rms_r_deg.z", "e2e.emulator_vs_truth.rms.Tx",
+            "e2e.emulator_vs_scheme.rms.θz", "e2e.measurement.within_subpixel")
+
+
+def _job(*extra):
+    return run_command.check_inputs(build_parser().parse_args(["run", *TINY, *extra]))
+
+
+@pytest.fixture(scope="module")
+def outcome():
+    print(f"SEED={SEED}")
+    return run_command.run_job(_job("--cosim-rows", "0"), progress=False)
+
+
+SLICE = {"rows": 4, "cameras": 2, "frames": 2}
+
+
+def _with_cosim(outcome, **changes):
+    """The run as if it had co-simulated a 2-camera, 2-frame, 4-row slice."""
+    job = dataclasses.replace(outcome.job, cosim=SLICE)
+    return dataclasses.replace(outcome, job=job, cosim=_cosim_result(outcome, **changes))
+
+
+def _cosim_result(outcome, **changes):
+    """A co-simulation result shaped as emulator.cosim makes it: the emulator's first
+    records as both sides, with figures of the right kind."""
+    from emulator.cosim import CosimResult
+    records = {k: np.asarray(v)[:8] for k, v in outcome.emulated.records.items()}
+    fields = dict(records=records, expected=records, mismatches=0, first_mismatch=None,
+                  clocks=40_000, wall_s=2.0, row_sets=8, clocks_per_row_set=800.0,
+                  latency_clocks=300, clk_hz=100e6, uart_packets_match=True)
+    return CosimResult(**{**fields, **changes})
+
+
+def test_the_tiny_run_meets_the_stated_tolerances(outcome):
+    m = metrics(outcome)
+    for key in ("measurement.within_subpixel", "measurement.max_shift_px"):
+        print(f"{key}: {m[key]:.4g}")
+    assert outcome.failures == []
+    assert m["emulator_vs_scheme.rows"] == 2 * 32
+    assert m["emulator_rows_per_s"] > 0
+    assert m["golden.rms_t_cm.x"] < 1          # the golden tracker does track
+
+
+def test_report_with_a_cosimulation(outcome, tmp_path):
+    done = _with_cosim(outcome)
+    write_report(done, tmp_path)
+    figures = json.loads((tmp_path / "metrics.json").read_text())
+    assert set(REQUIRED) <= set(figures)
+    assert figures["e2e.hdl_mismatches"] == 0
+    assert figures["e2e.pose_rate_hz"] == pytest.approx(100e6 / 800)
+    assert figures["e2e.latency_us"] == pytest.approx(3.0)
+    assert figures["e2e.hdl_cycles_per_s"] == pytest.approx(20_000)
+    assert figures["e2e.speed_ratio"] == pytest.approx(
+        outcome.emulated.rows_per_s / (8 * 2 / 2.0))
+    for plot in PLOTS:
+        assert (tmp_path / plot).stat().st_size > 10_000, plot
+    text = (tmp_path / "report.md").read_text()
+    assert "**PASSED**" in text and "300 clocks = 3.000 µs" in text
+    assert "docs/results/figures.json" in text
+    assert done.all_failures() == []
+
+
+def test_mismatches_and_silence_are_failures(outcome):
+    where = "record 3 (frame 1, row 2): q[1] HDL 5 ≠ emulator 6"
+    failures = cosim_failures(_cosim_result(outcome, mismatches=2, first_mismatch=where))
+    assert failures == [f"HDL ↔ emulator: 2 mismatching record(s); first: {where}"]
+    empty = {k: v[:0] for k, v in outcome.emulated.records.items()}
+    assert cosim_failures(_cosim_result(outcome, records=empty)) == [
+        "HDL ↔ emulator: the co-simulated slice produced no pose record"]
+    assert cosim_failures(_cosim_result(outcome, uart_packets_match=False)) == [
+        "HDL ↔ emulator: the UART packets differ from the emulator's"]
+
+
+def test_a_failed_comparison_exits_non_zero_and_says_where(outcome, tmp_path, monkeypatch,
+                                                           capsys):
+    failing = _with_cosim(outcome, mismatches=1,
+                          first_mismatch="record 0 (row 0): flags HDL 1 ≠ emulator 0")
+    monkeypatch.setattr(run_command, "run_job", lambda job, progress: failing)
+    assert main(["run", *TINY, "--cosim-rows", "0", "--out", str(tmp_path)]) == 1
+    out = capsys.readouterr().out
+    assert "FAILED: HDL ↔ emulator: 1 mismatching record(s); first: record 0 (row 0)" in out
+    assert "**FAILED**" in (tmp_path / "report.md").read_text()
+
+
+def test_end_to_end_with_the_cosimulation(tmp_path):
+    cosim = pytest.importorskip("emulator.cosim")
+    if not hasattr(cosim, "cosim_slice"):
+        pytest.skip("emulator.cosim.cosim_slice does not exist yet (helper H6)")
+    code = main(["run", *TINY, "--cosim-rows", "2", "--cosim-cameras", "2",
+                 "--out", str(tmp_path)])
+    assert code == 0
+    figures = json.loads((tmp_path / "metrics.json").read_text())
+    assert set(REQUIRED) <= set(figures)
+    assert figures["e2e.hdl_mismatches"] == 0 and figures["e2e.hdl_records"] > 0
+    for key in ("e2e.pose_rate_hz", "e2e.latency_us", "e2e.emulator_rows_per_s",
+                "e2e.hdl_cycles_per_s"):
+        assert figures[key] > 0, key
+    for plot in PLOTS:
+        assert (tmp_path / plot).is_file(), plot
+
+
+# --- bad input: a clear message, exit 2, before any long work ---------------------------
+
+def _rig_file(tmp_path, cameras, **defaults):
+    import yaml
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump({"name": "bad", "allow_unobservable": True,
+                                    "defaults": {"width": 64, "height": 32, **defaults},
+                                    "cameras": cameras}))
+    return str(path)
+
+
+def _bad_dataset(tmp_path):
+    path = tmp_path / "old.npz"
+    np.savez(path, format=np.array("rowtrack-rs-dataset"), version=np.array(99))
+    return str(path)
+
+
+BAD_INPUTS = {
+    "missing dataset": (lambda p: ["--dataset", str(p / "none.npz")],
+                        "dataset '.*none.npz' does not exist"),
+    "dataset version": (lambda p: ["--dataset", _bad_dataset(p)],
+                        "has dataset version 99; this reader supports version 1"),
+    "impossible timing": (lambda p: ["--rig", _rig_file(p, [{"name": "a"}], fps=120,
+                                                        t_e=0.01)],
+                          "infeasible timing"),
+    "no stereo overlap": (lambda p: ["--rig", _rig_file(
+        p, [{"name": "a"}, {"name": "b", "yaw_deg": 90}], width=640)],
+        r"cannot run on the hardware pipeline: .*cameras \[0, 1\] have no rectified stereo"),
+    "rows too narrow": (lambda p: ["--rig", _rig_file(p, [{"name": "a"}, {"name": "b"}])],
+                        "cannot run on the hardware pipeline: width 64 leaves 0 columns"),
+    "preset without pairs": (lambda p: ["--rig", "radial4"], "no rectified stereo partner"),
+    "unknown rig": (lambda p: ["--rig", "nine"], "must be one of stereo20"),
+    "one frame": (lambda p: ["--frames", "1"], "at least 2 frames"),
+    "negative duration": (lambda p: ["--duration", "-1"], "--duration must be a positive"),
+    "too few rows": (lambda p: ["--rows", "2"], "--rows must be between 3"),
+    "cosim rows": (lambda p: ["--rows", "32", "--cosim-rows", "33"],
+                   "--cosim-rows must be between 1 and the 32 rows per frame"),
+    "cosim cameras": (lambda p: ["--cosim-cameras", "21"],
+                      "--cosim-cameras must be between 1 and the 20 cameras"),
+    "cosim frames": (lambda p: ["--frames", "3", "--cosim-frames", "4"],
+                     "--cosim-frames must be between 1 and the 3 frames"),
+    "dataset and rig": (lambda p: ["--dataset", "x.npz", "--rig", "stereo20"],
+                        "--rig applies to a simulated run, not to --dataset"),
+    "out is a file": (lambda p: ["--out", _bad_dataset(p)], "exists and is not a directory"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input_is_reported_before_long_work(case, tmp_path, monkeypatch, capsys):
+    arguments, message = BAD_INPUTS[case]
+    monkeypatch.setattr(run_command, "run_job", lambda *a, **k: pytest.fail("work started"))
+    assert main(["run", *arguments(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rowtrack run: error: ") and "Traceback" not in err
+    assert re.search(message, err), err
+
+
+@pytest.mark.parametrize("arguments", [["--sim", "ghdl"], ["--frames", "-1"],
+                                       ["--frames", "3", "--duration", "0.1"]])
+def test_malformed_options_are_argparse_errors(arguments, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["run", *arguments])
+    assert exc.value.code == 2
