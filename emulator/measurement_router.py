@@ -39,81 +39,34 @@ Decisions (each one is a choice the HDL router must copy):
   camera delivered produces nothing.
 * **Time.** ``t_first`` of the lowest-numbered camera present, masked to the solver's
   ``time_bits``.
-"""
 
-from dataclasses import dataclass, field
+The hardware does not group measurements by (frame, row): it follows **tickets**, one
+per row set the measurement engine hands to the lanes (:func:`route_tickets` models it,
+decision by decision):
+
+* **Temporal lanes** emit exactly K measurements, in segment order, for every row they
+  receive (bad rows included), so the router takes exactly K from each lane the ticket
+  marks; their slot is ``camera · K + position``. One whose (frame, row) is not the
+  ticket's is counted ``misaligned`` and gets zero confidence; its row label is the
+  ticket's.
+* **Stereo lanes** may lose a row (``hdl.row_descriptor.StereoJoin`` drops a row whose
+  partner never came), so a marked stereo lane is resynchronized measurement by
+  measurement: an older (frame, row) than the ticket's (frames compared modulo
+  ``2**frame_bits``, as the join does) is dropped and counted ``misaligned``; the
+  ticket's own are taken (K_s of them); a newer one ends the search, is left for its
+  own ticket, and the row counts as ``stereo_missing`` (its cameras get zero
+  confidence).
+"""
 
 import numpy as np
 
 from hdl.fixed import Overflow, Rounding, add, resize
-from hdl.pose_params import PoseSolverParams
-from hdl.row_descriptor_params import RowDescriptorParams
+from hdl.measurement_router_params import RouterParams
 
 from .pose_solver import PoseRows
 
-__all__ = ["RouterParams", "measured_shifts", "route_row", "route", "pose_rows"]
-
-
-@dataclass(frozen=True, kw_only=True)
-class RouterParams:
-    """What the router needs: the two blocks' parameters and the stereo pairing.
-
-    Parameters
-    ----------
-    cameras : int
-        Number of cameras (temporal lanes); slots are ``cameras × segments``.
-    pairs : tuple of (int, int)
-        Stereo pairs ``(A, B)`` in stereo-lane order (A: the camera whose row is the
-        lane's current row). Every camera belongs to exactly one pair.
-    temporal, stereo : RowDescriptorParams
-        The temporal and the stereo lanes' parameters (segments, shift and sub-pixel
-        formats).
-    solver : PoseSolverParams
-        The solver's parameters (``slots``, input formats, ``time_bits``).
-
-    Raises
-    ------
-    TypeError, ValueError
-        Naming the parameter.
-    """
-    cameras: int
-    pairs: tuple
-    temporal: RowDescriptorParams
-    stereo: RowDescriptorParams
-    solver: PoseSolverParams
-    pair_of: dict = field(init=False, repr=False, compare=False)
-
-    def __post_init__(self):
-        if isinstance(self.cameras, bool) or not isinstance(self.cameras, int):
-            raise TypeError(f"cameras must be an integer, not {self.cameras!r}")
-        if self.cameras < 1:
-            raise ValueError(f"cameras must be a positive integer, not {self.cameras}")
-        for name in ("temporal", "stereo"):
-            if not isinstance(getattr(self, name), RowDescriptorParams):
-                raise TypeError(f"{name} must be a RowDescriptorParams, not "
-                                f"{getattr(self, name)!r}")
-        if not isinstance(self.solver, PoseSolverParams):
-            raise TypeError(f"solver must be a PoseSolverParams, not {self.solver!r}")
-        slots = self.cameras * self.temporal.segments
-        if self.solver.slots != slots:
-            raise ValueError(f"solver.slots must be cameras × segments = {slots}, not "
-                             f"{self.solver.slots}")
-        pair_of = {}
-        for index, pair in enumerate(self.pairs):
-            if len(pair) != 2 or pair[0] == pair[1]:
-                raise ValueError(f"pairs[{index}] must be two different cameras, not {pair!r}")
-            for camera in pair:
-                if not 0 <= camera < self.cameras:
-                    raise ValueError(f"pairs[{index}] names camera {camera}, outside "
-                                     f"0 … {self.cameras - 1}")
-                if camera in pair_of:
-                    raise ValueError(f"pairs: camera {camera} is in more than one pair")
-                pair_of[camera] = pair[0]
-        missing = sorted(set(range(self.cameras)) - set(pair_of))
-        if missing:
-            raise ValueError(f"pairs must give every camera a stereo pair; cameras "
-                             f"{missing} have none")
-        object.__setattr__(self, "pair_of", pair_of)
+__all__ = ["RouterParams", "measured_shifts", "route_row", "route", "route_tickets",
+           "stream_order", "pose_rows"]
 
 
 def _field(records, name):
@@ -180,6 +133,101 @@ def route(params, temporal, stereo):
     pairs = _by_row(stereo)
     return [t for key, group in _by_row(temporal).items()
             for t in route_row(params, group, pairs.get(key, []))]
+
+
+def stream_order(params, m, ticket):
+    """−1, 0 or 1: measurement ``m`` is of an older row than ``ticket``, of its row, or
+    of a newer one (frames modulo ``2**frame_bits``, then row index)."""
+    bits = params.temporal.frame_bits
+    gap = (m["frame"] - ticket["frame"]) % (1 << bits)
+    if gap == 0:
+        return (m["row"] > ticket["row"]) - (m["row"] < ticket["row"])
+    return -1 if gap >> (bits - 1) else 1
+
+
+def _marked(mask, count):
+    return [n for n in range(count) if mask >> n & 1]
+
+
+def _take(queue, ticket, count):
+    """Pop ``count`` measurements of a lane queue; raise if the lane has fewer."""
+    if len(queue) < count:
+        raise ValueError(f"ticket {ticket!r}: a marked lane has fewer than {count} "
+                         f"measurements left")
+    return [queue.pop(0) for _ in range(count)]
+
+
+def _ticket_stereo(params, ticket, queues, status):
+    """The marked stereo lanes' measurements of the ticket's row (resynchronized)."""
+    found = []
+    for j in _marked(ticket["pairs"], len(params.pairs)):
+        queue, taken = queues[j], 0
+        while taken < params.stereo.segments:
+            if not queue:
+                raise ValueError(f"ticket {ticket!r}: stereo lane {j} ran out of "
+                                 f"measurements")
+            order = stream_order(params, queue[0], ticket)
+            if order > 0:
+                status["stereo_missing"] += 1
+                break
+            m = queue.pop(0)
+            if order < 0:
+                status["misaligned"] += 1
+                continue
+            found.append({**m, "camera": params.pairs[j][0], "segment": taken})
+            taken += 1
+    return found
+
+
+def _ticket_temporal(params, ticket, queues, status):
+    """K measurements of every marked temporal lane, labelled with the lane and
+    position; misaligned ones with zero confidence and the ticket's row."""
+    out = []
+    for camera in _marked(ticket["cameras"], params.cameras):
+        for k, m in enumerate(_take(queues[camera], ticket, params.temporal.segments)):
+            aligned = stream_order(params, m, ticket) == 0
+            status["misaligned"] += not aligned
+            out.append({**m, "camera": camera, "segment": k, "row": ticket["row"],
+                        "confidence": m["confidence"] if aligned else 0})
+    return out
+
+
+def route_tickets(params, tickets, temporal, stereo):
+    """What the hardware router emits for a ticket stream.
+
+    Parameters
+    ----------
+    params : RouterParams
+    tickets : list of dict
+        ``cameras`` and ``pairs`` bit masks, ``frame``, ``row`` (the ticket layout).
+    temporal, stereo : list of list of dict
+        Each temporal lane's and each stereo lane's measurements in stream order.
+
+    Returns
+    -------
+    transfers : list of dict
+        The solver stream (:func:`route_row` of each ticket's measurements).
+    status : dict
+        ``rows``, ``empty``, ``misaligned``, ``stereo_missing`` (unwrapped counts).
+
+    Raises
+    ------
+    ValueError
+        If a ticket needs measurements a lane does not have (the hardware would wait).
+    """
+    temporal = [list(q) for q in temporal]
+    stereo = [list(q) for q in stereo]
+    status = dict.fromkeys(("rows", "empty", "misaligned", "stereo_missing"), 0)
+    transfers = []
+    for ticket in tickets:
+        pair_meas = _ticket_stereo(params, ticket, stereo, status)
+        out = route_row(params, _ticket_temporal(params, ticket, temporal, status),
+                        pair_meas)
+        if out:
+            status["rows"] += 1
+            status["empty"] += not any(t["conf"] for t in out)
+        transfers += out
+    return transfers, status
 
 
 def pose_rows(params, transfers):

@@ -1,0 +1,133 @@
+"""Stimulus for the measurement router: tickets and per-lane measurement streams.
+
+Two sources, both checked against :func:`emulator.measurement_router.route_tickets`:
+
+* :func:`synthetic` builds streams from a seeded RNG: raw fields over their whole
+  formats (shift and sub-pixel extremes, negative disparities, zero confidences, edge
+  hits), tickets with missing cameras and pairs, misaligned temporal rows, stale
+  stereo rows and stereo rows the join lost;
+* :func:`lane_streams` runs real simulated rows through the emulator's lane models
+  (:mod:`emulator.pipeline` on a small cut of the stereo20 rig) and splits the
+  measurements per lane, one full ticket per row set.
+"""
+
+from emulator.measurement_router import route_tickets
+
+__all__ = ["measurement", "synthetic", "lane_streams", "expected", "FIELDS"]
+
+#: The lane measurement layout's fields (``hdl.streams.row_measurement_layout``).
+FIELDS = ("camera", "frame", "row", "t_first", "segment", "shift", "subpixel",
+          "confidence", "textureless", "edge_hit", "bad", "no_reference")
+
+
+def measurement(camera, segment, frame, row, *, t_first=0, shift=0, subpixel=0,
+                confidence=0, edge_hit=0):
+    """A lane measurement dict with every field of the stream layout."""
+    return {"camera": camera, "frame": frame, "row": row, "t_first": t_first,
+            "segment": segment, "shift": shift, "subpixel": subpixel,
+            "confidence": confidence, "textureless": 0, "edge_hit": edge_hit, "bad": 0,
+            "no_reference": 0}
+
+
+def _raw(rng, fmt):
+    """A raw value of ``fmt``: its extremes, zero, or uniform over its range."""
+    pick = rng.random()
+    if pick < 0.1:
+        return fmt.min_raw
+    if pick < 0.2:
+        return fmt.max_raw
+    if pick < 0.25:
+        return 0
+    return int(rng.integers(fmt.min_raw, fmt.max_raw + 1))
+
+
+def _shift(rng, lane):
+    """(shift, subpixel): mostly random raw values, sometimes a sum of exactly zero or
+    of the smallest negative step (the disparity rule's boundary)."""
+    pick = rng.random()
+    if pick < 0.1:
+        return 0, 0
+    if pick < 0.2:
+        return -1, lane.subpixel_fmt.max_raw
+    return _raw(rng, lane.shift_fmt), _raw(rng, lane.subpixel_fmt)
+
+
+def _row_of(lane, rng, camera, frame, row, segments):
+    """``segments`` random measurements of one row of one lane (shared metadata)."""
+    t_first = int(rng.integers(0, 1 << lane.timestamp_bits))
+    out = []
+    for k in range(segments):
+        shift, subpixel = _shift(rng, lane)
+        out.append(measurement(
+            camera, k, frame, row, t_first=t_first, shift=shift, subpixel=subpixel,
+            confidence=0 if rng.random() < 0.15 else _raw(rng, lane.confidence_fmt),
+            edge_hit=int(rng.random() < 0.1)))
+    return out
+
+
+def _step(params, frame, row, back=1):
+    """(frame, row) ``back`` row sets earlier (frames modulo ``2**frame_bits``)."""
+    index = frame * params.temporal.height + row - back
+    frame, row = divmod(index, params.temporal.height)
+    return frame % (1 << params.temporal.frame_bits), row
+
+
+def synthetic(params, rng, tickets):
+    """``tickets`` random row sets: ``(tickets, temporal streams, stereo streams)``.
+
+    Frames start near the top of ``frame_bits`` so they wrap. The last ticket is full
+    and clean, so a stereo row lost earlier is always followed by a newer one.
+    """
+    t_lane, s_lane = params.temporal, params.stereo
+    temporal = [[] for _ in range(params.cameras)]
+    stereo = [[] for _ in params.pairs]
+    out = []
+    frame, row = (1 << t_lane.frame_bits) - 1, t_lane.height - 3
+    everyone = (1 << params.cameras) - 1
+    for n in range(tickets):
+        clean = n == tickets - 1
+        cameras = everyone if clean or rng.random() < 0.7 else \
+            int(rng.integers(0, everyone + 1))
+        pairs = sum(1 << j for j, (a, b) in enumerate(params.pairs)
+                    if cameras >> a & 1 and cameras >> b & 1)
+        out.append({"cameras": cameras, "pairs": pairs, "frame": frame, "row": row})
+        for c in range(params.cameras):
+            if cameras >> c & 1:
+                at = (frame, row) if clean or rng.random() > 0.05 else \
+                    _step(params, frame, row, int(rng.choice([-9, -1, 1, 9])))
+                temporal[c] += _row_of(t_lane, rng, c, *at, t_lane.segments)
+        for j, (a, _) in enumerate(params.pairs):
+            if not clean and rng.random() < 0.1:               # a stale row in the lane
+                back = int(rng.integers(1, 2 * t_lane.height))
+                stereo[j] += _row_of(s_lane, rng, a, *_step(params, frame, row, back),
+                                     s_lane.segments)
+            if pairs >> j & 1 and (clean or rng.random() > 0.1):   # else: join lost it
+                stereo[j] += _row_of(s_lane, rng, a, frame, row, s_lane.segments)
+        frame, row = _step(params, frame, row, -1)
+    return out, temporal, stereo
+
+
+def lane_streams(config, dataset, frames):
+    """Real lane measurements (:func:`emulator.pipeline.run`) as per-lane streams and
+    one full ticket per row set."""
+    from emulator.pipeline import run
+    result = run(config, dataset, frames=frames)
+    params = config.router
+    temporal = [[{k: m[k] for k in FIELDS} for m in result.temporal if m["camera"] == c]
+                for c in range(params.cameras)]
+    stereo = [[{k: m[k] for k in FIELDS} for m in result.stereo if m["camera"] == a]
+              for a, _ in params.pairs]
+    keys = list(dict.fromkeys((m["frame"], m["row"]) for m in result.temporal))
+    everyone = (1 << params.cameras) - 1
+    tickets = [{"cameras": everyone, "pairs": (1 << len(params.pairs)) - 1,
+                "frame": f, "row": r} for f, r in keys]
+    return tickets, temporal, stereo
+
+
+def expected(params, tickets, temporal, stereo):
+    """The model's transfers (solver layout field dicts) and status counters, wrapped
+    to the hardware's 16 bits."""
+    transfers, status = route_tickets(params, tickets, temporal, stereo)
+    fields = ("slot", "row", "time", "shift", "cue", "conf", "last")
+    return ([{k: int(t[k]) for k in fields} for t in transfers],
+            {k: v & 0xFFFF for k, v in status.items()})
