@@ -13,9 +13,9 @@ step, is in ``docs/pose_solver.md``:
    substitution carried along, pivots checked against ``2**-pivot_log2``, ``D^-1/2``
    from an interpolated seed and one Newton step;
 4. back substitution with ``L = G·D^-1/2``, ``Y = S x``;
-5. integration: ``q ← q ⊗ (1, θ/2)`` renormalized by one Newton step,
-   ``p ← p + R(q) T`` (R from the quaternion before the step), committed only if the
-   row was solved.
+5. integration onto the pose of the same row one frame earlier (one pose per row
+   slot): ``q ← q ⊗ (1, θ/2)`` renormalized by one Newton step, ``p ← p + R(q) T``
+   (R from the quaternion before the step), committed only if the row was solved.
 """
 
 from dataclasses import dataclass
@@ -28,7 +28,7 @@ from hdl.pose_params import DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag, see
 
 __all__ = ["PoseRows", "Value", "StepResult", "accumulate", "scale_system",
            "rsqrt_seed", "solve_rows", "integrate_rows",
-           "pose_solver_model", "identity_pose", "flags_from_checks",
+           "pose_solver_model", "identity_pose", "initial_poses", "flags_from_checks",
            "rows_from_float", "rig_solver", "solve_trace"]
 
 #: The 21 (i, j), i ≤ j, entries of the symmetric normal matrix, in accumulator order.
@@ -366,7 +366,7 @@ def solve_rows(params, coef_raw, rows):
 # --- 5. integration ----------------------------------------------------------------------
 
 def identity_pose(params):
-    """The pose after reset: raw quaternion (1, 0, 0, 0) and position 0."""
+    """The reset pose of every slot: raw quaternion (1, 0, 0, 0) and position 0."""
     q = np.array([int(params.quat_fmt.quantize(1.0)), 0, 0, 0], dtype=np.int64)
     return q, np.zeros(3, dtype=np.int64)
 
@@ -411,24 +411,47 @@ def _integrate_one(params, q, p, step):
     return (np.array(q2.raw.tolist(), dtype=np.int64), np.array(p2.raw.tolist(), dtype=np.int64))
 
 
-def integrate_rows(params, result, pose=None):
-    """Poses after every row: raw quaternions (n, 4) and positions (n, 3), starting from
-    ``pose`` (raw (q, p); the reset pose by default). Flagged rows leave the pose."""
-    q, p = identity_pose(params) if pose is None else (np.asarray(pose[0]), np.asarray(pose[1]))
+def initial_poses(params, pose=None):
+    """The pose ring before the first row: raw quaternions (rows, 4) and positions
+    (rows, 3). ``pose`` is None (every slot at the reset pose, as after reset), one raw
+    ``(q (4,), p (3,))`` (every slot starts there) or ``(q (rows, 4), p (rows, 3))``
+    (one pose per slot)."""
+    q, p = identity_pose(params) if pose is None else pose
+    q, p = np.asarray(q, dtype=np.int64), np.asarray(p, dtype=np.int64)
+    if q.shape not in ((4,), (params.rows, 4)) or p.shape != q.shape[:-1] + (3,):
+        raise ValueError(f"pose must be raw (q (4,), p (3,)) or (q ({params.rows}, 4), "
+                         f"p ({params.rows}, 3)), not shapes {q.shape} and {p.shape}")
+    return (np.array(np.broadcast_to(q, (params.rows, 4))),
+            np.array(np.broadcast_to(p, (params.rows, 3))))
+
+
+def integrate_rows(params, result, row, pose=None):
+    """Poses after every row: raw quaternions (n, 4) and positions (n, 3).
+
+    The solver keeps one pose per row slot (a ring of ``params.rows`` poses, see
+    :func:`initial_poses` for ``pose``): row ``row[k]``'s step is the rig's motion since
+    the same row of the previous frame, so it is composed onto that slot's pose, and the
+    result is written back and emitted. A flagged row leaves its slot and emits it."""
+    row = np.asarray(row)
+    if row.shape != (len(result.flags),) or np.any((row < 0) | (row >= params.rows)):
+        raise ValueError(f"row must be {len(result.flags)} slot indices in "
+                         f"[0, {params.rows})")
+    ring_q, ring_p = initial_poses(params, pose)
     quats = np.empty((len(result.flags), 4), dtype=np.int64)
     positions = np.empty((len(result.flags), 3), dtype=np.int64)
-    for k, (step, flag) in enumerate(zip(result.step, result.flags)):
+    for k, (y, step, flag) in enumerate(zip(row, result.step, result.flags)):
         if flag == 0:
-            q, p = _integrate_one(params, q, p, step)
-        quats[k], positions[k] = q, p
+            ring_q[y], ring_p[y] = _integrate_one(params, ring_q[y], ring_p[y], step)
+        quats[k], positions[k] = ring_q[y], ring_p[y]
     return quats, positions
 
 
 def pose_solver_model(params, coef_raw, rows, pose=None):
     """Pose records of every row, as the hardware emits them: dict of raw arrays
-    ``row``, ``time``, ``flags``, ``q`` (n, 4), ``p`` (n, 3), ``step`` (n, 6)."""
+    ``row``, ``time``, ``flags``, ``q`` (n, 4), ``p`` (n, 3), ``step`` (n, 6). ``pose``:
+    the ring before the first row (:func:`initial_poses`; the reset state by default)."""
     result = solve_rows(params, coef_raw, rows)
-    quats, positions = integrate_rows(params, result, pose)
+    quats, positions = integrate_rows(params, result, rows.row, pose)
     return {"row": np.asarray(rows.row), "time": np.asarray(rows.time), "flags": result.flags,
             "q": quats, "p": positions, "step": result.step}
 

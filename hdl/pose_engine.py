@@ -9,7 +9,12 @@ word per clock from a ROM — on
 * one pipelined multiply-accumulate unit (exact sums, one rounding per op);
 * a seed unit for inverse square roots (normalize by an even shift, interpolated
   table, denormalize) that also checks every pivot against ``2**-pivot_log2``;
-* the ``work`` register bank (LUT RAM, transparent reads) and the pose state registers.
+* the ``work`` register bank (LUT RAM, transparent reads) and the pose state registers;
+* the pose ring: one pose per row slot (block RAM). A row's step is the rig's motion
+  since the same row one frame earlier, so the state registers are loaded with the
+  row's slot when the row starts, and the record's pose is written back to the slot
+  when the record is taken. After reset the ring is cleared to the reset pose, one slot
+  per clock (:attr:`PoseEngine.clear_clocks`).
 
 When the program ends it offers the pose record; the next row starts once the record
 is taken.
@@ -146,7 +151,8 @@ class PoseEngine(wiring.Component):
     counters : Out(counters_layout(params))
 
     Latency: :attr:`length` + 1 clocks from a ``row_done`` that finds the engine idle
-    to ``o.valid``. Reset: pose (1, 0, 0, 0), position 0, counters 0.
+    to ``o.valid``. Reset: every row slot's pose (1, 0, 0, 0), position 0 (the ring is
+    cleared in the first :attr:`clear_clocks` clocks; a row waits for that), counters 0.
     """
 
     def __init__(self, params):
@@ -175,6 +181,12 @@ class PoseEngine(wiring.Component):
         return self._words.schedule.length
 
     @property
+    def clear_clocks(self):
+        """Clocks after reset before a row can start: one per ring slot, and one for the
+        last slot's write to reach the (non-transparent) read port."""
+        return self.params.rows + 1
+
+    @property
     def program(self):
         return self._words.program
 
@@ -191,7 +203,8 @@ class PoseEngine(wiring.Component):
         running = Signal()
         pc = Signal(range(length + 1))
         go = Signal()
-        m.d.comb += go.eq(self.row_done & ~running & ~self.o.valid)
+        cleared = Signal()
+        m.d.comb += go.eq(self.row_done & ~running & ~self.o.valid & cleared)
         exps = Signal.like(self.exponents)
         row, time = Signal.like(self.row), Signal.like(self.time)
         empty, overrun, ill, saturated = Signal(), Signal(), Signal(), Signal()
@@ -242,6 +255,7 @@ class PoseEngine(wiring.Component):
         state = [Signal(raw, name=f"state_{n}",
                         init=int(p.quat_fmt.quantize(1.0)) if n == "qw" else 0)
                  for n in STATE_NAMES]
+        self._pose_ring(m, state, go, row, cleared)
 
         def operand(bank_field, index_field, name):
             """The operand named by an issue-stage word, one clock later."""
@@ -434,6 +448,36 @@ class PoseEngine(wiring.Component):
             with m.If(flags == 0):
                 m.d.sync += self.counters.solved.eq(self.counters.solved + 1)
         return m
+
+
+    def _pose_ring(self, m, state, go, row, cleared):
+        """The pose ring (one pose per row slot): loads the starting row's slot into
+        ``state`` on ``go``, writes ``state`` — the record's pose — back when the record
+        is taken, and clears every slot to the reset pose after reset (``cleared`` rises
+        :attr:`clear_clocks` clocks after reset).
+
+        The read port is not transparent: a slot written in the clock before ``go``
+        would read stale. Only the slot of the previous row can be, and ``state`` still
+        holds that slot's pose, so a row of the same slot keeps ``state`` (as does the
+        first row after reset in slot 0: ``state`` and ``row`` reset to the reset pose
+        and slot 0)."""
+        p = self.params
+        ring = Memory(shape=len(STATE_NAMES) * p.engine_width, depth=p.rows, init=[],
+                      attrs={"ram_style": "block"})
+        m.submodules.pose_ring = ring
+        write, read = ring.write_port(), ring.read_port()
+        sweep = Signal(range(p.rows + 1))
+        with m.If(sweep != p.rows):
+            m.d.sync += sweep.eq(sweep + 1)
+        m.d.sync += cleared.eq(sweep == p.rows)
+        # the state registers hold the reset pose until the first row starts
+        m.d.comb += [write.en.eq((sweep != p.rows) | (self.o.valid & self.o.ready)),
+                     write.addr.eq(Mux(sweep != p.rows, sweep, row)),
+                     write.data.eq(Cat(*state)),
+                     read.addr.eq(self.row)]
+        with m.If(go & (self.row != row)):
+            m.d.sync += [reg.eq(read.data[k * p.engine_width:(k + 1) * p.engine_width])
+                         for k, reg in enumerate(state)]
 
 
 def _round_saturating(m, value, src, dst):

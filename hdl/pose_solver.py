@@ -8,8 +8,9 @@ closes the row, and one pose record per row streams out. Inside:
   coefficient, one entry per slot and row; initial contents at build time, rewritable
   at run time through ``coef_write``);
 * :class:`hdl.pose_accumulator.PoseAccumulator`: the weighted normal equations;
-* :class:`hdl.pose_engine.PoseEngine`: Jacobi scaling, the LDLᵀ solve with its pivot
-  check, and the pose integration.
+* :class:`hdl.pose_engine.PoseEngine`: Jacobi scaling, the Cholesky solve with its
+  pivot check, and the pose integration onto the pose of the same row one frame
+  earlier (a ring of one pose per row slot).
 
 The algorithm, formats and error budget are in ``docs/pose_solver.md``; the
 bit-accurate model is :mod:`emulator.pose_solver`.
@@ -75,8 +76,14 @@ class PoseSolver(wiring.Component):
     measurement per ``ceil(27 / lanes)`` clocks; one row per :attr:`row_interval`
     clocks when rows come back to back. Backpressure: ``i.ready`` falls while a finished
     row waits for the engine, and the engine waits while ``o`` holds an untaken record.
-    Reset: pose (1, 0, 0, 0), position 0, counters 0; the coefficient store keeps its
-    contents.
+    Integration: the step of row ``y`` is the rig's motion since row ``y`` of the
+    previous frame, so it is composed onto the pose of row slot ``y`` (one pose per
+    slot); the record carries the new pose of the slot, or its unchanged pose when the
+    row is flagged.
+
+    Reset: every slot's pose (1, 0, 0, 0), position 0 — the ring is cleared in the first
+    :attr:`clear_clocks` clocks, and a row finished earlier waits for that —; counters
+    0; the coefficient store keeps its contents.
     """
 
     def __init__(self, params=None, coefficients=None):
@@ -107,6 +114,11 @@ class PoseSolver(wiring.Component):
     def latency(self):
         """Clocks from a row's last measurement to its pose record (idle solver)."""
         return self._accumulator.tail + 1 + self._engine.length
+
+    @property
+    def clear_clocks(self):
+        """Clocks after reset in which the pose ring is cleared (no row starts)."""
+        return self._engine.clear_clocks
 
     @property
     def row_interval(self):

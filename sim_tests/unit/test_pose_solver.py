@@ -16,7 +16,7 @@ from hdl.pose_params import PoseSolverParams, coefficient_formats, quantize_coef
 from hdl.pose_program import (MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY,
                               build_row_program, schedule)
 from hdl.pose_solver import PoseSolver
-from sim_tests.cocotb.pose_solver.stimulus import build_case, mixed_rows
+from sim_tests.cocotb.pose_solver.stimulus import build_case, mixed_rows, random_rows
 
 SEED = int(os.environ.get("SEED", "8"))
 
@@ -138,16 +138,18 @@ def test_program_mirrors_the_model_value_names():
 
 # --- the block against the model ------------------------------------------------------------
 
-def _simulate(dut, transfers, count, ready=lambda cycle: True, limit=20000, probe=None):
-    """Drive ``transfers`` at full rate; returns [(cycle, record)], the cycles of the
-    ``last`` transfers, and what ``probe(ctx)`` returned at the first record."""
+def _simulate(dut, transfers, count, ready=lambda cycle: True, limit=20000, probe=None,
+              start=0):
+    """Drive ``transfers`` at full rate from cycle ``start`` on; returns [(cycle,
+    record)], the cycles of the ``last`` transfers, and what ``probe(ctx)`` returned at
+    the first record."""
     out, ends, probed = [], [], []
 
     async def bench(ctx):
         queue = list(transfers)
         cycle = 0
         while len(out) < count and cycle < limit:
-            ctx.set(dut.i.valid, int(bool(queue)))
+            ctx.set(dut.i.valid, int(bool(queue) and cycle >= start))
             if queue:
                 ctx.set(dut.i.payload, queue[0])
             ctx.set(dut.o.ready, int(ready(cycle)))
@@ -180,14 +182,41 @@ def test_records_match_the_model(case, count):
     rows = mixed_rows(case, params, rig, np.random.default_rng(SEED), count)
     model = E.pose_solver_model(params, coefficients, rows)
     dut = PoseSolver(params, coefficients)
-    out, ends, _ = _simulate(dut, rows.transfers(), count)
-    assert len(out) == count
+    out, ends, _ = _simulate(dut, rows.transfers(), count, start=dut.clear_clocks)
+    _assert_records(out, model)
+    assert out[0][0] - ends[0] == dut.latency
+
+
+def _assert_records(out, model):
+    assert len(out) == len(model["row"])
     for k, (_, record) in enumerate(out):
         expected = {"row": model["row"][k], "time": model["time"][k], "flags": model["flags"][k],
                     "q": list(model["q"][k]), "p": list(model["p"][k]),
                     "step": list(model["step"][k])}
         assert _as_lists(record) == expected, k
-    assert out[0][0] - ends[0] == dut.latency
+
+
+def test_row_slots_carry_poses_across_frames():
+    """Two frames of 64 rows in frame order (three run in the cocotb bench), then rows of one slot back to back (the
+    slot written in the clock before the next row starts). The first row has one
+    measurement and is sent at once after reset: it waits for the ring to be cleared
+    (uncleared slots read zero, not the reset pose). Every record as the model's."""
+    params, coefficients, _ = build_case("random")
+    rng = np.random.default_rng(SEED)
+    frames = random_rows(params, rng, 2 * params.rows, framed=True)[0]
+    repeats = random_rows(params, rng, 6)[0]
+    joined = {name: np.concatenate([getattr(frames, name), getattr(repeats, name)])
+              for name in ("slot", "shift", "cue", "conf", "present", "time")}
+    joined["present"][0, 1:] = False
+    rows = E.PoseRows(**joined, row=np.concatenate([frames.row, np.full(6, frames.row[-1])]))
+    model = E.pose_solver_model(params, coefficients, rows)
+    assert np.sum(model["flags"][-6:] == 0) >= 2
+    dut = PoseSolver(params, coefficients)
+    out, ends, _ = _simulate(dut, rows.transfers(), len(rows), limit=100000)
+    _assert_records(out, model)
+    # the row was done before the clear ended, and started in the clock after it
+    assert ends[0] + dut._accumulator.tail < dut.clear_clocks
+    assert out[0][0] == dut.clear_clocks + dut._engine.length + 1
 
 
 def test_engine_registers_match_the_model_trace():

@@ -1,7 +1,9 @@
 """cocotb bench for hdl.pose_solver.PoseSolver: every pose record against
 emulator.pose_solver, in order and bit for bit, plus latency and throughput.
 
-Environment: POSE_CASE (a stimulus case), POSE_ROWS (rows per test, default 300).
+Environment: POSE_CASE (a stimulus case), POSE_ROWS (rows per test, default 300),
+POSE_FRAMED=1 (``random`` case: table rows in frame order, so every row slot's pose is
+read back once per frame; otherwise random order, with slots repeating back to back).
 """
 
 import os
@@ -9,7 +11,7 @@ import random
 
 import cocotb
 import numpy as np
-from cocotb.triggers import RisingEdge
+from cocotb.triggers import ClockCycles, RisingEdge
 
 from emulator.pose_solver import pose_solver_model
 from hdl.pose_solver import PoseSolver, counters_layout, measurement_layout, record_layout
@@ -44,13 +46,18 @@ def _first_difference(got, expected):
 
 @cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"])
 async def pose_records_match_model(dut, traffic):
-    """Rows of the case's mix, with or without valid gaps and ready backpressure."""
+    """Rows of the case's mix, with or without valid gaps and ready backpressure. At
+    full rate the rows start once the pose ring is cleared after reset (the latency
+    check needs an idle solver); with gaps they start at once and the first waits."""
     case = os.environ["POSE_CASE"]
     count = int(os.environ.get("POSE_ROWS", "300"))
+    framed = bool(int(os.environ.get("POSE_FRAMED", "0")))
     params = load_params()
     _, coefficients, rig = build_case(case)
+    solver = PoseSolver(params, coefficients)
     rng = random.Random(cocotb.RANDOM_SEED)
-    rows = mixed_rows(case, params, rig, np.random.default_rng(cocotb.RANDOM_SEED), count)
+    rows = mixed_rows(case, params, rig, np.random.default_rng(cocotb.RANDOM_SEED), count,
+                      framed=framed)
     expected, model = _expected(params, coefficients, rows)
     busy = traffic == "full_rate"
     clock = start_clock(dut)
@@ -63,8 +70,9 @@ async def pose_records_match_model(dut, traffic):
     dut.coef_write__index.value = 0
     dut.coef_write__data.value = 0
     await reset(dut)
-    transfers = rows.transfers()
-    await source.send(transfers)
+    if busy:
+        await ClockCycles(dut.clk, solver.clear_clocks)
+    await source.send(rows.transfers())
     sidecar = load_sidecar()
     await sink.wait_for(len(expected), timeout_cycles=len(expected) * 4 * sidecar["latency"])
     got = [_record(payload) for _, payload in sink.received]
@@ -74,9 +82,11 @@ async def pose_records_match_model(dut, traffic):
     counters = unpack(counters_layout(params), dut.counters.value)
     assert counters == {"solved": int(flags[0]), "empty": int(flags[1]), "ill": int(flags[2]),
                         "saturated": int(flags[4]), "overrun": int(flags[8])}, counters
-    dut._log.info(f"{case}/{traffic}: {len(got)} records bit-exact; flags {flags.tolist()}")
+    slots = np.bincount(rows.row, minlength=params.rows)
+    dut._log.info(f"{case}/{traffic}: {len(got)} records bit-exact; flags {flags.tolist()}; "
+                  f"row slots used {np.sum(slots > 0)}, up to {slots.max()} times")
     if busy:
-        _check_timing(dut, source, sink, sidecar, PoseSolver(params, coefficients).row_interval)
+        _check_timing(dut, source, sink, sidecar, solver.row_interval)
 
 
 def _check_timing(dut, source, sink, sidecar, interval):

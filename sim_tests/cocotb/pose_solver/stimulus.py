@@ -63,9 +63,11 @@ def build_case(name):
     raise ValueError(f"case must be one of {', '.join(CASES)}, not {name!r}")
 
 
-def random_rows(params, rng, count):
+def random_rows(params, rng, count, framed=False):
     """Rows for the ``random`` case: a mix of well-conditioned, near-singular,
-    zero-confidence, partial, over-long and extreme rows."""
+    zero-confidence, partial, over-long and extreme rows; in random table-row order, or
+    ``framed``: table rows 0, 1, … in order, frame after frame (the near-singular rows
+    then make half of each frame)."""
     m = params.slots + 2
     slot = np.zeros((count, m), dtype=np.int64)
     shift = rng.normal(0, 2.0, (count, m))
@@ -75,12 +77,16 @@ def random_rows(params, rng, count):
     row = rng.integers(0, params.rows, count)
     kind = rng.choice(["full", "near", "zero", "partial", "overrun", "extreme"], count,
                       p=[0.45, 0.3, 0.05, 0.1, 0.05, 0.05])
+    if framed:
+        row = np.arange(count) % params.rows
+        kind = np.where(np.isin(row, NEAR_SINGULAR_ROWS), "near",
+                        np.where(kind == "near", "full", kind))
     for r in range(count):
         n = params.slots
         if kind[r] == "near":
-            row[r] = rng.choice(NEAR_SINGULAR_ROWS)
+            row[r] = row[r] if framed else rng.choice(NEAR_SINGULAR_ROWS)
             cue[r], weight[r] = 1.0, 1.0
-        else:
+        elif not framed:
             row[r] = rng.integers(0, NEAR_SINGULAR_ROWS.start)
         if kind[r] == "zero":
             weight[r] = 0.0
@@ -124,8 +130,9 @@ class _Shifted:
         return self.trajectory.pose(np.asarray(t) + self.offset)
 
 
-def mixed_rows(case, params, rig, rng, count):
-    """The rows a case's bench sends: ``random_rows`` or ``sequence_rows``."""
+def mixed_rows(case, params, rig, rng, count, framed=False):
+    """The rows a case's bench sends: ``random_rows`` (``framed`` or not) or
+    ``sequence_rows`` (consecutive rows of a sequence: always in frame order)."""
     if case == "random":
-        return random_rows(params, rng, count)[0]
+        return random_rows(params, rng, count, framed)[0]
     return sequence_rows(params, rig, rng, count)[0]
