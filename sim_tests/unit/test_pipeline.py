@@ -2,22 +2,26 @@
 (emulator/e2e.py) on a tiny simulated sequence: the stereo20 rig cut to its 32 middle
 rows (same focal length and baseline as the papers' cameras), three frames at 120 fps.
 
-SEED replays a run (printed). The emulator's speed is measured and printed; the step
-agreement figures (emulator ↔ golden ↔ truth) are printed, not asserted: no tolerance
-is set for them yet (see docs/e2e.md for the measured values and why they are large).
+SEED replays a run (printed). The emulator's speed is measured and printed. Against the
+float counterpart of the hardware scheme (emulator/e2e.py ``scheme_steps``) the emulator
+must meet the stated tolerances; against the golden tracker and truth the figures are
+printed (docs/e2e.md: the same-row reference is poor under vertical image motion).
 """
+
+import dataclasses
 
 import os
 
 import numpy as np
 import pytest
 
-from emulator.e2e import compare_steps, true_steps
+from emulator.e2e import (check_tolerances, compare_steps, measurement_agreement,
+                          scheme_steps, true_steps)
 from emulator.pose_solver import pose_solver_model, rows_from_float
 from emulator.pipeline import configure, coefficient_table, run, segment_centres
 from emulator.row_descriptor import TemporalLaneModel
 from golden.depth import stereo_pairs
-from golden.pose_lsq import ShiftCoefficients, design_rows, shift_coefficients
+from golden.pose_lsq import UNKNOWNS, ShiftCoefficients, design_rows, shift_coefficients
 from golden.rig import preset
 from golden.scene import default_scene_spec
 from golden.simulator import simulate
@@ -153,12 +157,44 @@ def test_solver_path_recovers_the_true_step_from_exact_shifts(config, dataset, r
     assert error.max() < 1e-6
 
 
-def test_step_comparison_figures(config, dataset, result):
-    """Emulator ↔ golden ↔ truth on the same rows; figures printed (no tolerance yet)."""
+@pytest.fixture(scope="module")
+def scheme(config, dataset):
+    return scheme_steps(config, dataset, FRAMES)
+
+
+def test_step_comparison_figures(config, dataset, result, scheme):
+    """Emulator ↔ golden ↔ truth on the same rows; emulator ↔ float scheme within the
+    stated tolerances (measured 99.3 % within 1/16 px, worst 0.105 px, step RMS ≤ 6.6e-4
+    at seed 1)."""
     golden = track(dataset, TrackerParams(reference="previous", follow_rows=False))
-    figures = compare_steps(config, result, dataset, golden)
+    figures = compare_steps(config, result, dataset, golden, scheme)
     for key, value in figures.items():
         print(f"{key}: {value:.4g}")
     assert figures["emulator_vs_golden.rows"] == figures["emulator_vs_truth.rows"] > 0
     assert figures["emulator_vs_float.rows"] > 0
+    assert figures["emulator_vs_scheme.rows"] == (FRAMES - 1) * ROWS
     assert all(np.isfinite(v) for v in figures.values())
+    assert check_tolerances(figures, measurement_agreement(config, result, scheme)[1]) == []
+
+
+def test_the_scheme_is_the_hardware_scheme(config, result, scheme):
+    """Every measurement the router weights, the float scheme weights too (same rows,
+    windows, segments and cue rules), and its steps are near the emulator's."""
+    figures, _ = measurement_agreement(config, result, scheme)
+    assert figures["weight_disagrees"] < 0.001
+    assert figures["well_textured"] > 100
+
+
+def test_a_wrong_slot_order_breaks_the_tolerances(config, dataset, result, scheme):
+    """The check can fail: the float scheme with two cameras' measurements swapped."""
+    k = config.router.temporal.segments
+    order = np.arange(config.router.solver.slots)
+    order[:k], order[k:2 * k] = order[k:2 * k].copy(), order[:k].copy()
+    swapped = dataclasses.replace(scheme, shift=scheme.shift[:, order],
+                                  weight=scheme.weight[:, order])
+    figures, where = measurement_agreement(config, result, swapped)
+    failures = check_tolerances({f"measurement.{k}": v for k, v in figures.items()}
+                                | {f"emulator_vs_scheme.rms.{n}": 0.0 for n in UNKNOWNS}
+                                | {"emulator_vs_scheme.rows": 1}, where)
+    print(failures)
+    assert failures and all(re.search(r"camera [01], segment", f) for f in failures)
