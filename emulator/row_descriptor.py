@@ -3,11 +3,12 @@
 Integers only, from the same :class:`hdl.row_descriptor_params.RowDescriptorParams` as
 the gateware. The conventions (borders, shift sign, compare range, segments, first
 minimum, second minimum at distance ≥ 2) are :mod:`golden.descriptor`'s, and so are the
-integer parts of the computation, called directly: the descriptor with the quantized
-kernel, the Hamming costs, the bit changes and the cost peaks. What is the hardware's
-own is modelled here: row framing of the camera stream (padding of short rows, dropping
-of stray pixels), the reference store with its frame tags, the fixed-point sub-pixel and
-confidence divisions, and the flags.
+integer parts of the computation: the bit changes and the cost peaks are called
+directly; the descriptor (quantized kernel) and the Hamming costs are recomputed here
+for speed, one FIR pass and 64-bit popcounts, and tested equal to golden's. What is the
+hardware's own is modelled here: row framing of the camera stream (padding of short
+rows, dropping of stray pixels), the reference store with its frame tags, the
+fixed-point sub-pixel and confidence divisions, and the flags.
 
 A lane model takes camera beats (dicts of ``hdl.streams.camera_pixel_layout`` fields)
 and returns measurement dicts (fields of the measurement layout) in output order.
@@ -23,16 +24,16 @@ call per row.
 from dataclasses import dataclass
 
 import numpy as np
-
 from numpy.lib.stride_tricks import sliding_window_view
 
 from golden.descriptor import (cost_peaks, describe, match, segment_bounds, strength,
                                textureless)
 from hdl.fixed import UQ, Overflow, Rounding, resize
 
-__all__ = ["FramedRow", "frame_rows", "descriptor_bits", "measure_rows", "measure_segments",
-           "ReferenceStoreModel", "TemporalLaneModel", "StereoLaneModel", "stereo_pairs",
-           "against_golden", "subpixel_errors", "confidences"]
+__all__ = ["FramedRow", "frame_rows", "descriptor_bits", "hamming_costs", "measure_rows",
+           "measure_segments", "ReferenceStoreModel", "TemporalLaneModel",
+           "StereoLaneModel", "stereo_pairs", "against_golden", "subpixel_errors",
+           "confidences"]
 
 
 @dataclass
