@@ -9,8 +9,8 @@ printed (docs/e2e.md: the same-row reference is poor under vertical image motion
 """
 
 import dataclasses
-
 import os
+import re
 
 import numpy as np
 import pytest
