@@ -18,8 +18,11 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	@touch $@
 
+# Options for `rowtrack run`, e.g. RUN_ARGS="--rows 32 --frames 3 --sim icarus".
+RUN_ARGS ?=
+
 run: $(STAMP)
-	$(VENV)/bin/rowtrack run
+	$(VENV)/bin/rowtrack run $(RUN_ARGS)
 
 test: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) $(PYTEST_ARGS)

@@ -75,3 +75,13 @@ def test_bench_keys_are_prefixed_except_declared_extras(monkeypatch):
     figures = bench.measure("top")
     assert figures == {"top.lut": 5, "host.packets_ok": 7}
     assert "host.packets_ok=7" in bench.report("top", figures) and "lut=5" in bench.report("top", figures)
+
+
+def test_run_rejects_bad_input_in_a_real_process(tmp_path):
+    """``rowtrack run`` as a process: exit 2, one message, no traceback, nothing built
+    (sim_tests/unit/test_run.py checks every message in-process)."""
+    result = rowtrack("run", "--dataset", str(tmp_path / "none.npz"), "--out",
+                      str(tmp_path / "report"))
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "does not exist" in result.stderr and not (tmp_path / "report").exists()
+    assert "e2e" in rowtrack("bench", "--list").stdout.split()
