@@ -13,6 +13,7 @@ from amaranth.hdl import signed
 from amaranth.lib import data
 
 from .camera_sync import sync_config_layout, sync_status_layout
+from .measurement_engine_params import engine_config_layout, engine_status_layout
 from .pose_solver import counters_layout
 from .regs import Access, Register, RegisterGroup, RegisterMap
 
@@ -22,7 +23,8 @@ __all__ = ["rowtrack_map", "MAGIC", "GROUP_OFFSETS"]
 MAGIC = 0x5257544B
 
 #: Byte offset of each block's group in the window.
-GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "camera": 0x200, "solver": 0x400}
+GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "camera": 0x200, "solver": 0x400,
+                 "engine": 0x500}
 
 
 def _package_version():
@@ -141,9 +143,40 @@ def _solver(params):
     ])
 
 
+def _engine(params):
+    engine = params.engine
+    temporal, stereo = engine.temporal, engine.stereo
+    return RegisterGroup("engine", GROUP_OFFSETS["engine"], "Measurement engine "
+                         "(`hdl/measurement_engine.py`: a temporal row-descriptor lane per "
+                         "camera, a stereo lane per pair, the router into the solver's "
+                         "slots). The lanes have no run-time thresholds: the "
+                         "strong-response threshold "
+                         f"({temporal.descriptor.strong_response:g}), the textureless limit "
+                         f"(`min_strong` = {temporal.match.min_strong} columns per segment), "
+                         "the bit-transition limit and the peak-ratio cap and offset are "
+                         "quantized into the lanes at build time "
+                         "(`hdl/row_descriptor_params.py`); only the search-window centres "
+                         "move at run time.", [
+        Register("geometry", data.StructLayout({"segments": 8, "pairs": 8, "slots": 16}),
+                 Access.CONST, "temporal segments per row, stereo pairs and the solver "
+                 "slots they fill",
+                 value=params.segments | len(params.pairs) << 8
+                 | params.solver.slots << 16),
+        Register("control", engine_config_layout(engine), Access.RW, "pipeline enable "
+                 "and the search-window centres, integer pixels, saturated to "
+                 f"±{temporal.centre_range} (temporal) and ±{stereo.centre_range} (stereo) "
+                 "(reset: enabled, every centre 0: temporal shifts "
+                 f"{temporal.match.shift_min}…{temporal.match.shift_max}, disparities "
+                 f"{stereo.match.shift_min}…{stereo.match.shift_max})",
+                 reset={"enable": 1}),
+        Register("status", engine_status_layout(engine), Access.RO, "row sets and "
+                 "measurements counted by the engine and its router (wrap)"),
+    ])
+
+
 def rowtrack_map(params):
     """The register map of :class:`hdl.top.RowtrackTop` built with ``params``."""
     regmap = RegisterMap(groups=(_ident(params), _pose_out(params), _camera(params),
-                                 _solver(params)),
+                                 _solver(params), _engine(params)),
                          base=params.reg_base, size=params.reg_size)
     return regmap.with_value("ident", "map_crc", regmap.layout_crc())

@@ -4,24 +4,20 @@
 
 * the camera front end (:class:`hdl.camera_sync.CameraFrontEnd`: one DVP input per
   camera in its pixel-clock domain, the trigger/sync monitor and the row aligner),
+* the measurement engine (:class:`hdl.measurement_engine.MeasurementEngine`: a temporal
+  row-descriptor lane per camera, a stereo lane per pair, and the router that turns
+  their segment measurements into the solver's slots with their depth cues),
 * the pose solver (:class:`hdl.pose_solver.PoseSolver`: coefficient store, normal
   equations, LDLᵀ solve, pose integration),
 * the pose output (:class:`PoseLink`: decimation, framing, UART, PS FIFO), and
 * the register file (:class:`hdl.regs.RegisterFile` of :func:`hdl.regmap.rowtrack_map`)
   to every block's configuration, status and the solver's coefficient load.
 
-Not yet in the top: the measurement engine between the aligner and the solver — one
-:class:`hdl.row_descriptor.RowDescriptor` lane per camera needs a fan-out of the aligned
-row sets, and the solver needs a join that turns the lanes' segment measurements into
-its slots with their depth cues; neither block exists yet. Until then the aligned rows
-leave on :attr:`RowtrackTop.rows` and the solver takes its measurements from
-:attr:`RowtrackTop.measurements`.
-
 The PS7 is not in here: the top takes AXI4-Lite through a port, so a cocotb bench can
 stand in for the PS, and the board tops (:mod:`hdl.board`) add the PS7 and pins.
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
@@ -29,9 +25,12 @@ from amaranth.lib.wiring import In, Out
 
 from .camera_input import CameraParams
 from .camera_sync import CameraFrontEnd
+from .checks import check_int
+from .measurement_engine import MeasurementEngine
+from .measurement_engine_params import EngineParams
 from .pose_packet import PoseOutput, PoseOutputParams, PoseSource
 from .pose_params import PoseFlag, PoseSolverParams
-from .pose_solver import PoseSolver, measurement_layout
+from .pose_solver import PoseSolver
 from .regmap import rowtrack_map
 from .regs import AXI4LiteSignature, RegisterFile
 from .streams import dvp_signature
@@ -47,6 +46,12 @@ def solver_source(solver):
                       flag_bits=len(PoseFlag))
 
 
+#: Default camera ports (every supported board has four).
+DEFAULT_CAMERAS = 4
+#: Default temporal segments per row (the solver has one slot per camera and segment).
+DEFAULT_SEGMENTS = 4
+
+
 @dataclass(frozen=True, kw_only=True)
 class TopParams:
     """Parameters of :class:`RowtrackTop` (no Amaranth here).
@@ -54,9 +59,16 @@ class TopParams:
     Parameters
     ----------
     camera : CameraParams
+    pairs : tuple of (int, int)
+        Stereo pairs ``(A, B)`` of the measurement engine, one stereo lane each; every
+        camera belongs to exactly one pair (the stereo disparity is the solver's only
+        depth cue).
+    segments : int
+        Temporal-lane segments per row (K): the solver's ``slots`` must be
+        ``camera.n_cameras × segments``.
     solver : PoseSolverParams
-        ``rows`` must be the cameras' ``max_height`` and ``time_bits`` their
-        ``timestamp_bits``.
+        ``rows`` must be the cameras' ``max_height``, ``time_bits`` their
+        ``timestamp_bits`` and ``slots`` ``n_cameras × segments``.
     pose_output : PoseOutputParams
         ``source`` must be :func:`solver_source` of ``solver``.
     uart : UartParams
@@ -67,15 +79,23 @@ class TopParams:
         UART baud rate after reset.
     reg_base, reg_size : int
         Register window on the AXI bus (GP0 spans ``0x4000_0000``–``0x7FFF_FFFF``).
+
+    Members
+    -------
+    engine : EngineParams
+        The measurement engine's parameters, derived from the above.
     """
-    camera: CameraParams = CameraParams(n_cameras=4)
-    solver: PoseSolverParams = PoseSolverParams()
+    camera: CameraParams = CameraParams(n_cameras=DEFAULT_CAMERAS)
+    pairs: tuple = ((0, 1), (2, 3))
+    segments: int = DEFAULT_SEGMENTS
+    solver: PoseSolverParams = PoseSolverParams(slots=DEFAULT_CAMERAS * DEFAULT_SEGMENTS)
     pose_output: PoseOutputParams = PoseOutputParams(source=solver_source(PoseSolverParams()))
     uart: UartParams = UartParams()
     clk_hz: int = 100_000_000
     baud: int = 3_000_000
     reg_base: int = 0x4000_0000
     reg_size: int = 0x1000
+    engine: EngineParams = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         for name, cls in (("camera", CameraParams), ("solver", PoseSolverParams),
@@ -92,12 +112,27 @@ class TopParams:
             raise ValueError("pose_output.source must be solver_source(solver), not "
                              f"{self.pose_output.source!r}")
         for name in ("clk_hz", "baud", "reg_base", "reg_size"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool):
-                raise TypeError(f"{name} must be an integer, not {value!r}")
+            check_int(name, getattr(self, name))
         if not 1_000_000 <= self.clk_hz <= 500_000_000:
             raise ValueError(f"clk_hz must be between 1 MHz and 500 MHz, not {self.clk_hz}")
         self.uart.divisor_raw(self.clk_hz, self.baud)       # raises if the baud is unreachable
+        # The engine checks pairs (every camera in one pair), segments and solver.slots.
+        object.__setattr__(self, "engine", EngineParams.for_cameras(
+            self.camera, self.solver, self.pairs, segments=self.segments))
+
+    @classmethod
+    def for_pairs(cls, pairs, *, segments=DEFAULT_SEGMENTS, camera=CameraParams(),
+                  solver=PoseSolverParams(), pose_output=PoseOutputParams(), **changes):
+        """Parameters for ``len(pairs) · 2`` cameras: ``camera``, ``solver`` and
+        ``pose_output`` adjusted to them (camera count, solver slots, rows and time
+        bits, the output's source formats)."""
+        n = 2 * len(pairs)
+        camera = replace(camera, n_cameras=n)
+        solver = replace(solver, slots=n * segments, rows=camera.max_height,
+                         time_bits=camera.timestamp_bits)
+        pose_output = replace(pose_output, source=solver_source(solver))
+        return cls(camera=camera, pairs=tuple(tuple(p) for p in pairs), segments=segments,
+                   solver=solver, pose_output=pose_output, **changes)
 
     replace = replace
 
@@ -174,11 +209,6 @@ class RowtrackTop(wiring.Component):
         Trigger outputs of the camera sync.
     uart_tx : Out(1)
         Pose packets.
-    rows : Out(stream.Signature(camera.aligned_layout()))
-        Aligned row sets, for the measurement engine (not in the top yet).
-    measurements : In(stream.Signature(measurement_layout(solver)))
-        Per-row measurements into the pose solver, from the measurement engine (not in
-        the top yet).
     """
 
     def __init__(self, params=TopParams(), *, domains=None):
@@ -193,8 +223,6 @@ class RowtrackTop(wiring.Component):
             "dvp": In(dvp_signature(params.camera.pixel_bits)).array(n),
             "trigger": Out(1), "expose": Out(1), "fsin": Out(n),
             "uart_tx": Out(1, init=1),
-            "rows": Out(stream.Signature(params.camera.aligned_layout())),
-            "measurements": In(stream.Signature(measurement_layout(params.solver))),
         })
 
     def elaborate(self, platform):
@@ -202,11 +230,13 @@ class RowtrackTop(wiring.Component):
         m = Module()
         m.submodules.regs = regs = RegisterFile(p.regmap())
         m.submodules.front = front = CameraFrontEnd(p.camera, domains=self.domains)
+        m.submodules.engine = engine = MeasurementEngine(p.engine)
         m.submodules.solver = solver = PoseSolver(p.solver)
         m.submodules.pose_link = link = PoseLink(p)
         wiring.connect(m, wiring.flipped(self.axi), regs.axi)
-        wiring.connect(m, front.o, wiring.flipped(self.rows))
-        wiring.connect(m, wiring.flipped(self.measurements), solver.i)
+        wiring.connect(m, front.o, engine.rows)
+        wiring.connect(m, engine.o, solver.i)
+        m.d.comb += [engine.cfg.eq(regs.engine.control), regs.engine.status.eq(engine.status)]
 
         for k in range(p.camera.n_cameras):
             wiring.connect(m, wiring.flipped(self.dvp[k]), front.dvp[k])

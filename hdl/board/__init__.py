@@ -106,10 +106,11 @@ FCLK0 is set to {fclk_hz / 1e6:g} MHz (e.g. `/sys/devices/soc0/fclk0`), then rea
 [register_map.md](register_map.md), the packet format in
 [packet_format.md](packet_format.md).
 
-Not yet on the board: the row-descriptor lanes and the join that feeds their
-measurements to the pose solver (see `hdl/top.py`). The board top drops the aligned
-rows after the front end (whose counters and skews are live) and the solver receives no
-measurements, so no pose packets leave the UART yet.
+The tracker is the whole pipeline of `hdl/top.py`: camera front end, measurement
+engine (a temporal row-descriptor lane per camera, a stereo lane per neighbouring pair
+of camera ports, the router), pose solver, pose output. The lanes are built for
+full-width rows (`camera.max_width`): set `camera.input.width` to it. Load the solver's
+coefficients (`solver.coef`, the rig's table) before the first frame.
 
 Each camera's PCLK drives its own clock domain (`pclk<k>`, reset from the system reset
 through a reset synchronizer); its rows cross into FCLK_CLK0 through an AsyncFIFO. FSIN

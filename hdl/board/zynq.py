@@ -31,8 +31,19 @@ XC7Z020_CLG400_CLOCK_P = frozenset({
 
 
 def default_params(board, fclk_hz=100_000_000):
-    """The tracker parameters for ``board``: one camera per camera port."""
-    return TopParams(camera=CameraParams(n_cameras=board.n_cameras), clk_hz=fclk_hz)
+    """The tracker parameters for ``board``: one camera per camera port, neighbouring
+    ports paired for stereo ((0, 1), (2, 3), ...).
+
+    Raises
+    ------
+    ValueError
+        If the board has an odd number of camera ports (a camera without a pair).
+    """
+    if board.n_cameras % 2:
+        raise ValueError(f"board {board.name} has {board.n_cameras} camera ports; the "
+                         f"measurement engine needs stereo pairs")
+    pairs = tuple((k, k + 1) for k in range(0, board.n_cameras, 2))
+    return TopParams.for_pairs(pairs, camera=CameraParams(), clk_hz=fclk_hz)
 
 
 class ZynqTop(Elaboratable):
@@ -68,10 +79,6 @@ class ZynqTop(Elaboratable):
         m.submodules.tracker = tracker = RowtrackTop(self.params)
         wiring.connect(m, ps7.gp0, bridge.gp0)
         wiring.connect(m, bridge.lite, tracker.axi)
-        # The measurement engine is not in the tracker yet (see hdl/top.py): aligned rows
-        # are taken and dropped so that the front end runs and its counters mean what
-        # they say, and the solver receives no measurements.
-        m.d.comb += tracker.rows.ready.eq(1)
 
         for k, domain in enumerate(tracker.domains):
             pins = platform.request("camera", k, dir="-")

@@ -12,6 +12,7 @@ from hdl import board
 from hdl.board.ps7 import FCLK0_NET, PS7
 from hdl.board.spec import BoardSpec, CameraPins
 from hdl.board.zynq import XC7Z020_CLG400_CLOCK_P, ZynqTop, default_params
+from hdl.top import TopParams
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 
@@ -82,8 +83,7 @@ def test_board_spec_checks():
         BoardSpec(name="x", title="", platform_class=arty.platform_class, cameras=(cam,),
                   uart_tx=("nope", 0, "1"), clock_capable=XC7Z020_CLG400_CLOCK_P)
     with pytest.raises(ValueError, match="params.camera.n_cameras must be 4"):
-        ZynqTop(arty, default_params(arty).replace(
-            camera=default_params(arty).camera.replace(n_cameras=2)))
+        ZynqTop(arty, TopParams.for_pairs(((0, 1),)))
     with pytest.raises(ValueError, match="board must be one of arty-z7-20, microzed-7020"):
         board.board("zybo")
 

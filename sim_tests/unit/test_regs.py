@@ -207,9 +207,29 @@ def test_register_map_doc_is_generated_from_the_declaration():
 
 def test_rowtrack_map_binds_every_block():
     regmap = TopParams().regmap()
-    assert [g.name for g in regmap.groups] == ["ident", "pose_out", "camera", "solver"]
+    assert [g.name for g in regmap.groups] == ["ident", "pose_out", "camera", "solver",
+                                               "engine"]
     assert regmap.find("ident", "map_crc").register.value == regmap.layout_crc()
     for group, name in (("pose_out", "control"), ("pose_out", "uart_divisor"),
                         ("camera", "sync"), ("camera", "inputs"), ("solver", "coef"),
-                        ("solver", "counters")):
+                        ("solver", "counters"), ("engine", "control"), ("engine", "status")):
         regmap.find(group, name)
+
+
+def test_engine_group_binds_the_engine_layouts():
+    """Control is the engine's cfg (enabled after reset, centres 0), status its counters;
+    the group says that the lanes have no run-time thresholds."""
+    from amaranth.lib import data
+
+    from hdl.measurement_engine_params import engine_config_layout, engine_status_layout
+    params = TopParams()
+    engine = params.regmap().group("engine")
+    control, status = (next(r for r in engine.registers if r.name == name)
+                       for name in ("control", "status"))
+    assert control.shape == engine_config_layout(params.engine)
+    assert status.shape == engine_status_layout(params.engine)
+    assert data.Const(control.shape, control.reset_raw).enable == 1
+    assert control.reset_raw == 1 << control.shape["enable"].offset
+    geometry = next(r for r in engine.registers if r.name == "geometry")
+    assert geometry.value == params.segments | len(params.pairs) << 8 | params.solver.slots << 16
+    assert "no run-time thresholds" in engine.doc

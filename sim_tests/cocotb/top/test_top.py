@@ -1,27 +1,22 @@
-"""Runs the top-level cocotb bench (registers, cameras, solver, UART, PS FIFO) on a
-small build of RowtrackTop: two cameras and the pose solver's ``random`` coefficient
-case. Icarus in the default suite: Verilator's C++ build of this design alone takes
-about two minutes on the project machines, while Icarus runs the whole bench in about
-half a minute; Verilator with ``RUN_SLOW=1``."""
+"""Runs the top-level cocotb bench (registers, cameras into the measurement engine) on a
+small build of RowtrackTop: one stereo pair of 256-pixel cameras (the narrowest the
+lanes accept), eight rows. Icarus in the default suite; Verilator's C++ build of the
+whole top takes minutes, so it runs with ``RUN_SLOW=1``. The pose path is the
+co-simulated slice (``sim_tests/unit/test_top_cosim.py``)."""
 
 import os
 
 import pytest
 
 from hdl.camera_input import CameraParams
-from hdl.pose_packet import PoseOutputParams
-from hdl.top import RowtrackTop, TopParams, solver_source
-from sim_tests.cocotb.pose_solver.stimulus import build_case
-from sim_tests.cocotb.top.top_bench import SOLVER_CASE
+from hdl.top import RowtrackTop, TopParams
 from sim_tests.common.cocotb_runner import run_cocotb
 
 
 def bench_params():
-    solver, _, _ = build_case(SOLVER_CASE)
-    camera = CameraParams(n_cameras=2, max_width=16, max_height=solver.rows, frame_bits=8,
-                          count_bits=8, buffer_depth=128, row_queue_depth=4)
-    return TopParams(camera=camera, solver=solver,
-                     pose_output=PoseOutputParams(source=solver_source(solver), fifo_depth=64))
+    camera = CameraParams(max_width=256, max_height=8, frame_bits=8, count_bits=8,
+                          buffer_depth=256, row_queue_depth=4)
+    return TopParams.for_pairs(((0, 1),), camera=camera)
 
 
 @pytest.mark.parametrize("sim", [

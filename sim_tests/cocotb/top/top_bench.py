@@ -2,11 +2,11 @@
 
 * identification and error responses through the register window;
 * cameras with their own pixel clocks, configured and observed through registers
-  (time base, per-camera counters after an injected fault, aligned rows out);
-* the pose path: solver coefficients loaded through registers, measurement rows in,
-  pose packets on the UART line compared byte for byte with the emulator (solver model
-  → packet model), the same records read from the PS FIFO through registers, and the
-  counters read back.
+  (time base, per-camera counters after an injected fault, the row sets the front end
+  hands to the measurement engine and the engine's row-set counter).
+
+The pose path (engine → solver → UART and PS FIFO) against the emulator is the
+co-simulated slice, ``cosim_bench.py``.
 """
 
 import random
@@ -15,32 +15,56 @@ import cocotb
 import numpy as np
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
 
-from emulator import packets
-from emulator.pose_solver import pose_solver_model
-from hdl.pose_solver import measurement_layout
 from hdl.streams import RowFlag
-from sim_tests.cocotb.pose_solver.stimulus import build_case, mixed_rows
 from sim_tests.cocotb.regs.access import Registers
-from sim_tests.cocotb.uart.uart_bench import UartMonitor, wait_idle
 from sim_tests.common.clocking import reset, start_clock
 from sim_tests.common.cocotb_env import load_params
 from sim_tests.common.dvp import DvpPlayer, DvpTiming, Fault, drive_cocotb
 from sim_tests.common.payload import unpack
-from sim_tests.common.streams import StreamSource
-
-#: The coefficient-store case the top is built with (see test_top.py).
-SOLVER_CASE = "random"
-#: UART divisor for the bench: one clock per bit keeps packets short.
-DIVISOR = 16
 
 
-async def _start(dut, *, rows_ready=True):
+def child(parent, name):
+    """Sub-instance ``name`` (escaped in the Verilog when it is a keyword, e.g. fork)."""
+    try:
+        return getattr(parent, name)
+    except AttributeError:
+        return parent._id(f"\\{name} ", extended=False)
+
+
+class ColumnMonitor:
+    """Every column taken on a stream (its ``valid``/``ready``/``payload`` handles), raw,
+    with the clock it was taken, and the clocks ``valid`` was high."""
+
+    def __init__(self, dut, valid, ready, payload, clock):
+        self.handles = (valid, ready, payload)
+        self.clock = clock
+        self.dut = dut
+        self.columns = []
+        self.busy_clocks = 0
+        cocotb.start_soon(self._run())
+
+    async def _run(self):
+        valid, ready, payload = self.handles
+        while True:
+            await RisingEdge(self.dut.clk)
+            await ReadOnly()
+            if int(valid.value):
+                self.busy_clocks += 1
+                if int(ready.value):
+                    self.columns.append((self.clock.cycle, int(payload.value)))
+
+
+def engine_input(dut, clock):
+    """A :class:`ColumnMonitor` of the row sets entering the measurement engine."""
+    fork = child(dut.engine, "fork")
+    return ColumnMonitor(dut, fork.i__valid, fork.i__ready, fork.i__payload, clock)
+
+
+async def start_top(dut):
     """Clock, quiet inputs, reset; returns (params, regmap, registers, clock)."""
     params = load_params()
     regmap = params.regmap()
     clock = start_clock(dut)
-    dut.rows__ready.value = int(rows_ready)
-    dut.measurements__valid.value = 0
     for k in range(params.camera.n_cameras):
         getattr(dut, f"pclk{k}_rst").value = 1
         getattr(dut, f"pclk{k}_clk").value = 0
@@ -55,7 +79,7 @@ async def _start(dut, *, rows_ready=True):
 
 @cocotb.test()
 async def identification_and_error_responses(dut):
-    params, regmap, regs, _ = await _start(dut)
+    params, regmap, regs, clock = await start_top(dut)
     assert await regs.read_register("ident", "magic") == 0x5257544B
     assert await regs.read_register("ident", "map_crc") == regmap.layout_crc()
     cameras = await regs.read_register("ident", "cameras")
@@ -70,13 +94,16 @@ async def identification_and_error_responses(dut):
 
 @cocotb.test()
 async def cameras_run_and_their_counters_are_visible(dut):
-    """Two frames from every camera (one short row injected on camera 1): rows leave on
-    ``rows``; time base, frame number, skews and the bad-row counter read back."""
-    params, regmap, regs, _ = await _start(dut)
+    """Two frames from every camera (one short row injected on camera 1): every row
+    reaches the measurement engine, which counts the row sets; time base, frame number,
+    skews and the bad-row counter read back. Rows are as wide as the engine's lanes
+    (``max_width``): a narrower row is padded by the lanes' framers to their width, so
+    rows would arrive faster than the engine takes them."""
+    params, regmap, regs, clock = await start_top(dut)
     cam = params.camera
     rng = random.Random(cocotb.RANDOM_SEED)
-    timing = DvpTiming(width=12, height=4, hblank=6)
-    n_frames, period = 2, 300
+    timing = DvpTiming(width=cam.max_width, height=4, hblank=6)
+    n_frames, period = 2, timing.frame_pclks * 12 // 10
     images = np.array([[[[rng.randrange(1 << cam.pixel_bits) for _ in range(timing.width)]
                          for _ in range(timing.height)] for _ in range(n_frames)]
                        for _ in range(cam.n_cameras)])
@@ -87,21 +114,7 @@ async def cameras_run_and_their_counters_are_visible(dut):
     for k, player in enumerate(players):
         cocotb.start_soon(drive_cocotb(dut, f"dvp__{k}", f"pclk{k}_clk", player,
                                        trigger=lambda k=k: int(dut.fsin.value) >> k & 1))
-    rows = set()
-
-    async def collect():
-        layout = cam.aligned_layout()
-        while True:
-            await RisingEdge(dut.clk)
-            await ReadOnly()
-            if int(dut.rows__valid.value):
-                beat = unpack(layout, dut.rows__payload.value)
-                for k in range(cam.n_cameras):
-                    lane = beat["lanes"][k]
-                    if beat["lane_valid"] >> k & 1 and lane["last"]:
-                        rows.add((k, lane["frame"], lane["row"]))
-
-    cocotb.start_soon(collect())
+    monitor = engine_input(dut, clock)
     await regs.write_register("camera", "input", {"width": timing.width,
                                                   "height": timing.height,
                                                   "pclk_timeout": 200})
@@ -126,73 +139,17 @@ async def cameras_run_and_their_counters_are_visible(dut):
               for k in range(cam.n_cameras)]
     assert [s["bad_rows"] for s in inputs] == [0, 1] + [0] * (cam.n_cameras - 2)
     assert inputs[1]["reasons"] & RowFlag.SHORT
+    rows = set()
+    for _, column in monitor.columns:
+        beat = unpack(cam.aligned_layout(), column)
+        rows |= {(k, beat["lanes"][k]["frame"], beat["lanes"][k]["row"])
+                 for k in range(cam.n_cameras)
+                 if beat["lane_valid"] >> k & 1 and beat["lanes"][k]["last"]}
     expected = {(k, f, y) for k in range(cam.n_cameras) for f in range(n_frames)
                 for y in range(timing.height)}
     assert rows == expected, f"rows out: missing {sorted(expected - rows)[:5]}"
-    dut._log.info(f"{len(rows)} camera rows out; counters {inputs}")
-
-
-def _case_coefficients(params, rows):
-    """The case's coefficients of the table rows ``rows`` uses (the rest stay zero)."""
-    _, coefficients, _ = build_case(SOLVER_CASE)
-    loaded = np.zeros_like(coefficients)
-    used = sorted({int(r) for r in rows.row})
-    loaded[:, used] = coefficients[:, used]
-    return loaded, used
-
-
-@cocotb.test()
-async def poses_through_registers_solver_uart_and_fifo(dut):
-    params, regmap, regs, clock = await _start(dut)
-    solver, po = params.solver, params.pose_output
-    rng = np.random.default_rng(cocotb.RANDOM_SEED)
-    rows = mixed_rows(SOLVER_CASE, solver, None, rng, 24)
-    coefficients, used = _case_coefficients(solver, rows)
-    for row in used:
-        for slot in range(solver.slots):
-            for index in range(9):
-                await regs.write_register("solver", "coef", {
-                    "addr": slot * solver.rows + row, "index": index,
-                    "data": int(coefficients[slot, row, index])})
-    await regs.write(regs.address(regmap.find("pose_out", "uart_divisor")), DIVISOR)
-    monitor = UartMonitor(dut, params.uart, DIVISOR, line="uart_tx")
-    source = StreamSource(dut, "measurements", measurement_layout(solver), clock)
-
-    packet_clocks = po.packet.packet_bytes * packets.uart_byte_clocks(params.uart, DIVISOR)
-    transfers = rows.transfers()
-    for r in range(len(rows)):
-        count = int(np.sum(rows.present[r]))
-        await source.send(transfers[:count])
-        del transfers[:count]
-        await ClockCycles(dut.clk, packet_clocks + 200)
-    await wait_idle(dut, monitor, 100)
-
-    model = pose_solver_model(solver, coefficients, rows)
-    poses = [{"t_row": int(model["time"][k]), "row": int(model["row"][k]),
-              "flags": int(model["flags"][k]), "position": [int(v) for v in model["p"][k]],
-              "quaternion": [int(v) for v in model["q"][k]]} for k in range(len(rows))]
-    expected = [record for _, record in packets.keep_poses(po, poses, 1)]
-    assert bytes(monitor.received) == b"".join(packets.encode_packet(po.packet, r)
-                                               for r in expected), "UART bytes differ"
-    assert monitor.framing_errors == 0
-
-    flags = np.bincount(model["flags"], minlength=9)
-    counters = unpack(regmap.find("solver", "counters").register.shape,
-                      await regs.read_register("solver", "counters"))
-    assert counters["solved"] == int(flags[0]) and counters["ill"] == int(flags[2])
-    status = unpack(po.status_layout(), await regs.read_register("pose_out", "status"))
-    assert (status["poses"], status["packets"], status["uart_dropped"], status["fifo_level"]) \
-        == (len(rows), len(rows), 0, len(rows))
-
-    pop = regmap.find("pose_out", "fifo_pop")
-    for record in expected:
-        head = unpack(po.packet.record_layout(), await regs.read_register("pose_out",
-                                                                         "fifo_head"))
-        head = {k: [v[i] for i in sorted(v)] if isinstance(v, dict) else v
-                for k, v in head.items()}
-        assert head == record, f"FIFO record {record['seq']} differs"
-        assert await regs.write(regs.address(pop), 1)
-    status = unpack(po.status_layout(), await regs.read_register("pose_out", "status"))
-    assert status["fifo_level"] == 0
-    dut._log.info(f"{len(expected)} pose records bit-exact on the UART and in the FIFO; "
-                  f"solver flags {flags.tolist()}")
+    engine = unpack(regmap.find("engine", "status").register.shape,
+                    await regs.read_register("engine", "status"))
+    assert engine["row_sets"] == n_frames * timing.height and engine["dropped"] == 0, engine
+    dut._log.info(f"{len(rows)} camera rows into the engine; counters {inputs}, "
+                  f"engine {engine}")
