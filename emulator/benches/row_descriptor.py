@@ -1,10 +1,13 @@
 """Benchmark of the row-descriptor lanes (issue 7): throughput and latency of 640-pixel
 rows on the generated Verilog (cocotb + Verilator, every measurement checked against
-the model), resources and logic depth from synth_xilinx, and the model's agreement
-with the golden float matcher (the hardware equals the model bit for bit)."""
+the model), resources and logic depth from synth_xilinx, the model's agreement with
+the golden float matcher (the hardware equals the model bit for bit), and the speed of
+the model itself (issue 11) against the HDL simulation of a lane."""
 
 import json
 import tempfile
+import time
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -17,16 +20,100 @@ SEED = 7
 LUT_TARGET, BRAM_TARGET, LATENCY_TARGET, SUBPIXEL_TARGET = 2500, 10, 64, 1 / 16
 #: "Confident" for the textureless / periodic figures (peak ratio, offset κ = 16).
 CONFIDENT = 1.5
+#: Frames of the full-size stereo20 sequence (20 cameras, 10 rectified pairs, 640×480)
+#: the emulator's speed is measured on.
+SPEED_FRAMES = 3
 
 
 def _simulate(lane, name):
+    """Figures of the full-size cocotb run, plus its simulated clocks and wall time
+    (from the results file: the test alone, not the Verilator build)."""
+    from sim_tests.common.clocking import CLOCK_PERIOD_NS
     from sim_tests.common.cocotb_runner import run_cocotb
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "figures.json"
-        run_cocotb(lane, name=name, tag="full", sim="verilator", seed=SEED,
-                   test_module="sim_tests.cocotb.row_descriptor.figures_bench",
-                   extra_env={"ROWTRACK_FIGURES": str(path)})
-        return json.loads(path.read_text())
+        results = run_cocotb(lane, name=name, tag="full", sim="verilator", seed=SEED,
+                             test_module="sim_tests.cocotb.row_descriptor.figures_bench",
+                             extra_env={"ROWTRACK_FIGURES": str(path)})
+        figures = json.loads(path.read_text())
+    case = ET.parse(results).find(".//testcase")
+    sim_ns = float(case.find("properties/property[@name='sim_time_duration']").get("value"))
+    figures["clocks"], figures["seconds"] = sim_ns / CLOCK_PERIOD_NS, float(case.get("time"))
+    return figures
+
+
+def _speed_dataset():
+    """The full-size stereo20 sequence (simulated once, kept under ``build/``)."""
+    from golden.dataset import Dataset
+    from golden.rig import preset
+    from golden.scene import default_scene_spec
+    from golden.simulator import simulate
+    from golden.trajectory import make_trajectory
+    from sim_tests.common.cocotb_runner import BUILD_ROOT
+    path = BUILD_ROOT / "row_descriptor-stereo20-dataset.npz"
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        simulate(preset("stereo20"), default_scene_spec(SEED), make_trajectory("paper"),
+                 SPEED_FRAMES / 120, seed=SEED).save(path)
+    return Dataset.load(path)
+
+
+def _lane_speed(data, batched):
+    """Camera rows per second of the lane models over ``data``: every camera through a
+    temporal lane and every rectified pair through a stereo lane (centre 0), a frame
+    of a camera per call (``batched``) or a row per call, as the pipeline runs them.
+    Returns ``(rows/s, {"temporal": measurements, "stereo": measurements})``."""
+    from emulator.row_descriptor import FramedRow, StereoLaneModel, TemporalLaneModel
+    from golden.depth import stereo_pairs
+    from hdl.row_descriptor_params import STEREO_640X480, TEMPORAL_640X480
+    cams, bits = range(len(data.cameras)), (len(data.cameras) - 1).bit_length()
+    pairs = [(a, b) for a, b, _ in stereo_pairs(data.rig)]
+    frames, height = SPEED_FRAMES, TEMPORAL_640X480.height
+    rows = [[[FramedRow(pixels=data.cameras[n].rows[f, y].astype(np.int64), camera=n,
+                        frame=f, row=y, t_first=y, centre=0, bad=False, padded=False)
+              for y in range(height)] for f in range(frames)] for n in cams]
+    temporal = [TemporalLaneModel(TEMPORAL_640X480.replace(camera_bits=bits)) for _ in cams]
+    stereo = [StereoLaneModel(STEREO_640X480.replace(camera_bits=bits)) for _ in pairs]
+    out = {"temporal": [], "stereo": []}
+    start = time.perf_counter()
+    for f in range(frames):
+        if batched:
+            out["temporal"] += [m for n in cams for m in temporal[n].process_rows(rows[n][f])]
+            out["stereo"] += [m for lane, (a, b) in zip(stereo, pairs)
+                              for m in lane.process_pairs(rows[a][f], rows[b][f])]
+            continue
+        for y in range(height):
+            out["temporal"] += [m for n in cams
+                                for m in temporal[n].process_row(rows[n][f][y])]
+            out["stereo"] += [m for lane, (a, b) in zip(stereo, pairs)
+                              for m in lane.process_pair(rows[a][f][y], rows[b][f][y])]
+    seconds = time.perf_counter() - start
+    return len(cams) * frames * height / seconds, out
+
+
+def _emulator_speed(temporal_hdl, width):
+    """Model speed, batched and row by row on the same rows (and whether they agree),
+    against the cocotb + Verilator run of one temporal lane."""
+    data = _speed_dataset()
+    batched, batch_out = _lane_speed(data, batched=True)
+    per_row, row_out = _lane_speed(data, batched=False)
+    order = lambda m: (m["frame"], m["row"], m["camera"], m["segment"])
+    mismatches = 0
+    for kind in batch_out:
+        got, expected = (sorted(out[kind], key=order) for out in (batch_out, row_out))
+        mismatches += sum(g != e for g, e in zip(got, expected))
+        mismatches += abs(len(got) - len(expected))
+    hdl_rows = temporal_hdl["pixels"] / width / temporal_hdl["seconds"]
+    camera_rows = len(data.cameras) * SPEED_FRAMES * data.cameras[0].rows.shape[1]
+    return {
+        "emulator.rows_per_s": round(batched),
+        "emulator.row_by_row_rows_per_s": round(per_row),
+        "emulator.camera_rows": camera_rows,
+        "emulator.batch_mismatches": mismatches,
+        "hdl.clocks_per_s": round(temporal_hdl["clocks"] / temporal_hdl["seconds"]),
+        "hdl.rows_per_s": round(hdl_rows, 1),
+        "emulator.speedup_vs_hdl": round(batched / hdl_rows),
+    }
 
 
 def _golden_agreement(params):
@@ -105,6 +192,7 @@ def measure():
         "stereo.dsp48": pair["dsp48"], "stereo.lut_levels": pair["lut_levels"],
     }
     figures.update(_golden_agreement(TEMPORAL_640X480))
+    figures.update(_emulator_speed(temporal, TEMPORAL_640X480.width))
     return figures
 
 
@@ -145,6 +233,33 @@ longest register-to-register path in LUTs (no vendor timing here).
 Eight cameras: {f['cameras8.lut']} LUTs ({f['cameras8.lut_pct']} % of the xc7z020's
 {XC7Z020['lut']}), {f['cameras8.bram36']} BRAM36 ({f['cameras8.bram36_pct']} % of
 {XC7Z020['bram36']}), {f['cameras8.dsp48']} DSP48E1 (of {XC7Z020['dsp48']}).
+
+## Emulator speed (issue 11)
+
+The lane models of `emulator/row_descriptor.py` on full-size rows of the golden
+simulator: the stereo20 rig (20 cameras of 640×480, 10 rectified pairs), `paper`
+trajectory, {SPEED_FRAMES} frames, seed {SEED} — every camera's rows through a temporal
+lane and every pair's through a stereo lane ({f['emulator.camera_rows']} camera rows).
+Batched, a frame of a camera per `TemporalLaneModel.process_rows` /
+`StereoLaneModel.process_pairs` call; row by row, one `process_row` / `process_pair` call
+per row as `emulator/pipeline.py` makes them; both on the same rows, in one process on
+this 2-core machine (shared, so the figures vary by some tens of percent between runs).
+The HDL side is the cocotb + Verilator run of one temporal lane above (the test's wall
+time, without the Verilator build).
+
+| | camera rows/s |
+|---|---|
+| lane models, batched | {f['emulator.rows_per_s']} |
+| lane models, row by row | {f['emulator.row_by_row_rows_per_s']} |
+| HDL simulation, one temporal lane ({f['hdl.clocks_per_s']} clocks/s, 640 clocks a row) | {f['hdl.rows_per_s']} |
+
+| target (issue 11, lanes only) | measured | |
+|---|---|---|
+| model ≥ 100× faster than the HDL simulation | {f['emulator.speedup_vs_hdl']}× per camera row (the model also runs the stereo lanes) | {verdict(f['emulator.speedup_vs_hdl'] >= 100)} |
+| batched = row by row | {f['emulator.batch_mismatches']} measurements differ | {verdict(f['emulator.batch_mismatches'] == 0)} |
+
+The whole pipeline's figure (router, solver, packets against the HDL top) is the `e2e`
+benchmark's; the lanes were the emulator's largest cost (docs/e2e.md).
 
 | figure | value |
 |---|---|
