@@ -7,8 +7,8 @@ Two sources, both checked against :func:`emulator.measurement_router.route_ticke
   hits), tickets with missing cameras and pairs, misaligned temporal rows, stale
   stereo rows and stereo rows the join lost;
 * :func:`lane_streams` runs real simulated rows through the emulator's lane models
-  (:mod:`emulator.pipeline` on a small cut of the stereo20 rig) and splits the
-  measurements per lane, one full ticket per row set.
+  (:mod:`emulator.pipeline`, e.g. on a small cut of the stereo20 rig) and splits the
+  measurements per lane, one ticket per row set, some row sets missing a camera.
 """
 
 from emulator.measurement_router import route_tickets
@@ -107,21 +107,47 @@ def synthetic(params, rng, tickets):
     return out, temporal, stereo
 
 
-def lane_streams(config, dataset, frames):
-    """Real lane measurements (:func:`emulator.pipeline.run`) as per-lane streams and
-    one full ticket per row set."""
+def lane_streams(config, dataset, frames, pairs, rng, drop=0.1):
+    """Real lane measurements (:func:`emulator.pipeline.run`) of the cameras of the
+    first ``pairs`` stereo pairs, renumbered ``0 …``, as per-lane streams and one
+    ticket per row set; with probability ``drop`` a row set loses a random camera
+    (its temporal row and its pair's stereo row are not delivered).
+
+    Returns ``(router params, tickets, temporal streams, stereo streams)``.
+    """
+    import dataclasses
+
     from emulator.pipeline import run
+    full = config.router
+    kept = full.pairs[:pairs]
+    cameras = [c for pair in kept for c in pair]
+    number = {c: n for n, c in enumerate(cameras)}
+    params = dataclasses.replace(
+        full, cameras=len(cameras), pairs=tuple((number[a], number[b]) for a, b in kept),
+        solver=dataclasses.replace(full.solver, slots=len(cameras) * full.temporal.segments))
     result = run(config, dataset, frames=frames)
-    params = config.router
-    temporal = [[{k: m[k] for k in FIELDS} for m in result.temporal if m["camera"] == c]
-                for c in range(params.cameras)]
-    stereo = [[{k: m[k] for k in FIELDS} for m in result.stereo if m["camera"] == a]
-              for a, _ in params.pairs]
     keys = list(dict.fromkeys((m["frame"], m["row"]) for m in result.temporal))
-    everyone = (1 << params.cameras) - 1
-    tickets = [{"cameras": everyone, "pairs": (1 << len(params.pairs)) - 1,
-                "frame": f, "row": r} for f, r in keys]
-    return tickets, temporal, stereo
+    tickets, lost = [], set()
+    for frame, row in keys:
+        mask = (1 << params.cameras) - 1
+        if rng.random() < drop:
+            gone = int(rng.integers(params.cameras))
+            mask &= ~(1 << gone)
+            lost.add((frame, row, gone))
+        pair_mask = sum(1 << j for j, (a, b) in enumerate(params.pairs)
+                        if mask >> a & 1 and mask >> b & 1)
+        tickets.append({"cameras": mask, "pairs": pair_mask, "frame": frame, "row": row})
+
+    def stream(records, camera):
+        return [{**{k: m[k] for k in FIELDS}, "camera": number[camera]} for m in records
+                if m["camera"] == camera and (m["frame"], m["row"], number[camera]) not in lost]
+
+    temporal = [stream(result.temporal, c) for c in cameras]
+    stereo = []
+    for j, (a, b) in enumerate(kept):
+        gone = {(f, r) for f, r, n in lost if n in (number[a], number[b])}
+        stereo.append([m for m in stream(result.stereo, a) if (m["frame"], m["row"]) not in gone])
+    return params, tickets, temporal, stereo
 
 
 def expected(params, tickets, temporal, stereo):
