@@ -9,14 +9,28 @@ input, runs it through :func:`sim_tests.common.cocotb_runner.run_cocotb` and jud
 result with :func:`compare_records`.
 """
 
+import os
+import pickle
+import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["RECORD_FIELDS", "CosimResult", "compare_records"]
+__all__ = ["RECORD_FIELDS", "CosimResult", "compare_records", "slice_params",
+           "cosim_slice"]
 
 #: Pose-record fields compared, element by element (``q`` and ``p`` are arrays).
 RECORD_FIELDS = ("row", "time", "flags", "q", "p")
+#: Temporal segments per row of the slice's engine (the solver's slots per camera).
+SEGMENTS = 4
+#: UART divisor of the slice (raw ``UartParams.divisor_fmt``: one clock per bit), so a
+#: packet leaves before the next row's record and the UART carries every record.
+DIVISOR = 16
+#: Camera timing of the slice: camera k's PCLK period is ``PCLK_PS + k · PCLK_STEP_PS``
+#: (slower than the 10 ns system clock, each camera its own), horizontal blanking
+#: ``HBLANK`` PCLKs.
+PCLK_PS, PCLK_STEP_PS, HBLANK = 10_400, 400, 16
 
 
 @dataclass(frozen=True)
@@ -120,3 +134,187 @@ def compare_records(records, expected, frames=None):
                 if first is None:
                     first = f"{where}: {label} HDL {got} ≠ emulator {want}"
     return mismatches, first
+
+
+# --- the slice -------------------------------------------------------------------------
+
+def _sub_rig(rig, cameras):
+    """The first ``cameras / 2`` rectified pairs of ``rig`` as a rig of their own, and
+    the dataset camera behind each of its cameras (pairs become (0, 1), (2, 3), ...)."""
+    from golden.depth import stereo_pairs
+    from golden.rig import Rig
+    pairs = stereo_pairs(rig)
+    if isinstance(cameras, bool) or not isinstance(cameras, int) or cameras < 2 \
+            or cameras % 2 or cameras // 2 > len(pairs):
+        raise ValueError(f"cameras must be an even number from 2 to {2 * len(pairs)} (whole "
+                         f"stereo pairs of rig {rig.name!r}), not {cameras!r}")
+    chosen = [k for left, right, _ in pairs[:cameras // 2] for k in (left, right)]
+    sub = Rig(name=f"{rig.name}-slice", cameras=tuple(rig.cameras[k] for k in chosen),
+              row_points=rig.row_points, nominal_depth=rig.nominal_depth,
+              allow_unobservable=True)
+    return sub, chosen
+
+
+def slice_params(rig, cameras, records):
+    """:class:`hdl.top.TopParams` of the slice and its coefficient store.
+
+    The top has ``cameras`` ports (whole pairs of ``rig``, :func:`_sub_rig`), full-size
+    lanes and solver (the rig's image size), the coefficient formats and table of
+    :func:`emulator.pipeline.configure` for the sub-rig, and a PS FIFO deep enough for
+    ``records`` pose records. Returns ``(params, coef_raw, chosen dataset cameras)``.
+    """
+    from emulator.pipeline import configure
+    from hdl.camera_input import CameraParams
+    from hdl.pose_packet import PoseOutputParams
+    from hdl.top import TopParams
+    sub, chosen = _sub_rig(rig, cameras)
+    config = configure(sub, segments=SEGMENTS)
+    lane = config.router.temporal
+    camera = CameraParams(max_width=lane.width, max_height=lane.height)
+    depth = 1 << max(records, 2).bit_length()
+    params = TopParams.for_pairs(config.router.pairs, segments=SEGMENTS, camera=camera,
+                                 solver=config.router.solver,
+                                 pose_output=PoseOutputParams(fifo_depth=depth),
+                                 clk_hz=round(config.clk_hz))
+    return params, config.coef_raw, chosen
+
+
+def _check_count(name, value, high):
+    from hdl.checks import check_int
+    check_int(name, value, 1, high)
+
+
+def row_sets_from_columns(layout, columns):
+    """The row sets in the aligned columns the engine took: ``[{camera: beats}]`` and
+    the clock each set's first and last column was taken (the fork's rule: a set ends
+    with the column on which every lane still in it carries ``last``)."""
+    from sim_tests.common.payload import unpack
+    sets, spans, current, first = [], [], {}, None
+    for clock, raw in columns:
+        column = unpack(layout, raw)
+        lanes = [k for k in range(len(column["lanes"])) if column["lane_valid"] >> k & 1]
+        first = clock if first is None else first
+        for k in lanes:
+            current.setdefault(k, []).append(column["lanes"][k])
+        if all(column["lanes"][k]["last"] for k in lanes):
+            sets.append(current)
+            spans.append((first, clock))
+            current, first = {}, None
+    return sets, spans
+
+
+def expected_records(params, coef_raw, row_sets):
+    """The emulator on the row sets the HDL front end produced: the engine model, the
+    solver model, and the PS FIFO's narrowing (``emulator.packets.keep_poses``), as
+    record arrays; plus the pose records' packets (UART bytes)."""
+    from emulator import packets
+    from emulator.measurement_engine import run_engine
+    from emulator.measurement_router import pose_rows
+    from emulator.pose_solver import pose_solver_model
+    engine = params.engine
+    config = {"temporal": [0] * engine.cameras, "stereo": [0] * len(engine.pairs),
+              "enable": 1}
+    transfers = run_engine(engine, row_sets, [config] * len(row_sets)).transfers
+    model = pose_solver_model(params.solver, coef_raw, pose_rows(engine.router, transfers))
+    poses = [{"t_row": int(model["time"][k]), "row": int(model["row"][k]),
+              "flags": int(model["flags"][k]), "position": [int(v) for v in model["p"][k]],
+              "quaternion": [int(v) for v in model["q"][k]]} for k in range(len(model["row"]))]
+    kept = [record for _, record in packets.keep_poses(params.pose_output, poses, 1)]
+    uart = b"".join(packets.encode_packet(params.pose_output.packet, r) for r in kept)
+    return record_arrays(kept), uart
+
+
+def record_arrays(records):
+    """PS FIFO records (dicts of the packet record layout) as arrays of
+    :data:`RECORD_FIELDS`."""
+    def column(name, shape):
+        return np.array([r[name] for r in records], dtype=np.int64).reshape(shape)
+    n = len(records)
+    return {"row": column("row", (n,)), "time": column("t_row", (n,)),
+            "flags": column("flags", (n,)), "q": column("quaternion", (n, 4)),
+            "p": column("position", (n, 3))}
+
+
+def _latency(out, sets, frames_of_sets, fifo_clocks):
+    """Largest clocks from a row set's last pixel at the pins to its record in the FIFO
+    (record ``k`` is set ``k``'s: the router emits one row per set handed on)."""
+    worst = 0
+    for k, (row_set, clock) in enumerate(zip(sets, fifo_clocks)):
+        frame = frames_of_sets[k]
+        row = next(iter(row_set.values()))[0]["row"]
+        pins = max(out["row_end_clocks"][cam][frame, row] for cam in row_set)
+        worst = max(worst, clock - pins)
+    return int(worst)
+
+
+def cosim_slice(dataset, *, cameras=4, frames=3, rows=8, sim="verilator", waves=False,
+                seed=None, build_dir="build/cosim", progress=None):
+    """Co-simulate ``rows`` rows of ``frames`` frames of ``cameras`` cameras of
+    ``dataset`` (a :class:`golden.dataset.Dataset` or its path) through the HDL top and
+    compare with the emulator; a :class:`CosimResult`.
+
+    ``sim``: ``verilator`` or ``icarus``; ``waves`` records waveforms; ``seed`` fixes
+    cocotb's seed (camera phases, bus pauses); ``build_dir`` receives the stimulus and
+    the simulation's record (the HDL build itself goes under ``build/cocotb/``);
+    ``progress`` (bool) prints the steps.
+
+    Raises
+    ------
+    TypeError, ValueError
+        Naming the parameter (``cameras`` not whole stereo pairs, ``frames`` or ``rows``
+        beyond the dataset).
+    """
+    from golden.dataset import Dataset
+    from hdl.top import RowtrackTop
+    from sim_tests.common.cocotb_runner import SIMULATORS, run_cocotb
+    from sim_tests.common.dvp import DvpTiming
+    if isinstance(dataset, (str, os.PathLike)):
+        dataset = Dataset.load(dataset)
+    if sim not in SIMULATORS:
+        raise ValueError(f"sim must be one of {', '.join(SIMULATORS)}, not {sim!r}")
+    n_frames, height, width = dataset.cameras[0].rows.shape
+    _check_count("frames", frames, n_frames)
+    _check_count("rows", rows, height)
+    params, coef_raw, chosen = slice_params(dataset.rig, cameras, frames * rows)
+    say = print if progress else (lambda *_: None)
+    build_dir = Path(build_dir)
+    build_dir.mkdir(parents=True, exist_ok=True)
+    images = np.stack([dataset.cameras[k].rows[:frames, :rows] for k in chosen])
+    timing = DvpTiming(width=width, height=rows, hblank=HBLANK)
+    pclk_ps = [PCLK_PS + k * PCLK_STEP_PS for k in range(cameras)]
+    clock_ps = round(1e12 / params.clk_hz)
+    period = timing.frame_pclks * max(pclk_ps) // clock_ps * 5 // 4 + 2_000
+    stim = {"images": images, "coef": coef_raw[:, :rows], "divisor": DIVISOR,
+            "hblank": HBLANK, "pclk_ps": pclk_ps, "period": period}
+    paths = {"in": build_dir / "stimulus.pkl", "out": build_dir / "record.pkl"}
+    with open(paths["in"], "wb") as f:
+        pickle.dump(stim, f)
+    paths["out"].unlink(missing_ok=True)
+    say(f"[cosim] {cameras} cameras × {frames} frames × {rows} rows of {width} pixels on "
+        f"{sim}")
+    start = time.perf_counter()
+    run_cocotb(RowtrackTop(params), name="rowtrack_cosim", sim=sim, waves=waves, seed=seed,
+               test_module="sim_tests.cocotb.top.cosim_bench", tag=f"{cameras}x{width}",
+               extra_env={"ROWTRACK_COSIM_IN": str(paths["in"].resolve()),
+                          "ROWTRACK_COSIM_OUT": str(paths["out"].resolve())})
+    wall_s = time.perf_counter() - start
+    with open(paths["out"], "rb") as f:
+        out = pickle.load(f)
+
+    sets, spans = row_sets_from_columns(params.camera.aligned_layout(), out["columns"])
+    order = {}
+    frames_of_sets = [order.setdefault(next(iter(s.values()))[0]["frame"], len(order))
+                      for s in sets]
+    expected, uart = expected_records(params, coef_raw, sets)
+    records = record_arrays(out["fifo_records"])
+    mismatches, first = compare_records(records, expected, frames_of_sets)
+    latency = _latency(out, sets, frames_of_sets, out["fifo_clocks"]) \
+        if len(sets) == len(out["fifo_clocks"]) else -1
+    say(f"[cosim] {len(sets)} row sets, {len(out['fifo_records'])} records, "
+        f"{mismatches} mismatches")
+    return CosimResult(
+        records=records, expected=expected, mismatches=mismatches, first_mismatch=first,
+        clocks=out["clocks"], wall_s=wall_s, row_sets=len(sets),
+        clocks_per_row_set=float(np.mean([b - a + 1 for a, b in spans])) if spans else 0.0,
+        latency_clocks=latency, clk_hz=float(params.clk_hz),
+        uart_packets_match=out["uart"] == uart and not out["uart_framing_errors"])
