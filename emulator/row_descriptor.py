@@ -22,6 +22,7 @@ call per row.
 """
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -98,12 +99,21 @@ def frame_rows(beats, centres, params):
     return rows  # a row still open at the end waits for its last beat or the next first
 
 
+@lru_cache(maxsize=32)
+def _constants(params):
+    """``(kernel taps, strong threshold, confidence cap)`` raw, quantized once per
+    parameter set rather than once per batch (it dominates batches of one row)."""
+    kernel = np.array(params.kernel_raw(), dtype=np.int64)
+    kernel.setflags(write=False)
+    return kernel, params.strong_raw(), params.cap_raw()
+
+
 def descriptor_bits(pixels, params):
     """Descriptor bits and strong columns of rows ``(..., width)``: ``golden.descriptor``'s
     ``describe`` and ``strength`` with the quantized kernel and threshold, from one
     integer FIR pass (int32 where no sum can overflow it: several times faster)."""
     pixels = np.asarray(pixels, dtype=np.int64)
-    kernel = np.array(params.kernel_raw(), dtype=np.int64)
+    kernel, threshold, _ = _constants(params)
     largest = int(np.abs(kernel).sum()) * int(np.abs(pixels).max(initial=0))
     rows = pixels.astype(np.int32 if largest < 2 ** 31 else np.int64)
     r, width = params.radius, pixels.shape[-1]
@@ -113,7 +123,7 @@ def descriptor_bits(pixels, params):
         response += tap * rows[..., j:j + interior]
     bits, strong = np.zeros(pixels.shape, dtype=bool), np.zeros(pixels.shape, dtype=bool)
     bits[..., r:width - r] = response > 0
-    strong[..., r:width - r] = np.abs(response) >= params.strong_raw()
+    strong[..., r:width - r] = np.abs(response) >= threshold
     return bits, strong
 
 
@@ -216,7 +226,7 @@ def measure_rows(cur_bits, ref_bits, centres, params, *, cur_strong=None, bad=Fa
     best_k, second_k = c0 + kappa, f["c2"] + kappa
     ratio = _rounded_quotient(second_k << (cf.frac_bits + 1), best_k,
                               params.ratio_quotient_bits, cf)
-    ratio = np.minimum(ratio, params.cap_raw())
+    ratio = np.minimum(ratio, _constants(params)[2])
     ratio = np.where((best_k == 0) & (second_k == 0), 0, ratio)
     ratio = np.where((f["flat"] != 0) | bad | no_reference, 0, ratio)
     full = lambda flag: np.broadcast_to(flag.astype(np.int64), (n, k))
