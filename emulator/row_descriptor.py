@@ -229,8 +229,8 @@ def measure_rows(cur_bits, ref_bits, centres, params, *, cur_strong=None, bad=Fa
     ratio = np.minimum(ratio, _constants(params)[2])
     ratio = np.where((best_k == 0) & (second_k == 0), 0, ratio)
     ratio = np.where((f["flat"] != 0) | bad | no_reference, 0, ratio)
-    full = lambda flag: np.broadcast_to(flag.astype(np.int64), (n, k))
-    return {"segment": np.broadcast_to(np.arange(k), (n, k)),
+    full = lambda flag: np.repeat(flag.astype(np.int64), k, axis=1)
+    return {"segment": np.tile(np.arange(k), (n, 1)),
             "shift": centres[:, None] + m.shift_min + f["best"], "subpixel": subpixel,
             "confidence": ratio, "textureless": f["flat"], "edge_hit": f["edge"],
             "bad": full(bad), "no_reference": full(no_reference)}
