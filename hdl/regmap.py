@@ -169,8 +169,11 @@ def _engine(params):
                  f"{temporal.match.shift_min}…{temporal.match.shift_max}, disparities "
                  f"{stereo.match.shift_min}…{stereo.match.shift_max})",
                  reset={"enable": 1}),
-        Register("status", engine_status_layout(engine), Access.RO, "row sets and "
-                 "measurements counted by the engine and its router (wrap)"),
+        Register("status", engine_status_layout(engine), Access.RO, "wrapping counters: "
+                 "row sets received, dropped (`enable` 0), skipped per stereo pair (a "
+                 "camera of the pair missing); the router's rows sent to the solver, rows "
+                 "without a weighted measurement, misaligned measurements and stereo lanes "
+                 "that had no measurement of their row"),
     ])
 
 

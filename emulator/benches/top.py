@@ -120,11 +120,14 @@ def report(figures):
     return f"""# SoC integration: top-level resources, UART link, host tool
 
 * Resources: Yosys `synth_xilinx -family xc7` of `hdl.top.RowtrackTop` with its default
-  parameters ({params.camera.n_cameras} cameras, {params.camera.max_width}×{params.camera.max_height},
-  the pose solver with {params.solver.slots} slots, pose output and register file; no PS7,
-  pins or GP0 bridge), against the xc7z020 ({XC7Z020['lut']} LUTs, {XC7Z020['ff']} FFs,
-  {XC7Z020['bram36']} BRAM36, {XC7Z020['dsp48']} DSP48E1). The row-descriptor lanes are not
-  in the top yet (see `hdl/top.py`); `rowtrack synth-report` lists them as blocks.
+  parameters ({params.camera.n_cameras} cameras in {len(params.pairs)} stereo pairs,
+  {params.camera.max_width}×{params.camera.max_height}, the measurement engine with
+  {params.camera.n_cameras} temporal lanes of {params.segments} segments,
+  {len(params.pairs)} stereo lanes and the router, the pose solver with
+  {params.solver.slots} slots, pose output and register file; no PS7, pins or GP0
+  bridge), against the xc7z020 ({XC7Z020['lut']} LUTs, {XC7Z020['ff']} FFs,
+  {XC7Z020['bram36']} BRAM36, {XC7Z020['dsp48']} DSP48E1). Per-block figures:
+  [resources.md](resources.md).
 * Link: Amaranth simulation of the pose output and UART at {params.baud:,} baud and
   {params.clk_hz / 1e6:g} MHz with a pose every clock (the link saturated): clocks between
   packet starts, and the packet rate it gives.
