@@ -15,8 +15,9 @@ Operands live in
   ``2**-e`` (6), written by the normalizer at one per clock from the program's start;
 * ``work``: everything the program computes, one register per value (no reuse), plus
   the constants at the top (memory initial contents);
-* ``state``: the pose (q_w, q_x, q_y, q_z, p_x, p_y, p_z), registers with a reset value,
-  written only by *commit* ops, which take effect only when the row raised no flag.
+* ``state``: the pose of the row's slot (q_w, q_x, q_y, q_z, p_x, p_y, p_z), registers
+  loaded from the engine's pose ring when the row starts and written only by *commit*
+  ops, which take effect only when the row raised no flag.
 """
 
 from dataclasses import dataclass, field

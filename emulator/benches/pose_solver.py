@@ -100,6 +100,43 @@ def trajectory_error(name, duration=SECOND, seed=1):
     }
 
 
+def frame_chain_error(duration=SECOND, row_stride=8):
+    """The pose ring's integration alone: every ``row_stride``-th row slot of a
+    480-row, 120 fps rolling-shutter camera (stereo20 timing) composes the true
+    one-frame motions of the papers' trajectory (quantized into ``step_fmt``) for
+    ``duration`` s. Fixed point against the float64 composition of the same quantized
+    steps (exact exponential): the first-order ``δq = (1, θ/2)`` loses ``|θ|³/12`` of
+    rotation per step, and a one-frame step is 480 times a row's."""
+    from golden.rig import preset
+    from golden.trajectory import make_trajectory
+    from hdl.pose_params import PoseSolverParams
+    params = PoseSolverParams()
+    camera = preset("stereo20").cameras[0]
+    frame = 1 / camera.fps
+    slots = np.arange(0, camera.height, row_stride)
+    frames = int(round(duration / frame)) + 1
+    times = np.arange(frames)[:, None] * frame + slots[None, :] * camera.t_r
+    rotation, position = make_trajectory("paper").pose(times.ravel())
+    rotation = rotation.reshape(frames, len(slots), 3, 3)
+    position = position.reshape(frames, len(slots), 3)
+    steps = G.body_step(rotation[:-1], position[:-1], rotation[1:], position[1:])
+    raw = params.step_fmt.quantize(steps.reshape(-1, 6))
+    result = E.StepResult(step=raw, flags=np.zeros(len(raw), dtype=np.int64))
+    quats, positions = E.integrate_rows(params, result, np.tile(slots, frames - 1))
+    quats = params.quat_fmt.to_float(quats).reshape(frames - 1, len(slots), 4)
+    positions = params.position_fmt.to_float(positions).reshape(frames - 1, len(slots), 3)
+    quantized = params.step_fmt.to_float(raw).reshape(frames - 1, len(slots), 6)
+    cm, deg = 0.0, 0.0
+    for k in range(len(slots)):
+        q_float, p_float = G.integrate_steps([1.0, 0, 0, 0], np.zeros(3), quantized[:, k])
+        cm = max(cm, float(np.max(np.linalg.norm(positions[:, k] - p_float, axis=1))) * 100)
+        deg = max(deg, float(np.max(_quaternion_angle_deg(q_float, quats[:, k]))))
+    angle = np.linalg.norm(steps[..., 3:], axis=-1)
+    return {"slots": len(slots), "steps_per_slot": frames - 1, "traj_err_cm": cm,
+            "traj_err_deg": deg, "step_angle_max_deg": float(np.degrees(angle.max())),
+            "cubic_bound_deg": float(np.degrees(np.max(np.sum(angle ** 3, axis=0)) / 12))}
+
+
 #: Value classes of the solve (trace name prefixes) and what they are.
 CLASSES = {"N": "scaled normal matrix N̂", "b": "scaled right-hand side b̂",
            "D": "pivots", "W": "Schur complements", "seed": "D^-1/2 seeds",
@@ -209,6 +246,7 @@ def measure():
         for key in worst:
             worst[key] = max(worst[key], result[key])
     figures.update(worst)
+    figures.update({f"frame_chain.{k}": v for k, v in frame_chain_error().items()})
     for name in ("stereo20", "radial4"):
         for key, value in dynamic_range(name).items():
             figures[f"range.{name}.{key}"] = value
@@ -240,9 +278,17 @@ def report(figures):
         row("LUT levels (longest path)", "lut_levels"),
         row("BRAM36 / LUT / DSP48, 20 cameras", "cameras20.bram36"),
         row("BRAM36 / LUT / DSP48, radial4", "radial4.bram36"),
-        row("trajectory error, worst rig", "traj_err_cm", "cm", TARGETS["traj_err_cm"]),
-        row("orientation error, worst rig", "traj_err_deg", "°", TARGETS["traj_err_deg"]),
+        row("trajectory error, worst rig (one slot, every row)", "traj_err_cm", "cm",
+            TARGETS["traj_err_cm"]),
+        row("orientation error, worst rig (one slot, every row)", "traj_err_deg", "°",
+            TARGETS["traj_err_deg"]),
+        row("position error, per-slot chains of one-frame steps", "frame_chain.traj_err_cm",
+            "cm", TARGETS["traj_err_cm"]),
+        row("orientation error, per-slot chains of one-frame steps",
+            "frame_chain.traj_err_deg", "°", TARGETS["traj_err_deg"]),
     ])
+    chain = {k[len("frame_chain."):]: v for k, v in figures.items()
+             if k.startswith("frame_chain.")}
     rigs = []
     for name in ("stereo20", "radial4"):
         f = {k[len(name) + 1:]: v for k, v in figures.items() if k.startswith(name + ".")}
@@ -281,6 +327,21 @@ coefficient store. "Step error" is |Y_fixed − Y_float| / |Y_float| per solved 
 | rig | rows | position error (cm) | orientation error (°) | step error median / max | flagged rows | worst condition | golden vs truth |
 |---|---|---|---|---|---|---|---|
 {chr(10).join(rigs)}
+
+## The pose ring's chains over {SECOND:g} s
+
+Each row slot composes one step per frame: the rig's motion since the same row one
+frame earlier (`docs/pose_solver.md`, "Pose ring"). {chain['slots']} slots (every 8th
+row of a 480-row, 120 fps camera) each compose {chain['steps_per_slot']} true
+one-frame steps of the papers' motion (up to {chain['step_angle_max_deg']:.3g}° each),
+quantized into the step format, in fixed point (`emulator.pose_solver.integrate_rows`)
+and in float64 with the exact exponential: worst {chain['traj_err_cm']:.3g} cm and
+{chain['traj_err_deg']:.3g}°. The orientation error is the first-order
+`δq = (1, θ/2)`: it turns `|θ|³/12` too little per step, {chain['cubic_bound_deg']:.3g}°
+summed over a slot's steps — negligible for one row's step, not for one frame's.
+(The rows above with "one slot, every row" compose every row's solved step in one
+slot — 57,600 compositions of small steps: the solve and the arithmetic, not the
+ring's semantics.)
 
 ## Dynamic range of the solve
 
