@@ -52,3 +52,31 @@ def test_a_missing_field_is_an_error():
     del records["p"]
     with pytest.raises(ValueError, match=r"records lacks the fields \['p'\]"):
         compare_records(records, _records(2))
+
+
+def test_row_sets_are_recovered_from_the_engine_columns():
+    """Columns as the aligner streams them (the engine model's own helper) back to the
+    row sets, with a camera missing from one set and rows of different lengths."""
+    from emulator.cosim import row_sets_from_columns
+    from emulator.measurement_engine import row_set_columns
+    from hdl.camera_input import CameraParams
+    from hdl.top import TopParams
+    from sim_tests.common.payload import pack
+
+    params = TopParams.for_pairs(((0, 1),), camera=CameraParams(max_width=256, max_height=8))
+    layout = params.camera.aligned_layout()
+    zero = {"data": 0, "first": 0, "last": 0, "camera": 0, "frame": 0, "row": 0,
+            "t_first": 0, "t_last": 0, "flags": 0}
+
+    def beats(camera, row, n):
+        return [{**zero, "data": 7 * x % 256, "first": int(x == 0), "last": int(x == n - 1),
+                 "camera": camera, "row": row, "t_first": 100 * row + camera} for x in range(n)]
+
+    sets = [{0: beats(0, 0, 5), 1: beats(1, 0, 5)}, {1: beats(1, 1, 3)},
+            {0: beats(0, 2, 4), 1: beats(1, 2, 2)}]
+    columns = [(clock, pack(layout, {**column, "lanes": dict(enumerate(column["lanes"]))}))
+               for clock, column in enumerate(
+                   c for s in sets for c in row_set_columns(params.engine, s))]
+    got, spans = row_sets_from_columns(layout, columns)
+    assert got == sets
+    assert spans == [(0, 4), (5, 7), (8, 11)]
