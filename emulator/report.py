@@ -16,8 +16,8 @@ import numpy as np
 from golden.metrics import AXES
 from golden.pose_lsq import UNKNOWNS
 
-__all__ = ["Outcome", "metrics", "cosim_failures", "resources", "write_report",
-           "FIGURES_JSON"]
+__all__ = ["Outcome", "metrics", "cosim_failures", "resources", "write_report", "table",
+           "accuracy_section", "tolerance_section", "hardware_section", "FIGURES_JSON"]
 
 FIGURES_JSON = Path(__file__).resolve().parent.parent / "docs" / "results" / "figures.json"
 
@@ -130,7 +130,7 @@ def metrics(outcome):
                   "speed_ratio": outcome.emulated.rows_per_s / hdl_rows_per_s,
                   "uart_packets_match": bool(cosim.uart_packets_match),
                   "cosim.rows": job.cosim["rows"], "cosim.cameras": job.cosim["cameras"],
-                  "cosim.frames": job.cosim["frames"]})
+                  "cosim.frames": job.cosim["frames"], "cosim.sim": job.sim})
     return m
 
 
@@ -186,112 +186,112 @@ def _plots(outcome, out):
     return ["golden_trajectory.png", "steps.png", "step_errors.png", "confidence.png"]
 
 
-def _table(rows):
+def table(rows):
+    """A two-column Markdown table of ``(figure, value)`` rows."""
     return "\n".join(["| figure | value |", "|---|---|"]
                      + [f"| {name} | {value} |" for name, value in rows])
 
 
-def _axes_row(m, key, names, fmt):
+def _axes_row(m, key, names, fmt=".2e"):
     return " / ".join(format(m[f"{key}.{n}"], fmt) for n in names)
 
 
-def _markdown(outcome, m, plots):
-    from emulator.e2e import (SHIFT_BOUND, STEP_TOLERANCE, SUBPIXEL_SHARE,
-                              SUBPIXEL_TOLERANCE, WELL_TEXTURED)
-    job = outcome.job
-    source = (f"dataset `{job.dataset}`" if outcome.job.dataset is not None
-              else f"simulated, `{job.trajectory}` motion, seed {job.seed}")
-    failures = outcome.all_failures()
-    six = lambda key: _axes_row(m, key, UNKNOWNS, ".2e")  # noqa: E731
-    parts = [
-        "# rowtrack run",
-        "",
-        f"**{'FAILED' if failures else 'PASSED'}**"
-        + "".join(f"\n- {f}" for f in failures),
-        "",
-        f"Rig `{m['rig']}`: {m['cameras']} cameras, {m['rows']} rows, {m['frames']} frames "
-        f"({source}); K = {m['segments']} segments per camera row.",
-        "",
-        "## Accuracy",
-        "",
+def accuracy_section(m):
+    """Markdown: golden tracker vs truth, and the one-frame steps of every path."""
+    return "\n".join([
         "Golden float tracker (default parameters) against ground truth "
-        "(`golden.metrics.evaluate`):",
-        "",
-        _table([("per-row Y RMS, T x/y/z (cm)", _axes_row(m, "golden.rms_t_cm", AXES, ".4f")),
-                ("per-row Y RMS, θ x/y/z (deg)",
-                 _axes_row(m, "golden.rms_r_deg", AXES, ".4f")),
-                ("trajectory RMS, T x/y/z (cm)",
-                 _axes_row(m, "golden.abs_t_cm", AXES, ".4f")),
-                ("trajectory RMS, θ x/y/z (deg)",
-                 _axes_row(m, "golden.abs_r_deg", AXES, ".4f")),
-                ("render error RMS / max (px)",
-                 f"{m['golden.render_px']:.3f} / {m['golden.render_px_max']:.3f}")]),
+        "(`golden.metrics.evaluate`):", "",
+        table([(f"{what}, {q} x/y/z ({unit})", _axes_row(m, f"golden.{key}", AXES, ".4f"))
+               for what, key_t, key_r in (("per-row Y RMS", "rms_t_cm", "rms_r_deg"),
+                                          ("trajectory RMS", "abs_t_cm", "abs_r_deg"))
+               for q, key, unit in (("T", key_t, "cm"), ("θ", key_r, "deg"))]
+              + [("render error RMS / max (px)",
+                  f"{m['golden.render_px']:.3f} / {m['golden.render_px_max']:.3f}")]),
         "",
         "One-frame steps Y = [Tx Ty Tz θx θy θz] (m, rad) per row set, RMS per axis "
-        "(`emulator.e2e.compare_steps`):",
-        "",
-        _table([("emulator ↔ truth", six("emulator_vs_truth.rms")),
-                ("golden scheme (float) ↔ truth", six("scheme_vs_truth.rms")),
-                ("golden tracker ↔ truth", six("golden_vs_truth.rms")),
-                ("emulator ↔ golden scheme", six("emulator_vs_scheme.rms")),
-                ("emulator ↔ golden scheme, largest", six("emulator_vs_scheme.max_abs")),
-                ("emulator ↔ float64 solve of its own measurements",
-                 six("emulator_vs_float.rms")),
-                ("rows solved by the emulator", f"{m['solved_fraction']:.1%}")]),
+        "(`emulator.e2e.compare_steps`):", "",
+        table([(name, _axes_row(m, key, UNKNOWNS)) for name, key in (
+            ("emulator ↔ truth", "emulator_vs_truth.rms"),
+            ("golden scheme (float) ↔ truth", "scheme_vs_truth.rms"),
+            ("golden tracker ↔ truth", "golden_vs_truth.rms"),
+            ("emulator ↔ golden scheme", "emulator_vs_scheme.rms"),
+            ("emulator ↔ golden scheme, largest", "emulator_vs_scheme.max_abs"),
+            ("emulator ↔ float64 solve of its own measurements", "emulator_vs_float.rms"))]
+              + [("rows solved by the emulator", f"{m['solved_fraction']:.1%}")]),
         "",
         "The hardware measures each row against the same row of the previous frame with "
         "search centre 0; the golden tracker forecasts the window and follows the rows. "
         "With vertical image motion the same-row reference shows other content, so the "
         "hardware scheme is worse against truth (docs/e2e.md). The *golden scheme* is the "
         "hardware's scheme in float64 (`emulator.e2e.scheme_steps`): what the emulator "
-        "must equal up to its fixed-point arithmetic.",
-        "",
-        "## Emulator ↔ golden scheme tolerance",
-        "",
-        _table([("well-textured measurements (float peak ratio ≥ "
-                 f"{WELL_TEXTURED})", m["measurement.well_textured"]),
-                (f"within {SUBPIXEL_TOLERANCE} px (tolerance: ≥ {SUBPIXEL_SHARE:.0%})",
-                 f"{m['measurement.within_subpixel']:.2%}"),
-                (f"largest difference (tolerance: ≤ {SHIFT_BOUND} px)",
-                 f"{m['measurement.max_shift_px']:.3f} px"),
-                ("weight zero in one, not the other", f"{m['measurement.weight_disagrees']:.3%}"),
-                (f"step RMS per axis (tolerance: ≤ {STEP_TOLERANCE:g})",
-                 six("emulator_vs_scheme.rms"))]),
-        "",
-        "## Hardware (co-simulated slice of the HDL top)",
-        "",
-    ]
-    if outcome.cosim is None:
-        parts.append("Skipped (`--cosim-rows 0`): no HDL figures in this report.")
-    else:
-        parts += [_table([
-            ("slice", f"{m['cosim.cameras']} cameras × {m['cosim.frames']} frames × "
-                      f"{m['cosim.rows']} rows, {job.sim}"),
-            ("pose records HDL / expected", f"{m['hdl_records']} / {m['hdl_expected']}"),
-            ("HDL ↔ emulator mismatches", m["hdl_mismatches"]),
-            ("UART packets equal the emulator's", m["uart_packets_match"]),
-            ("clocks per row set", m["clocks_per_row_set"]),
-            ("pose rate at the configured clock",
-             f"{m['pose_rate_hz']:,.0f} row sets/s = clk_hz / clocks_per_row_set at "
-             f"{m['clk_hz'] / 1e6:g} MHz (the cameras need {m['row_sets_needed_per_s']:,.0f})"),
-            ("latency", f"{m['latency_clocks']} clocks = {m['latency_us']:.3f} µs"),
-            ("HDL simulation speed", f"{m['hdl_cycles_per_s']:,.0f} cycles/s, "
-                                     f"{m['hdl_rows_per_s']:,.1f} camera rows/s"),
-            ("emulator speed", f"{m['emulator_rows_per_s']:,.0f} camera rows/s"),
-            ("emulator / HDL simulation speed", f"{m['speed_ratio']:,.1f}× (issue: ≥ 100×)")])]
+        "must equal up to its fixed-point arithmetic."])
+
+
+def tolerance_section(m):
+    """Markdown: emulator ↔ golden scheme against the stated tolerances."""
+    from emulator.e2e import (SHIFT_BOUND, STEP_TOLERANCE, SUBPIXEL_SHARE,
+                              SUBPIXEL_TOLERANCE, WELL_TEXTURED)
+    return table([
+        (f"well-textured measurements (float peak ratio ≥ {WELL_TEXTURED})",
+         m["measurement.well_textured"]),
+        (f"within {SUBPIXEL_TOLERANCE} px (tolerance: ≥ {SUBPIXEL_SHARE:.0%})",
+         f"{m['measurement.within_subpixel']:.2%}"),
+        (f"largest difference (tolerance: ≤ {SHIFT_BOUND} px)",
+         f"{m['measurement.max_shift_px']:.3f} px"),
+        ("weight zero in one, not the other", f"{m['measurement.weight_disagrees']:.3%}"),
+        (f"step RMS per axis (tolerance: ≤ {STEP_TOLERANCE:g})",
+         _axes_row(m, "emulator_vs_scheme.rms", UNKNOWNS))])
+
+
+def hardware_section(m):
+    """Markdown: the co-simulated slice (rate, latency, speeds), or why there is none."""
+    if "hdl_mismatches" not in m:
+        return "No co-simulation in this run (`--cosim-rows 0`): no HDL figures."
+    return table([
+        ("slice", f"{m['cosim.cameras']} cameras × {m['cosim.frames']} frames × "
+                  f"{m['cosim.rows']} rows, {m['cosim.sim']}"),
+        ("pose records HDL / expected", f"{m['hdl_records']} / {m['hdl_expected']}"),
+        ("HDL ↔ emulator mismatches (must be 0)", m["hdl_mismatches"]),
+        ("UART packets equal the emulator's", m["uart_packets_match"]),
+        ("clocks per row set", m["clocks_per_row_set"]),
+        ("pose rate `e2e.pose_rate_hz` = clk_hz / clocks_per_row_set",
+         f"{m['pose_rate_hz']:,.0f} row sets/s at {m['clk_hz'] / 1e6:g} MHz (the cameras "
+         f"need {m['row_sets_needed_per_s']:,.0f})"),
+        ("latency `e2e.latency_us`", f"{m['latency_clocks']} clocks = "
+                                     f"{m['latency_us']:.3f} µs"),
+        ("HDL simulation `e2e.hdl_cycles_per_s`",
+         f"{m['hdl_cycles_per_s']:,.0f} cycles/s = {m['hdl_rows_per_s']:,.2f} camera rows/s"),
+        ("emulator `e2e.emulator_rows_per_s`", f"{m['emulator_rows_per_s']:,.0f} camera rows/s"),
+        ("emulator / HDL simulation, camera rows/s (issue: ≥ 100×)",
+         f"{m['speed_ratio']:,.1f}×")])
+
+
+def _markdown(outcome, m, plots):
+    job = outcome.job
+    source = (f"dataset `{job.dataset}`" if outcome.job.dataset is not None
+              else f"simulated, `{job.trajectory}` motion, seed {job.seed}")
+    failures = outcome.all_failures()
     res = resources()
-    parts += ["", "## Resource estimates", ""]
     if res:
-        parts += ["From `docs/results/figures.json` (`top.*`, yosys `synth_xilinx` of the "
-                  "pipeline top, measured by `rowtrack bench --only top`; not by this run):",
-                  "", _table([(k, v) for k, v in sorted(res.items())])]
+        resource_text = ("From `docs/results/figures.json` (`top.*`, yosys `synth_xilinx` "
+                         "of the pipeline top, measured by `rowtrack bench --only top`; not "
+                         "by this run):\n\n" + table(sorted(res.items())))
     else:
-        parts.append("`docs/results/figures.json` holds no `top.*` figures; run "
-                     "`rowtrack bench --only top --write-docs docs/results`.")
-    parts += ["", "## Wall time", "",
-              _table([(k[7:], f"{v:.1f} s") for k, v in m.items() if k.startswith("wall_s.")]),
-              "", "## Plots", ""] + [f"![{p}]({p})" for p in plots]
-    return "\n".join(parts) + "\n"
+        resource_text = ("`docs/results/figures.json` holds no `top.*` figures; run "
+                         "`rowtrack bench --only top --write-docs docs/results`.")
+    walls = table([(k[7:], f"{v:.1f} s") for k, v in m.items() if k.startswith("wall_s.")])
+    return "\n".join([
+        "# rowtrack run", "",
+        f"**{'FAILED' if failures else 'PASSED'}**" + "".join(f"\n- {f}" for f in failures),
+        "",
+        f"Rig `{m['rig']}`: {m['cameras']} cameras, {m['rows']} rows, {m['frames']} frames "
+        f"({source}); K = {m['segments']} segments per camera row.", "",
+        "## Accuracy", "", accuracy_section(m), "",
+        "## Emulator ↔ golden scheme tolerance", "", tolerance_section(m), "",
+        "## Hardware (co-simulated slice of the HDL top)", "", hardware_section(m), "",
+        "## Resource estimates", "", resource_text, "",
+        "## Wall time", "", walls, "",
+        "## Plots", ""] + [f"![{p}]({p})" for p in plots]) + "\n"
 
 
 def write_report(outcome, out):

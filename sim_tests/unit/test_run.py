@@ -88,6 +88,15 @@ def test_report_with_a_cosimulation(outcome, tmp_path):
     assert done.all_failures() == []
 
 
+def test_bench_page_from_the_same_figures(outcome):
+    """The e2e benchmark's page renders from the run's metrics, with and without HDL."""
+    from emulator.benches.e2e import report
+    for run, hdl in ((outcome, "No co-simulation in this run"),
+                     (_with_cosim(outcome), "300 clocks = 3.000 µs")):
+        page = report({**metrics(run), "failures": 0})
+        assert hdl in page and "emulator ↔ golden scheme" in page
+
+
 def test_mismatches_and_silence_are_failures(outcome):
     where = "record 3 (frame 1, row 2): q[1] HDL 5 ≠ emulator 6"
     failures = cosim_failures(_cosim_result(outcome, mismatches=2, first_mismatch=where))
