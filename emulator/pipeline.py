@@ -171,33 +171,37 @@ def _framed(dataset, camera, frame, row, config):
 
 def run(config, dataset, frames=None, *, progress=False):
     """Run the dataset (first ``frames`` frames, default all) through the pipeline;
-    ``progress`` shows a bar over the row sets."""
+    ``progress`` shows a bar over the frames.
+
+    Each lane takes a whole frame of its rows at once (the lane models' batched path,
+    equal to row by row); the router then takes the row sets in (frame, row) order."""
     from tqdm import tqdm
     router = config.router
     cams = range(router.cameras)
     frames = min(len(c.rows) for c in dataset.cameras) if frames is None else frames
+    height, k, k_s = router.temporal.height, router.temporal.segments, router.stereo.segments
     temporal_lanes = [TemporalLaneModel(router.temporal) for _ in cams]
     stereo_lanes = [StereoLaneModel(router.stereo) for _ in router.pairs]
     temporal, stereo, transfers, record_frames = [], [], [], []
-    bar = tqdm(total=frames * router.temporal.height, desc="emulator", unit="row set",
-               disable=not progress, leave=False)
     start = time.perf_counter()
-    for frame in range(frames):
-        for row in range(router.temporal.height):
-            bar.update()
-            rows = [_framed(dataset, n, frame, row, config) for n in cams]
-            t = [m for n in cams for m in temporal_lanes[n].process_row(rows[n])]
-            s = [m for lane, (a, b) in zip(stereo_lanes, router.pairs)
-                 for m in lane.process_pair(rows[a], rows[b])]
-            out = route_row(router, t, s)
-            temporal += t
-            stereo += s
+    for frame in tqdm(range(frames), desc="emulator", unit="frame", disable=not progress,
+                      leave=False):
+        rows = [[_framed(dataset, n, frame, row, config) for row in range(height)]
+                for n in cams]
+        t = [lane.process_rows(rows[n]) for n, lane in zip(cams, temporal_lanes)]
+        s = [lane.process_pairs(rows[a], rows[b])
+             for lane, (a, b) in zip(stereo_lanes, router.pairs)]
+        for row in range(height):
+            t_row = [m for per_camera in t for m in per_camera[row * k:(row + 1) * k]]
+            s_row = [m for per_pair in s for m in per_pair[row * k_s:(row + 1) * k_s]]
+            out = route_row(router, t_row, s_row)
+            temporal += t_row
+            stereo += s_row
             transfers += out
             record_frames += [frame] if out else []
-    bar.close()
     rows = pose_rows(router, transfers)
     records = pose_solver_model(router.solver, config.coef_raw, rows)
     seconds = time.perf_counter() - start
     return PipelineResult(temporal=temporal, stereo=stereo, transfers=transfers, rows=rows,
                           records=records, frame=np.array(record_frames), seconds=seconds,
-                          camera_rows=frames * router.temporal.height * router.cameras)
+                          camera_rows=frames * height * router.cameras)
