@@ -89,20 +89,25 @@ def _order(params, entry, ticket):
     return same, older
 
 
-def _lowest(mask, count):
-    """Index of the lowest set bit of ``mask`` (0 if none)."""
-    index = Const(0, range(count))
-    for n in reversed(range(count)):
-        index = Mux(mask[n], n, index)
-    return index
+def _lowest(bits):
+    """``(any, index)`` of the lowest set bit of a list of 1-bit values, as a balanced
+    tree (log depth)."""
+    if len(bits) == 1:
+        return bits[0], Const(0, 1)
+    half = len(bits) // 2
+    any_lo, index_lo = _lowest(bits[:half])
+    any_hi, index_hi = _lowest(bits[half:])
+    return any_lo | any_hi, Mux(any_lo, index_lo, index_hi + half)
 
 
-def _highest(mask, count):
-    """Index of the highest set bit of ``mask`` (0 if none)."""
-    index = Const(0, range(count))
-    for n in range(count):
-        index = Mux(mask[n], n, index)
-    return index
+def _isolate_lowest(mask):
+    """The lowest set bit of ``mask`` alone (``mask & −mask``)."""
+    return (mask & -mask)[:len(mask)]
+
+
+def _clear_lowest(mask):
+    """``mask`` without its lowest set bit (``mask & (mask − 1)``)."""
+    return (mask & (mask - 1))[:len(mask)]
 
 
 class MeasurementRouter(wiring.Component):
@@ -133,7 +138,8 @@ class MeasurementRouter(wiring.Component):
     transfer per clock within a row; a waiting row's first transfer comes ``latency −
     1`` clocks after the previous row's last (``latency − 2`` idle clocks).
     Backpressure: ``o`` holds its transfer; full lane FIFOs (``FIFO_ROWS`` rows) lower
-    the lanes' ``ready``. Reset empties the FIFOs and clears the counters.
+    the lanes' ``ready``. ``status`` counts an event two clocks after it. Reset
+    empties the FIFOs and clears the counters.
     """
 
     def __init__(self, params):
@@ -177,20 +183,20 @@ class MeasurementRouter(wiring.Component):
         pairs = self._stereo(m, ticket, incoming, fetch, resolving)
         heads = self._temporal_fifos(m)
 
-        first = _lowest(ticket.cameras, p.cameras)
         with m.If(resolving & pairs["done"]):
             m.d.sync += [resolving.eq(0), emitting.eq(ticket.cameras.any())]
         counts = self._emit(m, ticket, heads, pairs, emitting,
-                            start=resolving & pairs["done"], first=first)
-        misaligned = Signal(range(len(p.pairs) + 2))
-        m.d.comb += misaligned.eq(sum(pairs["dropped"], counts["misaligned"]))
-        status = self.status
-        m.d.sync += [
-            status.rows.eq(status.rows + counts["row"]),
-            status.empty.eq(status.empty + counts["empty"]),
-            status.misaligned.eq(status.misaligned + misaligned),
-            status.stereo_missing.eq(status.stereo_missing + sum(pairs["missing"])),
-        ]
+                            start=resolving & pairs["done"])
+        # counter increments registered first: the adders stay off the emit path
+        steps = {
+            "rows": counts["row"], "empty": counts["empty"],
+            "misaligned": sum(pairs["dropped"], counts["misaligned"]),
+            "stereo_missing": sum(pairs["missing"]),
+        }
+        for name, value in steps.items():
+            step = Signal(range(len(p.pairs) + 2), name=f"{name}_step")
+            counter = getattr(self.status, name)
+            m.d.sync += [step.eq(value), counter.eq(counter + step)]
         return m
 
     # --- stereo lanes: FIFO, resynchronizer, cue registers -------------------------------
@@ -274,26 +280,32 @@ class MeasurementRouter(wiring.Component):
 
     # --- emitter ------------------------------------------------------------------------
 
-    def _emit(self, m, ticket, fifos, pairs, emitting, *, start, first):
+    def _emit(self, m, ticket, fifos, pairs, emitting, *, start):
         """Walk the marked cameras, K transfers each, into the output register; returns
         this clock's ``row``, ``empty`` and ``misaligned`` counter increments."""
         p = self.params
         k_seg, ks = p.temporal.segments, p.stereo.segments
         layout = _temporal_entry(p)
         camera = Signal(range(p.cameras))
+        selected = Signal(p.cameras)        # one-hot ``camera``
+        pending = Signal(p.cameras)         # marked cameras after the current one
         segment = Signal(range(k_seg))
         opening = Signal()                  # the row's first transfer is next
         time = Signal(p.solver.time_bits)
         weighted = Signal()                 # a transfer of this row carried weight
+        _, first = _lowest(list(ticket.cameras))
+        _, following = _lowest(list(pending))
         with m.If(start):
-            m.d.sync += [camera.eq(first), segment.eq(0), opening.eq(1), weighted.eq(0)]
+            m.d.sync += [camera.eq(first), selected.eq(_isolate_lowest(ticket.cameras)),
+                         pending.eq(_clear_lowest(ticket.cameras)),
+                         segment.eq(0), opening.eq(1), weighted.eq(0)]
 
         head = data.View(layout, Array(f.r_data for f in fifos)[camera])
-        head_valid = Array(f.r_rdy for f in fifos)[camera]
+        ready = Cat(f.r_rdy for f in fifos)
         advance = ~self.o.valid | self.o.ready
-        fire = emitting & head_valid & advance
-        for c, fifo in enumerate(fifos):
-            m.d.comb += fifo.r_en.eq(fire & (camera == c))
+        fire = emitting & (selected & ready).any() & advance
+        for c, fifo in enumerate(fifos):           # one-hot: no multiplexer on this path
+            m.d.comb += fifo.r_en.eq(emitting & advance & selected[c] & fifo.r_rdy)
 
         same, _ = _order(p, head, ticket)
         lane_of = {c: j for j, pair in enumerate(p.pairs) for c in pair}
@@ -304,7 +316,7 @@ class MeasurementRouter(wiring.Component):
                                 for k in range(k_seg))
                           for c in range(p.cameras))[camera][segment]
         weight = Mux(same & ~head.edge_hit & usable_of, head.conf, 0)
-        closing = (segment == k_seg - 1) & (camera == _highest(ticket.cameras, p.cameras))
+        closing = (segment == k_seg - 1) & ~pending.any()
         row_time = Mux(opening, head.t_first, time)
 
         out = self.o.payload
@@ -320,19 +332,13 @@ class MeasurementRouter(wiring.Component):
                 segment.eq(Mux(segment == k_seg - 1, 0, segment + 1)),
             ]
             with m.If(segment == k_seg - 1):
-                m.d.sync += camera.eq(self._next_camera(ticket.cameras, camera))
+                m.d.sync += [camera.eq(following), selected.eq(_isolate_lowest(pending)),
+                             pending.eq(_clear_lowest(pending))]
             with m.If(closing):
                 m.d.sync += emitting.eq(0)
         row_done = fire & closing
         return {"row": row_done, "empty": row_done & ~weighted & (weight == 0),
                 "misaligned": fire & ~same}
-
-    def _next_camera(self, mask, camera):
-        """The lowest marked camera above ``camera`` (0 if none)."""
-        index = Const(0, range(self.params.cameras))
-        for n in reversed(range(self.params.cameras)):
-            index = Mux(mask[n] & (camera < n), n, index)
-        return index
 
 
 def default_router():
