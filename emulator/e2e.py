@@ -4,8 +4,15 @@ tracker's and against ground truth, on the same dataset rows.
 The quantity compared is the one-frame motion ``Y = [T θ]`` of each row slot (the
 pipeline's solved step, :mod:`emulator.pipeline`; ``TrackResult.motion`` of
 :func:`golden.tracker.track`; the exact body-frame step from the pose of the same row
-one frame earlier). Poses are not compared yet: the hardware's integrator composes
-steps row on row, which does not match a one-frame motion (``docs/e2e.md``).
+one frame earlier). The records' integrated poses are compared with ground truth too
+(:func:`pose_errors`): the solver composes each row's step onto the same row's pose one
+frame earlier, so they are poses relative to the first frame's rows.
+
+The hardware scheme (each row against the same row of the previous frame, search
+centre 0) differs from the golden tracker's (forecast window, rows followed), so
+emulator ↔ golden is judged against :func:`scheme_steps`, the hardware's scheme in
+float64, with the tolerances stated below; the golden tracker's accuracy against truth
+is reported, not compared.
 """
 
 from dataclasses import dataclass
@@ -13,9 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from golden.descriptor import describe, match, strength
-from golden.pose_lsq import UNKNOWNS, ShiftCoefficients, body_step, solve_step
+from golden.pose_lsq import UNKNOWNS, ShiftCoefficients, body_step, quat_to_matrix, solve_step
 
 __all__ = ["true_steps", "golden_steps", "float_steps", "agreement", "compare_steps",
+           "pose_errors",
            "SchemeResult", "scheme_steps", "measurement_agreement", "check_tolerances",
            "SUBPIXEL_TOLERANCE", "WELL_TEXTURED", "STEP_TOLERANCE"]
 
@@ -204,6 +212,28 @@ def check_tolerances(figures, where):
     return failures
 
 
+def pose_errors(config, result, dataset, camera=0):
+    """Error ``[T θ]`` (n, 6) of each record's integrated pose against ground truth,
+    records of frames ≥ 1.
+
+    The solver keeps one pose per row slot, starting at the reset pose, and composes
+    each row's one-frame step onto its slot's pose of the previous frame
+    (:func:`emulator.pose_solver.integrate_rows`); so a record of frame ``i``, row ``y``
+    is the rig's pose relative to row ``y`` of frame 0. The truth is the same relative
+    pose from the dataset, and the error is the body-frame step between the two."""
+    solver, records = config.router.solver, result.records
+    use = result.frame > 0
+    frames, rows = result.frame[use], records["row"][use]
+    rec = dataset.cameras[camera]
+    start_r, start_p = rec.rotation[0, rows], rec.position[0, rows]
+    true_r = np.swapaxes(start_r, -1, -2) @ rec.rotation[frames, rows]
+    true_p = np.einsum("nji,nj->ni", start_r, rec.position[frames, rows] - start_p)
+    q = solver.quat_fmt.to_float(records["q"][use])
+    est_r = quat_to_matrix(q / np.linalg.norm(q, axis=1, keepdims=True))
+    est_p = solver.position_fmt.to_float(records["p"][use])
+    return body_step(true_r, true_p, est_r, est_p)
+
+
 def agreement(steps, reference):
     """Per-axis RMS, median and largest absolute difference of two (n, 6) step arrays over the
     rows where both are finite, and how many rows that is."""
@@ -245,4 +275,7 @@ def compare_steps(config, result, dataset, track_result, scheme=None):
         figures.update({f"measurement.{key}": value for key, value in measured.items()})
     for name, (a, b) in pairs.items():
         figures.update({f"{name}.{key}": value for key, value in agreement(a, b).items()})
+    error = pose_errors(config, result, dataset)
+    figures.update({f"emulator_pose_vs_truth.{key}": value
+                    for key, value in agreement(error, np.zeros_like(error)).items()})
     return figures

@@ -49,7 +49,8 @@ class Outcome:
                  f"rows in {m['wall_s.total']:.1f} s",
                  f"golden tracker vs truth: per-row Y RMS T "
                  f"{_triple(m, 'golden.rms_t_cm', 4)} cm, θ {_triple(m, 'golden.rms_r_deg', 4)}°",
-                 f"emulator vs truth: step RMS {_six(m, 'emulator_vs_truth.rms')}",
+                 f"emulator vs truth: step RMS {_six(m, 'emulator_vs_truth.rms')}; "
+                 f"pose RMS {_six(m, 'emulator_pose_vs_truth.rms')}",
                  f"emulator vs golden scheme: step RMS {_six(m, 'emulator_vs_scheme.rms')}; "
                  f"{m['measurement.within_subpixel']:.1%} of well-textured shifts within "
                  f"1/16 px",
@@ -216,7 +217,10 @@ def accuracy_section(m):
             ("golden tracker ↔ truth", "golden_vs_truth.rms"),
             ("emulator ↔ golden scheme", "emulator_vs_scheme.rms"),
             ("emulator ↔ golden scheme, largest", "emulator_vs_scheme.max_abs"),
-            ("emulator ↔ float64 solve of its own measurements", "emulator_vs_float.rms"))]
+            ("emulator ↔ float64 solve of its own measurements", "emulator_vs_float.rms"),
+            ("emulator's integrated pose ↔ truth, relative to frame 0 (RMS)",
+             "emulator_pose_vs_truth.rms"),
+            ("emulator's integrated pose ↔ truth, largest", "emulator_pose_vs_truth.max_abs"))]
               + [("rows solved by the emulator", f"{m['solved_fraction']:.1%}")]),
         "",
         "The hardware measures each row against the same row of the previous frame with "
@@ -224,7 +228,9 @@ def accuracy_section(m):
         "With vertical image motion the same-row reference shows other content, so the "
         "hardware scheme is worse against truth (docs/e2e.md). The *golden scheme* is the "
         "hardware's scheme in float64 (`emulator.e2e.scheme_steps`): what the emulator "
-        "must equal up to its fixed-point arithmetic."])
+        "must equal up to its fixed-point arithmetic. The solver's pose ring composes each "
+        "row's step onto the same row one frame earlier, from the reset pose: the records' "
+        "poses are relative to the first frame's rows (`emulator.e2e.pose_errors`)."])
 
 
 def tolerance_section(m):

@@ -152,8 +152,9 @@ def _simulation_inputs(args, rig, frames):
             from None
 
 
-def _cosim_slice(args, config, frames):
-    """The co-simulated slice, checked against the run; None for --cosim-rows 0."""
+def _cosim_slice(args, rig, config, frames):
+    """The co-simulated slice, checked against the run (whole stereo pairs of the rig,
+    by :func:`emulator.cosim.slice_params`); None for --cosim-rows 0."""
     if args.cosim_rows == 0:
         return None
     router = config.router
@@ -163,11 +164,11 @@ def _cosim_slice(args, config, frames):
     for flag, value, limit, what in checks:
         if not 1 <= value <= limit:
             raise UsageError(f"{flag} must be between 1 and the {limit} {what}, not {value}")
+    from emulator.cosim import slice_params
     try:
-        from emulator.cosim import cosim_slice  # noqa: F401  (checked before long work)
-    except ImportError as exc:
-        raise UsageError(f"the co-simulation (emulator.cosim) is not available: {exc}; "
-                         f"--cosim-rows 0 runs without it") from None
+        slice_params(rig, args.cosim_cameras, args.cosim_frames * args.cosim_rows)
+    except (TypeError, ValueError) as exc:
+        raise UsageError(f"--cosim-cameras {args.cosim_cameras}: {exc}") from None
     return {"rows": args.cosim_rows, "cameras": args.cosim_cameras,
             "frames": args.cosim_frames}
 
@@ -203,7 +204,7 @@ def check_inputs(args):
         _simulation_inputs(args, rig, frames)
     return Job(rig=rig, config=config, frames=frames, dataset=dataset,
                trajectory=args.trajectory or DEFAULT_TRAJECTORY, seed=args.seed,
-               cosim=_cosim_slice(args, config, frames), sim=args.sim, waves=args.waves,
+               cosim=_cosim_slice(args, rig, config, frames), sim=args.sim, waves=args.waves,
                out=out)
 
 

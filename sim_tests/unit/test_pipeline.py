@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from emulator.e2e import (check_tolerances, compare_steps, measurement_agreement,
-                          scheme_steps, true_steps)
+                          pose_errors, scheme_steps, true_steps)
 from emulator.pose_solver import pose_solver_model, rows_from_float
 from emulator.pipeline import configure, coefficient_table, run, segment_centres
 from emulator.row_descriptor import TemporalLaneModel
@@ -155,6 +155,12 @@ def test_solver_path_recovers_the_true_step_from_exact_shifts(config, dataset, r
     print(f"worst step error from exact shifts: {error.max():.2e}")
     assert np.all(records["flags"] == 0)
     assert error.max() < 1e-6
+    # the pose ring composes each row's step onto the same row one frame earlier: the
+    # records' poses are the true poses relative to frame 0 (two steps: 9.8e-7 at seed 1)
+    exact_run = dataclasses.replace(result, records=records, frame=result.frame[use])
+    pose_error = np.abs(pose_errors(config, exact_run, dataset))
+    print(f"worst pose error from exact shifts: {pose_error.max():.2e}")
+    assert pose_error.max() < 2e-6
 
 
 @pytest.fixture(scope="module")

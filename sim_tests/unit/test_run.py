@@ -26,7 +26,8 @@ PLOTS = ("golden_trajectory.png", "steps.png", "step_errors.png", "confidence.pn
 REQUIRED = ("e2e.hdl_mismatches", "e2e.pose_rate_hz", "e2e.latency_us",
             "e2e.emulator_rows_per_s", "e2e.hdl_cycles_per_s", "e2e.golden.rms_t_cm.x",
             "e2e.golden.rms_r_deg.z", "e2e.emulator_vs_truth.rms.Tx",
-            "e2e.emulator_vs_scheme.rms.θz", "e2e.measurement.within_subpixel")
+            "e2e.emulator_vs_scheme.rms.θz", "e2e.measurement.within_subpixel",
+            "e2e.emulator_pose_vs_truth.rms.Tx")
 
 
 def _job(*extra):
@@ -175,6 +176,9 @@ BAD_INPUTS = {
                    "--cosim-rows must be between 1 and the 32 rows per frame"),
     "cosim cameras": (lambda p: ["--cosim-cameras", "21"],
                       "--cosim-cameras must be between 1 and the 20 cameras"),
+    "cosim odd cameras": (lambda p: ["--cosim-cameras", "3"],
+                          "--cosim-cameras 3: cameras must be an even number .*whole stereo "
+                          "pairs"),
     "cosim frames": (lambda p: ["--frames", "3", "--cosim-frames", "4"],
                      "--cosim-frames must be between 1 and the 3 frames"),
     "dataset and rig": (lambda p: ["--dataset", "x.npz", "--rig", "stereo20"],
