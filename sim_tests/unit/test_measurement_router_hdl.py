@@ -13,26 +13,13 @@ import pytest
 from amaranth.sim import Simulator
 
 from emulator.measurement_router import RouterParams as EmulatorRouterParams
-from golden.descriptor import STEREO_MATCH
-from hdl.fixed import SQ, UQ
 from hdl.measurement_router import (MeasurementRouter, RouterParams, default_router,
                                     ticket_layout)
-from hdl.pose_params import PoseSolverParams
-from hdl.row_descriptor_params import RowDescriptorParams
-from sim_tests.cocotb.measurement_router.stimulus import expected, synthetic
+from sim_tests.cocotb.measurement_router.stimulus import (NARROW as PARAMS, expected,
+                                                          synthetic)
 from sim_tests.common.payload import pack
 
 SEED = int(os.environ.get("SEED", "1"))
-#: Narrow frame counter (wraps within a run); solver formats narrower than the lanes'
-#: (SQ(7, 0) + SQ(1, 6) shift, SQ(8, 0) + SQ(1, 6) disparity, UQ(2, 6) confidence) so
-#: shift, cue and confidence are rounded and shift and cue saturate.
-TEMPORAL = RowDescriptorParams(width=320, height=8, frame_bits=3)
-STEREO = RowDescriptorParams(width=320, height=8, frame_bits=3,
-                             match=dataclasses.replace(STEREO_MATCH, segments=2))
-SOLVER = PoseSolverParams(slots=16, rows=8, shift_fmt=SQ(4, 3), cue_fmt=UQ(5, 4),
-                          conf_fmt=UQ(1, 4), time_bits=24)
-PARAMS = RouterParams(cameras=4, pairs=((1, 0), (2, 3)), temporal=TEMPORAL, stereo=STEREO,
-                      solver=SOLVER)
 
 
 def _source(port, layout, items, rng, valid_prob, delay=0):
@@ -139,17 +126,20 @@ def test_default_build_and_params_move():
 
 
 @pytest.mark.parametrize("changes, error, message", [
-    ({"stereo": dataclasses.replace(STEREO, frame_bits=4)}, ValueError,
+    ({"stereo": dataclasses.replace(PARAMS.stereo, frame_bits=4)}, ValueError,
      "stereo.frame_bits must equal temporal.frame_bits = 3, not 4"),
-    ({"solver": dataclasses.replace(SOLVER, row_bits=3), "temporal":
-      dataclasses.replace(TEMPORAL, row_bits=4), "stereo": dataclasses.replace(STEREO, row_bits=4)},
+    ({"solver": dataclasses.replace(PARAMS.solver, row_bits=3),
+      "temporal": dataclasses.replace(PARAMS.temporal, row_bits=4),
+      "stereo": dataclasses.replace(PARAMS.stereo, row_bits=4)},
      ValueError, "solver.row_bits must be at least temporal.row_bits = 4, not 3"),
 ])
 def test_parameter_checks(changes, error, message):
+    """The checks RouterParams gained with the hardware (the others are in
+    test_pipeline_router.py)."""
     with pytest.raises(error, match=message):
         dataclasses.replace(PARAMS, **changes)
 
 
 def test_component_rejects_other_params():
     with pytest.raises(TypeError, match="params must be a RouterParams"):
-        MeasurementRouter(TEMPORAL)
+        MeasurementRouter(PARAMS.temporal)

@@ -11,9 +11,28 @@ Two sources, both checked against :func:`emulator.measurement_router.route_ticke
   measurements per lane, one ticket per row set, some row sets missing a camera.
 """
 
-from emulator.measurement_router import route_tickets
+import dataclasses
 
-__all__ = ["measurement", "synthetic", "lane_streams", "expected", "FIELDS"]
+from emulator.measurement_router import route_tickets
+from golden.descriptor import STEREO_MATCH
+from hdl.fixed import SQ, UQ
+from hdl.measurement_router_params import RouterParams
+from hdl.pose_params import PoseSolverParams
+from hdl.row_descriptor_params import RowDescriptorParams
+
+__all__ = ["NARROW", "measurement", "synthetic", "lane_streams", "expected", "FIELDS"]
+
+#: Router for the synthetic streams: four cameras, K = 4, K_s = 2, a 3-bit frame
+#: counter (wraps within a run), solver formats narrower than the lanes' (SQ(7, 0) +
+#: SQ(1, 6) shift, SQ(8, 0) + SQ(1, 6) disparity, UQ(2, 6) confidence) so shift, cue
+#: and confidence are rounded and shift and cue saturate.
+NARROW = RouterParams(
+    cameras=4, pairs=((1, 0), (2, 3)),
+    temporal=RowDescriptorParams(width=320, height=8, frame_bits=3),
+    stereo=RowDescriptorParams(width=320, height=8, frame_bits=3,
+                               match=dataclasses.replace(STEREO_MATCH, segments=2)),
+    solver=PoseSolverParams(slots=16, rows=8, shift_fmt=SQ(4, 3), cue_fmt=UQ(5, 4),
+                            conf_fmt=UQ(1, 4), time_bits=24))
 
 #: The lane measurement layout's fields (``hdl.streams.row_measurement_layout``).
 FIELDS = ("camera", "frame", "row", "t_first", "segment", "shift", "subpixel",
@@ -115,8 +134,6 @@ def lane_streams(config, dataset, frames, pairs, rng, drop=0.1):
 
     Returns ``(router params, tickets, temporal streams, stereo streams)``.
     """
-    import dataclasses
-
     from emulator.pipeline import run
     full = config.router
     kept = full.pairs[:pairs]

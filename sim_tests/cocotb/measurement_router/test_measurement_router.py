@@ -15,9 +15,8 @@ from golden.simulator import simulate
 from golden.trajectory import make_trajectory
 from hdl.measurement_router import MeasurementRouter
 from sim_tests.common.cocotb_runner import BUILD_ROOT, run_cocotb
-from sim_tests.unit.test_measurement_router_hdl import PARAMS
 
-from .stimulus import expected, lane_streams
+from .stimulus import NARROW, expected, lane_streams
 
 BENCH = "sim_tests.cocotb.measurement_router.router_bench"
 #: stereo20 cut to its 24 middle rows, two frames at 120 fps; the first two pairs.
@@ -26,7 +25,7 @@ ROWS, FRAMES, PAIRS = 24, 2, 2
 
 @pytest.mark.parametrize("sim", ["verilator", "icarus"])
 def test_router_synthetic(sim):
-    run_cocotb(MeasurementRouter(PARAMS), name="measurement_router", tag="synthetic",
+    run_cocotb(MeasurementRouter(NARROW), name="measurement_router", tag="synthetic",
                sim=sim, test_module=BENCH)
 
 
