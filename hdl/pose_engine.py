@@ -11,10 +11,11 @@ word per clock from a ROM — on
   table, denormalize) that also checks every pivot against ``2**-pivot_log2``;
 * the ``work`` register bank (LUT RAM, transparent reads) and the pose state registers;
 * the pose ring: one pose per row slot (block RAM). A row's step is the rig's motion
-  since the same row one frame earlier, so the state registers are loaded with the
-  row's slot when the row starts, and the record's pose is written back to the slot
-  when the record is taken. After reset the ring is cleared to the reset pose, one slot
-  per clock (:attr:`PoseEngine.clear_clocks`).
+  since the same row one frame earlier, so the program reads the old pose from the
+  row's slot (read when the row starts, held at the block RAM's output), the commit
+  ops write the new pose into the state registers, and those — the record's pose — are
+  written back to the slot when the record is taken. After reset the ring is cleared
+  to the reset pose, one slot per clock (:attr:`PoseEngine.clear_clocks`).
 
 When the program ends it offers the pose record; the next row starts once the record
 is taken.
@@ -182,9 +183,8 @@ class PoseEngine(wiring.Component):
 
     @property
     def clear_clocks(self):
-        """Clocks after reset before a row can start: one per ring slot, and one for the
-        last slot's write to reach the (non-transparent) read port."""
-        return self.params.rows + 1
+        """Clocks after reset before a row can start: one per ring slot."""
+        return self.params.rows
 
     @property
     def program(self):
@@ -255,7 +255,7 @@ class PoseEngine(wiring.Component):
         state = [Signal(raw, name=f"state_{n}",
                         init=int(p.quat_fmt.quantize(1.0)) if n == "qw" else 0)
                  for n in STATE_NAMES]
-        self._pose_ring(m, state, go, row, cleared)
+        old = self._pose_ring(m, state, go, cleared)
 
         def operand(bank_field, index_field, name):
             """The operand named by an issue-stage word, one clock later."""
@@ -264,7 +264,7 @@ class PoseEngine(wiring.Component):
             m.d.comb += [r_in.addr.eq(index_field), r_work.addr.eq(index_field)]
             bank = Signal(2, name=f"{name}_bank")
             state_value = Signal(raw, name=f"{name}_state")
-            m.d.sync += [bank.eq(bank_field), state_value.eq(Array(state)[index_field[:3]])]
+            m.d.sync += [bank.eq(bank_field), state_value.eq(Array(old)[index_field[:3]])]
             value = Signal(raw, name=name)
             m.d.comb += value.eq(Mux(bank == _BANKS["input"], r_in.data,
                                      Mux(bank == _BANKS["work"], r_work.data, state_value)))
@@ -417,8 +417,10 @@ class PoseEngine(wiring.Component):
         flagged = overrun | empty | ill | saturated
         m.d.comb += [w_work.en.eq(write & ~wb.dst_state), w_work.addr.eq(wb.dst),
                      w_work.data.eq(w_data)]
-        with m.If(write & wb.dst_state & ~flagged):
-            m.d.sync += Array(state)[wb.dst[:3]].eq(w_data)
+        # a flagged row commits its slot's old pose: the record and the ring keep it
+        with m.If(write & wb.dst_state):
+            m.d.sync += Array(state)[wb.dst[:3]].eq(Mux(flagged, Array(old)[wb.dst[:3]],
+                                                        w_data))
         with m.If((mac_write & stages[5].checked & mac_sat) | n_sat):
             m.d.sync += saturated.eq(1)
         captured = [Signal(raw, name=f"step{k}") for k in range(6)]
@@ -450,34 +452,33 @@ class PoseEngine(wiring.Component):
         return m
 
 
-    def _pose_ring(self, m, state, go, row, cleared):
-        """The pose ring (one pose per row slot): loads the starting row's slot into
-        ``state`` on ``go``, writes ``state`` — the record's pose — back when the record
-        is taken, and clears every slot to the reset pose after reset (``cleared`` rises
-        :attr:`clear_clocks` clocks after reset).
+    def _pose_ring(self, m, state, go, cleared):
+        """The pose ring (one pose per row slot). Reads the starting row's slot on
+        ``go`` and holds it at the block RAM's output (the returned old pose, seven
+        values, what the program reads as ``state``); writes ``state`` — the record's
+        pose — back when the record is taken; clears every slot to the reset pose after
+        reset (``cleared`` rises :attr:`clear_clocks` clocks after reset).
 
-        The read port is not transparent: a slot written in the clock before ``go``
-        would read stale. Only the slot of the previous row can be, and ``state`` still
-        holds that slot's pose, so a row of the same slot keeps ``state`` (as does the
-        first row after reset in slot 0: ``state`` and ``row`` reset to the reset pose
-        and slot 0)."""
+        A slot is read in the clock a row starts, never earlier, so a write of the
+        previous row (same slot or not) or of the clear is always seen: the read port
+        needs no transparency."""
         p = self.params
         ring = Memory(shape=len(STATE_NAMES) * p.engine_width, depth=p.rows, init=[],
                       attrs={"ram_style": "block"})
         m.submodules.pose_ring = ring
         write, read = ring.write_port(), ring.read_port()
         sweep = Signal(range(p.rows + 1))
-        with m.If(sweep != p.rows):
+        clearing = sweep != p.rows
+        with m.If(clearing):
             m.d.sync += sweep.eq(sweep + 1)
-        m.d.sync += cleared.eq(sweep == p.rows)
-        # the state registers hold the reset pose until the first row starts
-        m.d.comb += [write.en.eq((sweep != p.rows) | (self.o.valid & self.o.ready)),
-                     write.addr.eq(Mux(sweep != p.rows, sweep, row)),
+        # the state registers hold the reset pose until the first row's commits
+        m.d.comb += [cleared.eq(~clearing),
+                     write.en.eq(clearing | (self.o.valid & self.o.ready)),
+                     write.addr.eq(Mux(clearing, sweep, self.o.payload.row)),
                      write.data.eq(Cat(*state)),
-                     read.addr.eq(self.row)]
-        with m.If(go & (self.row != row)):
-            m.d.sync += [reg.eq(read.data[k * p.engine_width:(k + 1) * p.engine_width])
-                         for k, reg in enumerate(state)]
+                     read.en.eq(go), read.addr.eq(self.row)]
+        return [read.data[k * p.engine_width:(k + 1) * p.engine_width]
+                for k in range(len(STATE_NAMES))]
 
 
 def _round_saturating(m, value, src, dst):
