@@ -21,7 +21,7 @@ from hdl.pose_params import PoseSolverParams
 from sim_tests.cocotb.row_descriptor.stimulus import row_beats
 
 __all__ = ["WIDTH", "HEIGHT", "FRAMES", "small_rig", "engine_params", "Stimulus",
-           "make_stimulus", "simulated_dataset"]
+           "make_stimulus", "priming_frame", "simulated_dataset"]
 
 #: Rows of 256 pixels (the narrowest the default 4-segment lanes accept), 6 rows per
 #: frame, 4 frames: three have a temporal reference.
@@ -105,6 +105,18 @@ def make_stimulus(params, dataset, rng, *, faults, clk_hz=100e6):
             row_sets.append(row_set)
             configs.append(cfg)
     return Stimulus(row_sets=row_sets, configs=configs)
+
+
+def priming_frame(params):
+    """A frame of black rows from every camera, numbered so that it is no reference for
+    :func:`make_stimulus`'s first frame: it fills every lane's reference store with
+    the same bits in the hardware and in a fresh model, whatever an earlier test left."""
+    frame = (FRAME0 - 3) % (1 << 16)
+    black = np.zeros(params.temporal.width, dtype=np.uint8)
+    row_sets = [{k: row_beats(black, camera=k, frame=frame, row=y) for k in range(params.cameras)}
+                for y in range(params.temporal.height)]
+    cfg = {"temporal": [0] * params.cameras, "stereo": [0] * len(params.pairs), "enable": 1}
+    return Stimulus(row_sets=row_sets, configs=[cfg] * len(row_sets))
 
 
 def simulated_dataset(rig, seed):
