@@ -5,6 +5,7 @@ the golden float matcher (the hardware equals the model bit for bit), and the sp
 the model itself (issue 11) against the HDL simulation of a lane."""
 
 import json
+import os
 import tempfile
 import time
 import xml.etree.ElementTree as ET
@@ -23,6 +24,8 @@ CONFIDENT = 1.5
 #: Frames of the full-size stereo20 sequence (20 cameras, 10 rectified pairs, 640×480)
 #: the emulator's speed is measured on.
 SPEED_FRAMES = 3
+#: Issue 11's estimate of the clocks a 4-camera top simulates per row set (text only).
+TOP4_CLOCKS_PER_ROW_SET = 700
 
 
 def _simulate(lane, name):
@@ -113,6 +116,7 @@ def _emulator_speed(temporal_hdl, width):
         "hdl.clocks_per_s": round(temporal_hdl["clocks"] / temporal_hdl["seconds"]),
         "hdl.rows_per_s": round(hdl_rows, 1),
         "emulator.speedup_vs_hdl": round(batched / hdl_rows),
+        "emulator.load_average": round(os.getloadavg()[0], 1),
     }
 
 
@@ -243,7 +247,8 @@ lane and every pair's through a stereo lane ({f['emulator.camera_rows']} camera 
 Batched, a frame of a camera per `TemporalLaneModel.process_rows` /
 `StereoLaneModel.process_pairs` call; row by row, one `process_row` / `process_pair` call
 per row as `emulator/pipeline.py` makes them; both on the same rows, in one process on
-this 2-core machine (shared, so the figures vary by some tens of percent between runs).
+this 2-core machine, shared: the 1-minute load average after the runs was
+{f['emulator.load_average']}, and the figures vary with it.
 The HDL side is the cocotb + Verilator run of one temporal lane above (the test's wall
 time, without the Verilator build).
 
@@ -258,8 +263,13 @@ time, without the Verilator build).
 | model ≥ 100× faster than the HDL simulation | {f['emulator.speedup_vs_hdl']}× per camera row (the model also runs the stereo lanes) | {verdict(f['emulator.speedup_vs_hdl'] >= 100)} |
 | batched = row by row | {f['emulator.batch_mismatches']} measurements differ | {verdict(f['emulator.batch_mismatches'] == 0)} |
 
-The whole pipeline's figure (router, solver, packets against the HDL top) is the `e2e`
-benchmark's; the lanes were the emulator's largest cost (docs/e2e.md).
+Per camera row this flatters the model: a top simulates all its lanes in the same
+clocks. Issue 11's estimate for a 4-camera top, ~700 clocks per row set, at this clock
+rate would be {4 * f['hdl.clocks_per_s'] / TOP4_CLOCKS_PER_ROW_SET:.0f} camera rows/s,
+{f['emulator.rows_per_s'] * TOP4_CLOCKS_PER_ROW_SET / (4 * f['hdl.clocks_per_s']):.0f}×
+below the batched lanes (an estimate, not a measurement). The whole pipeline's figure
+(router, solver, packets against the HDL top) is the `e2e` benchmark's; the lanes were
+the emulator's largest cost (docs/e2e.md).
 
 | figure | value |
 |---|---|
