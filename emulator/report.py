@@ -56,7 +56,8 @@ class Outcome:
                  f"1/16 px",
                  f"emulator: {m['emulator_rows_per_s']:.0f} camera rows/s"]
         if self.cosim is None:
-            lines.append("HDL co-simulation: skipped (--cosim-rows 0)")
+            lines.append("HDL co-simulation: " + ("skipped (--cosim-rows 0)"
+                                                  if self.job.cosim is None else "failed"))
         else:
             lines.append(f"HDL co-simulation: {m['hdl_records']} records, "
                          f"{m['hdl_mismatches']} mismatches; {m['pose_rate_hz']:.4g} row sets/s "
@@ -252,7 +253,8 @@ def tolerance_section(m):
 def hardware_section(m):
     """Markdown: the co-simulated slice (rate, latency, speeds), or why there is none."""
     if "hdl_mismatches" not in m:
-        return "No co-simulation in this run (`--cosim-rows 0`): no HDL figures."
+        return ("No co-simulation figures in this run (`--cosim-rows 0`, or the "
+                "co-simulation failed: see the failures above).")
     return table([
         ("slice", f"{m['cosim.cameras']} cameras × {m['cosim.frames']} frames × "
                   f"{m['cosim.rows']} rows, {m['cosim.sim']}"),

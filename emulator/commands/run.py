@@ -242,9 +242,14 @@ def run_job(job, progress=True):
     cosim = None
     if job.cosim is not None:
         from emulator.cosim import cosim_slice
-        cosim = cosim_slice(dataset, **job.cosim, sim=job.sim, waves=job.waves,
-                            seed=job.seed, build_dir=Path("build/cosim"), progress=progress)
-        walls["cosim"] = cosim.wall_s
+        start = time.perf_counter()
+        try:
+            cosim = cosim_slice(dataset, **job.cosim, sim=job.sim, waves=job.waves,
+                                seed=job.seed, build_dir=Path("build/cosim"),
+                                progress=progress)
+        except AssertionError as exc:      # the cocotb bench itself failed
+            failures.append(f"HDL co-simulation: {exc}")
+        walls["cosim"] = time.perf_counter() - start
     walls["total"] = time.perf_counter() - started
     return Outcome(job=job, dataset=dataset, golden=golden, accuracy=accuracy,
                    emulated=emulated, scheme=scheme, comparison=comparison,

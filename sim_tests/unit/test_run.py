@@ -92,7 +92,7 @@ def test_report_with_a_cosimulation(outcome, tmp_path):
 def test_bench_page_from_the_same_figures(outcome):
     """The e2e benchmark's page renders from the run's metrics, with and without HDL."""
     from emulator.benches.e2e import report
-    for run, hdl in ((outcome, "No co-simulation in this run"),
+    for run, hdl in ((outcome, "No co-simulation figures in this run"),
                      (_with_cosim(outcome), "300 clocks = 3.000 µs")):
         page = report({**metrics(run), "failures": 0})
         assert hdl in page and "emulator ↔ golden scheme" in page
