@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["RECORD_FIELDS", "CosimResult", "compare_records", "slice_params",
+__all__ = ["RECORD_FIELDS", "CosimResult", "compare_records", "slice_rig", "slice_params",
            "cosim_slice"]
 
 #: Pose-record fields compared, element by element (``q`` and ``p`` are arrays).
@@ -40,10 +40,11 @@ class CosimResult:
     Members
     -------
     records : dict
-        The HDL's pose records (raw integer arrays: ``row``, ``time``, ``flags``,
-        ``q`` (n, 4), ``p`` (n, 3)).
+        The HDL's pose records as read from the PS FIFO registers, raw integer arrays in
+        the packet formats (``emulator.packets``): ``row``, ``time``, ``flags``, ``q``
+        (n, 4), ``p`` (n, 3).
     expected : dict
-        The emulator's records for the same row sets.
+        The emulator's records for the same row sets, narrowed the same way.
     mismatches : int
         Record fields that differ (0: bit-exact; see :func:`compare_records`).
     first_mismatch : str or None
@@ -55,11 +56,14 @@ class CosimResult:
     row_sets : int
         Row sets the front end delivered to the measurement engine.
     clocks_per_row_set : float
-        Measured engine throughput: clocks between row sets entering the engine while
-        it is busy (see ``cosim_bench``).
+        Clocks from the first to the last column of a row set entering the measurement
+        engine, mean over the sets. The aligner streams columns as the slowest camera
+        delivers them, so the slice's PCLKs bound it (``width`` pixels at the slowest
+        PCLK); the engine itself takes a column per clock.
     latency_clocks : int
         Largest time, over the records, from the last pixel of a row set at the DVP pins
-        to its pose record in the PS FIFO, in system clocks.
+        to its pose record in the PS FIFO, in system clocks; -1 when the HDL did not
+        give one record per row set (``mismatches`` then counts the difference).
     clk_hz : float
     uart_packets_match : bool
         The bytes on the UART line decode to exactly the emulator's packets.
@@ -138,9 +142,15 @@ def compare_records(records, expected, frames=None):
 
 # --- the slice -------------------------------------------------------------------------
 
-def _sub_rig(rig, cameras):
-    """The first ``cameras / 2`` rectified pairs of ``rig`` as a rig of their own, and
-    the dataset camera behind each of its cameras (pairs become (0, 1), (2, 3), ...)."""
+def slice_rig(rig, cameras):
+    """The ``cameras / 2`` rectified pairs of ``rig`` that observe the motion best (the
+    smallest condition number of :attr:`golden.rig.Rig.observability` with the slice's
+    segments; the first such set in pair order on a tie) as a rig of their own, and the
+    dataset camera behind each of its cameras (pairs become (0, 1), (2, 3), ...). On
+    stereo20 no two pairs observe all six degrees of freedom: the smallest slice that
+    can solve rows has three pairs."""
+    from itertools import combinations
+
     from golden.depth import stereo_pairs
     from golden.rig import Rig
     pairs = stereo_pairs(rig)
@@ -148,17 +158,21 @@ def _sub_rig(rig, cameras):
             or cameras % 2 or cameras // 2 > len(pairs):
         raise ValueError(f"cameras must be an even number from 2 to {2 * len(pairs)} (whole "
                          f"stereo pairs of rig {rig.name!r}), not {cameras!r}")
-    chosen = [k for left, right, _ in pairs[:cameras // 2] for k in (left, right)]
-    sub = Rig(name=f"{rig.name}-slice", cameras=tuple(rig.cameras[k] for k in chosen),
-              row_points=rig.row_points, nominal_depth=rig.nominal_depth,
-              allow_unobservable=True)
-    return sub, chosen
+
+    def sub_rig(combo):
+        chosen = [k for j in combo for k in pairs[j][:2]]
+        return Rig(name=f"{rig.name}-slice", cameras=tuple(rig.cameras[k] for k in chosen),
+                   row_points=SEGMENTS, nominal_depth=rig.nominal_depth,
+                   allow_unobservable=True), chosen
+
+    candidates = [sub_rig(combo) for combo in combinations(range(len(pairs)), cameras // 2)]
+    return min(candidates, key=lambda c: c[0].observability.condition)
 
 
 def slice_params(rig, cameras, records):
     """:class:`hdl.top.TopParams` of the slice and its coefficient store.
 
-    The top has ``cameras`` ports (whole pairs of ``rig``, :func:`_sub_rig`), full-size
+    The top has ``cameras`` ports (whole pairs of ``rig``, :func:`slice_rig`), full-size
     lanes and solver (the rig's image size), the coefficient formats and table of
     :func:`emulator.pipeline.configure` for the sub-rig, and a PS FIFO deep enough for
     ``records`` pose records. Returns ``(params, coef_raw, chosen dataset cameras)``.
@@ -167,7 +181,7 @@ def slice_params(rig, cameras, records):
     from hdl.camera_input import CameraParams
     from hdl.pose_packet import PoseOutputParams
     from hdl.top import TopParams
-    sub, chosen = _sub_rig(rig, cameras)
+    sub, chosen = slice_rig(rig, cameras)
     config = configure(sub, segments=SEGMENTS)
     lane = config.router.temporal
     camera = CameraParams(max_width=lane.width, max_height=lane.height)
@@ -177,11 +191,6 @@ def slice_params(rig, cameras, records):
                                  pose_output=PoseOutputParams(fifo_depth=depth),
                                  clk_hz=round(config.clk_hz))
     return params, config.coef_raw, chosen
-
-
-def _check_count(name, value, high):
-    from hdl.checks import check_int
-    check_int(name, value, 1, high)
 
 
 def row_sets_from_columns(layout, columns):
@@ -247,12 +256,16 @@ def _latency(out, sets, frames_of_sets, fifo_clocks):
     return int(worst)
 
 
-def cosim_slice(dataset, *, cameras=4, frames=3, rows=8, sim="verilator", waves=False,
+def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=False,
                 seed=None, build_dir="build/cosim", progress=None):
     """Co-simulate ``rows`` rows of ``frames`` frames of ``cameras`` cameras of
     ``dataset`` (a :class:`golden.dataset.Dataset` or its path) through the HDL top and
     compare with the emulator; a :class:`CosimResult`.
 
+    ``cameras`` is whole stereo pairs, those that observe the motion best
+    (:func:`slice_rig`); the default three pairs are the fewest of stereo20 that solve
+    rows (with two, every row is flagged). ``rows`` are the first rows of each frame
+    (the height register is set to it), at full width.
     ``sim``: ``verilator`` or ``icarus``; ``waves`` records waveforms; ``seed`` fixes
     cocotb's seed (camera phases, bus pauses); ``build_dir`` receives the stimulus and
     the simulation's record (the HDL build itself goes under ``build/cocotb/``);
@@ -265,6 +278,7 @@ def cosim_slice(dataset, *, cameras=4, frames=3, rows=8, sim="verilator", waves=
         beyond the dataset).
     """
     from golden.dataset import Dataset
+    from hdl.checks import check_int
     from hdl.top import RowtrackTop
     from sim_tests.common.cocotb_runner import SIMULATORS, run_cocotb
     from sim_tests.common.dvp import DvpTiming
@@ -273,8 +287,8 @@ def cosim_slice(dataset, *, cameras=4, frames=3, rows=8, sim="verilator", waves=
     if sim not in SIMULATORS:
         raise ValueError(f"sim must be one of {', '.join(SIMULATORS)}, not {sim!r}")
     n_frames, height, width = dataset.cameras[0].rows.shape
-    _check_count("frames", frames, n_frames)
-    _check_count("rows", rows, height)
+    check_int("frames", frames, 1, n_frames)
+    check_int("rows", rows, 1, height)
     params, coef_raw, chosen = slice_params(dataset.rig, cameras, frames * rows)
     say = print if progress else (lambda *_: None)
     build_dir = Path(build_dir)

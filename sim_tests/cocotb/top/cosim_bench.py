@@ -106,6 +106,8 @@ async def cosim_slice(dut):
     engine_in = engine_input(dut, clock)
     arrivals = FifoArrivals(dut, dut.pose_link.status, po.status_layout(), clock)
 
+    # The cameras start after the set-up: their PCLKs are driven from Python, the
+    # costliest part of the simulation.
     timing = DvpTiming(width=width, height=height, hblank=stim["hblank"])
     players = [DvpPlayer(frames=images[k], timing=timing, period_ps=stim["pclk_ps"][k],
                          phase_ps=3_001 + 2_222 * k, rng=rng) for k in range(n_cams)]
