@@ -4,8 +4,14 @@
 ``build/synth/<name>/``, synthesizes it for the 7-series (xc7) family and returns LUT,
 FF, BRAM36, DSP48 counts and the longest combinational path in LUTs. No vendor tool runs
 here, so timing is an estimate from logic depth, not a sign-off.
+
+Yosys is deterministic, so the figures are kept next to the netlist with a hash of the
+Verilog and the script that made them: synthesizing the same Verilog again (the top in
+``rowtrack synth-report`` and in ``rowtrack bench --only top``, half an hour on a busy
+machine) returns them without running Yosys.
 """
 
+import hashlib
 import json
 import shutil
 import subprocess
@@ -66,12 +72,19 @@ def synth_verilog(verilog_path, top, work_dir):
               f"synth_xilinx -family xc7 -top {top} -flatten; "
               f"tee -q -o {stat_path.name} stat -json; "
               f"write_json {netlist_path.name}")
+    cache_path = work_dir / "figures.json"
+    key = hashlib.sha256((work_dir / source.name).read_bytes() + script.encode()).hexdigest()
+    if cache_path.exists():
+        cached = json.loads(cache_path.read_text())
+        if cached.get("key") == key:
+            return cached["figures"]
     result = subprocess.run([_yosys_command(), "-q", "-p", script], capture_output=True,
                             text=True, cwd=work_dir)
     if result.returncode != 0:
         raise RuntimeError(f"yosys synth_xilinx failed for {top}:\n{result.stderr[-2000:]}")
     figures = _cell_counts(json.loads(stat_path.read_text()))
     figures["lut_levels"] = lut_levels(json.loads(netlist_path.read_text())["modules"][top])
+    cache_path.write_text(json.dumps({"key": key, "figures": figures}) + "\n")
     return figures
 
 
