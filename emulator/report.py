@@ -120,7 +120,9 @@ def metrics(outcome):
     m["tolerance_failures"] = len(outcome.failures)
     if cosim is not None:
         hdl_rows_per_s = cosim.row_sets * job.cosim["cameras"] / cosim.wall_s
+        flags = np.asarray(cosim.records["flags"])
         m.update({"hdl_mismatches": int(cosim.mismatches), "hdl_records": _count(cosim.records),
+                  "hdl_solved_records": int(np.sum(flags == 0)),
                   "hdl_expected": _count(cosim.expected), "clk_hz": cosim.clk_hz,
                   "clocks_per_row_set": cosim.clocks_per_row_set,
                   "pose_rate_hz": cosim.clk_hz / cosim.clocks_per_row_set,
@@ -259,6 +261,9 @@ def hardware_section(m):
         ("slice", f"{m['cosim.cameras']} cameras × {m['cosim.frames']} frames × "
                   f"{m['cosim.rows']} rows, {m['cosim.sim']}"),
         ("pose records HDL / expected", f"{m['hdl_records']} / {m['hdl_expected']}"),
+        ("records with a solved step (a slice of fewer than three stereo20 pairs cannot "
+         "observe all six axes: its records are flagged, the solver's arithmetic untested)",
+         m["hdl_solved_records"]),
         ("HDL ↔ emulator mismatches (must be 0)", m["hdl_mismatches"]),
         ("UART packets equal the emulator's", m["uart_packets_match"]),
         ("clocks per row set", m["clocks_per_row_set"]),
