@@ -23,6 +23,7 @@ BLOCKS = {
     "pose_solver": "hdl.pose_solver:PoseSolver",
     "row_descriptor": "hdl.row_descriptor:RowDescriptor",
     "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",
+    "measurement_engine": "hdl.measurement_engine:MeasurementEngine",
     "measurement_router": "hdl.measurement_router:default_router",
 }
 

@@ -30,7 +30,8 @@ from .pose_solver import measurement_layout
 from .row_descriptor import RowDescriptor, StereoRowDescriptor
 from .row_set_fork import RowSetFork
 
-__all__ = ["EngineParams", "MeasurementEngine", "default_engine_params"]
+__all__ = ["EngineParams", "MeasurementEngine", "default_engine_params", "engine_config_layout",
+           "engine_status_layout"]
 
 
 def default_engine_params():
@@ -63,8 +64,8 @@ class MeasurementEngine(wiring.Component):
         ``row_sets``, ``dropped``, ``stereo_skipped[j]`` (the fork's) and ``router``
         (the router's counters); all wrap.
 
-    Latency: from a row set's last column, the temporal lanes' :attr:`latency` plus the
-    router's. Throughput: one column per clock while the lanes and ``o`` keep up (the
+    Latency :attr:`latency` clocks from a row set's last column to its first solver
+    transfer (64 for 640-pixel rows; checked in the cocotb bench). Throughput: one column per clock while the lanes and ``o`` keep up (the
     router needs K · cameras + a few clocks per row, far fewer than the row width).
     Backpressure on ``o`` fills the router's lane FIFOs, then stalls the lanes, the
     fork and ``rows``. Reset empties the pipeline; every reference row is invalid until
@@ -86,6 +87,17 @@ class MeasurementEngine(wiring.Component):
             "o": Out(stream.Signature(measurement_layout(params.router.solver))),
             "status": Out(engine_status_layout(params)),
         })
+
+    @property
+    def latency(self):
+        """Clocks from a row set's last column to its row's first solver transfer when
+        nothing stalls: the later of the lanes' last measurements (temporal segment
+        K − 1, stereo segment K_s − 1), then the router, whose count from a ticket
+        includes the clock a measurement takes into its lane FIFO."""
+        t, s = self.params.temporal, self.params.stereo
+        lanes = max(self.temporal_lanes[0].latency + t.segments - 1,
+                    self.stereo_lanes[0].latency + s.segments - 1)
+        return lanes + self.router.latency - 1
 
     def elaborate(self, platform):
         m = Module()

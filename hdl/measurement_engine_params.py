@@ -14,10 +14,9 @@ from golden.descriptor import STEREO_MATCH, MatchParams
 
 from .camera_input import CameraParams
 from .checks import check_int
+from .measurement_router_params import RouterParams
 from .pose_params import PoseSolverParams
 from .row_descriptor_params import RowDescriptorParams
-
-from emulator.measurement_router import RouterParams
 
 __all__ = ["EngineParams", "engine_config_layout", "fork_status_layout",
            "engine_status_layout"]

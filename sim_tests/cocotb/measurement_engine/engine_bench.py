@@ -14,7 +14,7 @@ from golden.dataset import Dataset
 from hdl.measurement_engine_params import engine_config_layout, engine_status_layout
 from hdl.pose_solver import measurement_layout
 from sim_tests.common.clocking import reset, start_clock
-from sim_tests.common.cocotb_env import load_params
+from sim_tests.common.cocotb_env import load_params, load_sidecar
 from sim_tests.common.payload import pack, unpack
 from sim_tests.common.streams import StreamSink, StreamSource
 
@@ -86,3 +86,19 @@ async def engine_matches_model(dut, traffic, faults):
     if busy and not faults:     # one column per clock when nothing stalls
         assert cycles == list(range(cycles[0], cycles[0] + len(cycles))), \
             f"the engine stalled its input: {rate:.3f} columns per clock"
+        latency = _row_latencies(source.sent, sink.received)
+        dut._log.info(f"latency from a set's last column to its first transfer: "
+                      f"{min(latency)} to {max(latency)} clocks")
+        assert set(latency) == {load_sidecar()["latency"]}, "latency differs from the block's"
+
+
+def _row_latencies(sent, received):
+    """Clocks from each set's last column to its row's first solver transfer (every set
+    routed, as in the clean case)."""
+    set_ends = [c for c, column in sent
+                if all(lane["last"] or not column["lane_valid"] >> k & 1
+                       for k, lane in column["lanes"].items())]
+    row_starts = [received[0][0]] + [c for (_, prev), (c, _) in zip(received, received[1:])
+                                     if prev["last"]]
+    assert len(set_ends) == len(row_starts)
+    return [start - end for end, start in zip(set_ends, row_starts)]

@@ -38,4 +38,4 @@ def test_engine_icarus(rig, dataset_path):
     run_cocotb(MeasurementEngine(engine_params(rig)), name="measurement_engine",
                tag="stereo4", sim="icarus", test_module=BENCH,
                extra_env={"ROWTRACK_ME_DATASET": str(dataset_path)},
-               testcase=["engine_matches_model/traffic=1/faults=1"])
+               testcase=["engine_matches_model/traffic=1/faults=True"])
