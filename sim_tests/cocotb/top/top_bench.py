@@ -33,14 +33,13 @@ def child(parent, name):
 
 class ColumnMonitor:
     """Every column taken on a stream (its ``valid``/``ready``/``payload`` handles), raw,
-    with the clock it was taken, and the clocks ``valid`` was high."""
+    with the clock it was taken."""
 
     def __init__(self, dut, valid, ready, payload, clock):
         self.handles = (valid, ready, payload)
         self.clock = clock
         self.dut = dut
         self.columns = []
-        self.busy_clocks = 0
         cocotb.start_soon(self._run())
 
     async def _run(self):
@@ -48,10 +47,8 @@ class ColumnMonitor:
         while True:
             await RisingEdge(self.dut.clk)
             await ReadOnly()
-            if int(valid.value):
-                self.busy_clocks += 1
-                if int(ready.value):
-                    self.columns.append((self.clock.cycle, int(payload.value)))
+            if int(valid.value) and int(ready.value):
+                self.columns.append((self.clock.cycle, int(payload.value)))
 
 
 def engine_input(dut, clock):
