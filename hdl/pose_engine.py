@@ -451,7 +451,6 @@ class PoseEngine(wiring.Component):
                 m.d.sync += self.counters.solved.eq(self.counters.solved + 1)
         return m
 
-
     def _pose_ring(self, m, state, go, cleared):
         """The pose ring (one pose per row slot). Reads the starting row's slot on
         ``go`` and holds it at the block RAM's output (the returned old pose, seven
