@@ -31,11 +31,19 @@ def sidecar(component, name):
 def write_verilog(component, name, out_dir):
     """Elaborate ``component`` to ``out_dir/name.v`` and ``out_dir/name.json``.
 
-    Returns the path of the Verilog file.
+    Returns the path of the Verilog file. A file whose content would not change is left
+    untouched, so that its time stamp stays older than what was built from it (Verilator
+    and make then skip rebuilding an unchanged design).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     v_path = out_dir / f"{name}.v"
-    v_path.write_text(verilog.convert(component, name=name, emit_src=False))
-    (out_dir / f"{name}.json").write_text(json.dumps(sidecar(component, name), indent=2) + "\n")
+    _write_if_changed(v_path, verilog.convert(component, name=name, emit_src=False))
+    _write_if_changed(out_dir / f"{name}.json",
+                      json.dumps(sidecar(component, name), indent=2) + "\n")
     return v_path
+
+
+def _write_if_changed(path, text):
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
