@@ -23,9 +23,10 @@ HELP = "the main job: simulate, track (golden and bit-accurate emulator), co-sim
 #: (1,440 solved row sets; about 1.5 minutes on one core, see docs/results/e2e.md).
 DEFAULT_FRAMES = 4
 DEFAULT_TRAJECTORY = "paper"
-#: Co-simulated slice: rows of frames 0 and 1 (frame 1 has its reference) of the first
-#: cameras, enough for a dozen pose records through the HDL top.
-DEFAULT_COSIM = {"rows": 4, "cameras": 2, "frames": 2}
+#: Co-simulated slice: rows of frames 0 and 1 (frame 1 has its reference) of three
+#: stereo pairs picked for observability (the smallest stereo20 slice whose rows solve,
+#: so that the solver's arithmetic is compared too).
+DEFAULT_COSIM = {"rows": 4, "cameras": 6, "frames": 2}
 SEGMENTS = 4
 
 
@@ -67,7 +68,8 @@ def add_arguments(parser):
                             "co-simulation (default: %(default)s)")
     cosim.add_argument("--cosim-cameras", type=_positive_int,
                        default=DEFAULT_COSIM["cameras"],
-                       help="cameras of the slice (the first ones; default: %(default)s)")
+                       help="cameras of the slice, whole stereo pairs chosen for observability "
+                            "(at least 6 on stereo20 for rows that solve; default: %(default)s)")
     cosim.add_argument("--cosim-frames", type=_positive_int, default=DEFAULT_COSIM["frames"],
                        help="frames of the slice (default: %(default)s)")
     cosim.add_argument("--sim", choices=("verilator", "icarus"), default="verilator",
