@@ -14,8 +14,9 @@ step, is in ``docs/pose_solver.md``:
    from an interpolated seed and one Newton step;
 4. back substitution with ``L = G·D^-1/2``, ``Y = S x``;
 5. integration onto the pose of the same row one frame earlier (one pose per row
-   slot): ``q ← q ⊗ (1, θ/2)`` renormalized by one Newton step, ``p ← p + R(q) T``
-   (R from the quaternion before the step), committed only if the row was solved.
+   slot): ``q ← q ⊗ (1 − |θ|²/12, θ/2)`` renormalized by one Newton step,
+   ``p ← p + R(q) T`` (R from the quaternion before the step), committed only if the
+   row was solved.
 """
 
 from dataclasses import dataclass
@@ -392,11 +393,19 @@ def _integrate_one(params, q, p, step):
                          quat(y, y, z, y, x, z, z, z, x)),
                         ((-1, -1, 1, 1, -1, -1, -1, 1, -1), quat(z, w, w, w, z, w, w, w, y),
                          quat(z, z, y, z, z, x, y, x, y))], scale_log2=1)
-    # q ⊗ (1, θ/2): w' = w − v·θ/2, v' = v + (w θ + v × θ)/2
-    q1, _ = _dot(qf, quat(w, x, y, z),
-                 [((-1, 1, 1, 1), quat(x, w, w, w), steps(ax, ax, ay, az)),
-                  ((-1, 1, 1, 1), quat(y, y, z, x), steps(ay, az, ax, ay)),
-                  ((-1, -1, -1, -1), quat(z, z, x, y), steps(az, ay, az, ax))], scale_log2=-1)
+    # q ⊗ (1 − |θ|²/12, θ/2): normalized, the increment turns by
+    # 2·atan((|θ|/2)/(1 − |θ|²/12)) = |θ| + O(|θ|⁵), where (1, θ/2) loses |θ|³/12 per
+    # step. First q ⊗ (1, θ/2) (w' = w − v·θ/2, v' = v + (w θ + v × θ)/2), then
+    # − q·|θ|²/12.
+    q0 = quat(w, x, y, z)
+    first, _ = _dot(qf, q0, [((-1, 1, 1, 1), quat(x, w, w, w), steps(ax, ax, ay, az)),
+                             ((-1, 1, 1, 1), quat(y, y, z, x), steps(ay, az, ax, ay)),
+                             ((-1, -1, -1, -1), quat(z, z, x, y), steps(az, ay, az, ax))],
+                    scale_log2=-1)
+    square, _ = _dot(qf, terms=[(1, steps(a), steps(a)) for a in (ax, ay, az)],
+                     scale_log2=-2)                                   # |θ|²/4 < 3/4
+    cubic, _ = _dot(qf, terms=[(1, square, _constant(1 / 3, qf, 1))])  # |θ|²/12
+    q1, _ = _dot(qf, first, [(-1, q0, Value(np.repeat(cubic.raw, 4), qf))])
     # one Newton step of 1/sqrt(|q'|²) from 1: g = 3/2 − |q'|²/2
     g, _ = _dot(qf, _constant(1.5, qf, 1), [(-1, Value(q1.raw[k:k + 1], qf),
                                             Value(q1.raw[k:k + 1], qf)) for k in range(4)],

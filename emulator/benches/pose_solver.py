@@ -105,8 +105,9 @@ def frame_chain_error(duration=SECOND, row_stride=8):
     480-row, 120 fps rolling-shutter camera (stereo20 timing) composes the true
     one-frame motions of the papers' trajectory (quantized into ``step_fmt``) for
     ``duration`` s. Fixed point against the float64 composition of the same quantized
-    steps (exact exponential): the first-order ``δq = (1, θ/2)`` loses ``|θ|³/12`` of
-    rotation per step, and a one-frame step is 480 times a row's."""
+    steps (exact exponential). A one-frame step is 480 times a row's, so the increment
+    must be third-order accurate: ``cubic_bound_deg`` is what a first-order
+    ``δq = (1, θ/2)`` would lose (``|θ|³/12`` of rotation per step)."""
     from golden.rig import preset
     from golden.trajectory import make_trajectory
     from hdl.pose_params import PoseSolverParams
@@ -336,9 +337,10 @@ row of a 480-row, 120 fps camera) each compose {chain['steps_per_slot']} true
 one-frame steps of the papers' motion (up to {chain['step_angle_max_deg']:.3g}° each),
 quantized into the step format, in fixed point (`emulator.pose_solver.integrate_rows`)
 and in float64 with the exact exponential: worst {chain['traj_err_cm']:.3g} cm and
-{chain['traj_err_deg']:.3g}°. The orientation error is the first-order
-`δq = (1, θ/2)`: it turns `|θ|³/12` too little per step, {chain['cubic_bound_deg']:.3g}°
-summed over a slot's steps — negligible for one row's step, not for one frame's.
+{chain['traj_err_deg']:.3g}°. The increment `δq = (1 − |θ|²/12, θ/2)` turns by
+`|θ| + O(|θ|⁵)`; the first-order `(1, θ/2)` would turn `|θ|³/12` too little per step,
+{chain['cubic_bound_deg']:.3g}° summed over a slot's steps — negligible for one row's
+step, not for one frame's.
 (The rows above with "one slot, every row" compose every row's solved step in one
 slot — 57,600 compositions of small steps: the solve and the arithmetic, not the
 ring's semantics.)
