@@ -6,8 +6,8 @@ The same run as ``make run`` (stereo20 640×480, four frames of the papers' moti
 ``hdl_cycles_per_s``, ``hdl_rows_per_s`` and their ratio ``speed_ratio`` (camera rows per
 second of the emulator over those of the HDL simulation), and the accuracy figures
 (golden tracker, emulator and the float hardware scheme against truth; emulator against
-the float scheme). ``hdl_cycles_per_s`` and ``speed_ratio`` use the co-simulation's
-wall time, which includes building the simulator model (``docs/e2e.md``).
+the float scheme). ``hdl_cycles_per_s`` and ``speed_ratio`` use the wall time of the
+simulation itself (:attr:`emulator.cosim.CosimResult.wall_s`, not the model build).
 """
 
 from emulator.report import accuracy_section, hardware_section, tolerance_section
