@@ -21,14 +21,17 @@ $(STAMP): pyproject.toml
 # Options for `rowtrack run`, e.g. RUN_ARGS="--rows 32 --frames 3 --sim icarus".
 RUN_ARGS ?=
 
+# A fixed hash seed: Amaranth orders the clock ports of undefined domains by set
+# iteration, so without it every process writes the top's Verilog in another port order
+# and Verilator rebuilds the model (minutes) on every run.
 run: $(STAMP)
-	$(VENV)/bin/rowtrack run $(RUN_ARGS)
+	PYTHONHASHSEED=0 $(VENV)/bin/rowtrack run $(RUN_ARGS)
 
 test: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) $(PYTEST_ARGS)
 
 bench: $(STAMP)
-	$(VENV)/bin/rowtrack bench --write-docs docs/results
+	PYTHONHASHSEED=0 $(VENV)/bin/rowtrack bench --write-docs docs/results
 
 clean:
 	rm -rf build
