@@ -158,10 +158,10 @@ class PipelineResult:
         return np.where(self.records["flags"][:, None] == 0, step, np.nan)
 
 
-def _framed(dataset, camera, frame, row, config):
-    """Dataset row as the framer hands a clean row on."""
+def _framed(dataset, camera, frame, row, config, t0):
+    """Dataset row as the framer hands a clean row on; ``t0`` is the first row's
+    exposure time (s), the zero of the time stamps."""
     lane = config.router.temporal
-    t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
     ticks = int(round((dataset.cameras[camera].time[frame, row] - t0) * config.clk_hz))
     return FramedRow(pixels=dataset.cameras[camera].rows[frame, row].astype(np.int64),
                      camera=camera, frame=frame % (1 << lane.frame_bits), row=row,
@@ -183,10 +183,11 @@ def run(config, dataset, frames=None, *, progress=False):
     temporal_lanes = [TemporalLaneModel(router.temporal) for _ in cams]
     stereo_lanes = [StereoLaneModel(router.stereo) for _ in router.pairs]
     temporal, stereo, transfers, record_frames = [], [], [], []
+    t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
     start = time.perf_counter()
     for frame in tqdm(range(frames), desc="emulator", unit="frame", disable=not progress,
                       leave=False):
-        rows = [[_framed(dataset, n, frame, row, config) for row in range(height)]
+        rows = [[_framed(dataset, n, frame, row, config, t0) for row in range(height)]
                 for n in cams]
         t = [lane.process_rows(rows[n]) for n, lane in zip(cams, temporal_lanes)]
         s = [lane.process_pairs(rows[a], rows[b])
