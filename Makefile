@@ -21,17 +21,14 @@ $(STAMP): pyproject.toml
 # Options for `rowtrack run`, e.g. RUN_ARGS="--rows 32 --frames 3 --sim icarus".
 RUN_ARGS ?=
 
-# A fixed hash seed: Amaranth orders the clock ports of undefined domains by set
-# iteration, so without it every process writes the top's Verilog in another port order
-# and Verilator rebuilds the model (minutes) on every run.
 run: $(STAMP)
-	PYTHONHASHSEED=0 $(VENV)/bin/rowtrack run $(RUN_ARGS)
+	$(VENV)/bin/rowtrack run $(RUN_ARGS)
 
 test: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) $(PYTEST_ARGS)
 
 bench: $(STAMP)
-	PYTHONHASHSEED=0 $(VENV)/bin/rowtrack bench --write-docs docs/results
+	$(VENV)/bin/rowtrack bench --write-docs docs/results
 
 clean:
 	rm -rf build

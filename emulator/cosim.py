@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["RECORD_FIELDS", "CosimResult", "compare_records", "slice_rig", "slice_params",
-           "cosim_slice"]
+           "NoSolvingWindow", "solving_window", "cosim_slice"]
 
 #: Pose-record fields compared, element by element (``q`` and ``p`` are arrays).
 RECORD_FIELDS = ("row", "time", "flags", "q", "p")
@@ -66,6 +66,14 @@ class CosimResult:
     clk_hz : float
     uart_packets_match : bool
         The bytes on the UART line decode to exactly the emulator's packets.
+    cameras : tuple of int
+        The dataset cameras of the slice (:func:`slice_rig`).
+    first_row : int
+        The first dataset row of the played window (:func:`solving_window`); the HDL
+        numbers the window's rows from 0.
+    timings : dict
+        Wall seconds of ``elaborate`` (Verilog), ``build`` (the simulator's model) and
+        ``simulate`` (:func:`sim_tests.common.cocotb_runner.run_cocotb`).
     """
     records: dict
     expected: dict
@@ -78,6 +86,9 @@ class CosimResult:
     latency_clocks: int
     clk_hz: float
     uart_packets_match: bool
+    cameras: tuple
+    first_row: int
+    timings: dict
 
     @property
     def cycles_per_s(self):
@@ -168,13 +179,16 @@ def slice_rig(rig, cameras):
     return min(candidates, key=lambda c: c[0].observability.condition)
 
 
-def slice_params(rig, cameras, records):
-    """:class:`hdl.top.TopParams` of the slice and its coefficient store.
+def slice_params(rig, cameras, rows, records):
+    """:class:`hdl.top.TopParams` of the slice and the pipeline of its sub-rig.
 
-    The top has ``cameras`` ports (whole pairs of ``rig``, :func:`slice_rig`), full-size
-    lanes and solver (the rig's image size), the coefficient formats and table of
-    :func:`emulator.pipeline.configure` for the sub-rig, and a PS FIFO deep enough for
-    ``records`` pose records. Returns ``(params, coef_raw, chosen dataset cameras)``.
+    The top has ``cameras`` ports (whole pairs of ``rig``, :func:`slice_rig`) and is
+    built for cameras of the rig's width and ``rows`` rows, the window it plays: the
+    lanes, the router and the solver's arithmetic are the full design's, the memories
+    indexed by row (reference rows, coefficient store, pose ring) hold the window's rows.
+    Its formats and coefficients are those of :func:`emulator.pipeline.configure` for the
+    sub-rig at full height, and its PS FIFO is deep enough for ``records`` pose records.
+    Returns ``(params, config, chosen dataset cameras)``.
     """
     from emulator.pipeline import configure
     from hdl.camera_input import CameraParams
@@ -183,13 +197,50 @@ def slice_params(rig, cameras, records):
     sub, chosen = slice_rig(rig, cameras)
     config = configure(sub, segments=SEGMENTS)
     lane = config.router.temporal
-    camera = CameraParams(max_width=lane.width, max_height=lane.height)
+    if isinstance(rows, bool) or not isinstance(rows, int) or not 1 <= rows <= lane.height:
+        raise ValueError(f"rows must be an integer from 1 to the rig's {lane.height} rows, "
+                         f"not {rows!r}")
+    camera = CameraParams(max_width=lane.width, max_height=rows)
     depth = 1 << max(records, 2).bit_length()
     params = TopParams.for_pairs(config.router.pairs, segments=SEGMENTS, camera=camera,
                                  solver=config.router.solver,
                                  pose_output=PoseOutputParams(fifo_depth=depth),
                                  clk_hz=round(config.clk_hz))
-    return params, config.coef_raw, chosen
+    return params, config, chosen
+
+
+class NoSolvingWindow(ValueError):
+    """No window of the slice's rows solves a row set in the emulator, so a
+    co-simulation would not compare the solver's arithmetic."""
+
+
+def solving_window(config, dataset, chosen, frames, rows):
+    """First row of the ``rows`` consecutive rows that the emulator, run on the slice's
+    cameras (``chosen``) over the first ``frames`` frames at full height, solves most
+    often, and how many row sets it solves there; the first such window on a tie.
+
+    Raises
+    ------
+    NoSolvingWindow
+        When no window solves a row set (the message says which slice and why).
+    """
+    from types import SimpleNamespace
+
+    from emulator.pipeline import run
+    result = run(config, SimpleNamespace(cameras=[dataset.cameras[k] for k in chosen]),
+                 frames)
+    records = result.records
+    solved = np.bincount(np.asarray(records["row"])[np.asarray(records["flags"]) == 0],
+                         minlength=config.router.temporal.height)
+    per_window = np.convolve(solved, np.ones(rows, dtype=int), mode="valid")
+    first = int(np.argmax(per_window))
+    if per_window[first] == 0:
+        raise NoSolvingWindow(
+            f"the emulator solves no row set of cameras {list(chosen)} in frames 0–"
+            f"{frames - 1} (too few confident measurements or an ill-conditioned system "
+            f"on every row), so a co-simulated slice would not check the solver; try more "
+            f"--cosim-frames or --cosim-cameras")
+    return first, int(per_window[first])
 
 
 def row_sets_from_columns(layout, columns):
@@ -263,8 +314,10 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
 
     ``cameras`` is whole stereo pairs, those that observe the motion best
     (:func:`slice_rig`); the default three pairs are the fewest of stereo20 that solve
-    rows (with two, every row is flagged). ``rows`` are the first rows of each frame
-    (the height register is set to it), at full width.
+    rows (with two, every row is flagged). ``rows`` consecutive rows of each frame, at
+    full width, where the emulator solves most row sets on the slice's cameras
+    (:func:`solving_window`), are played as frames of ``rows`` rows (the top is built for
+    them, :func:`slice_params`).
     ``sim``: ``verilator`` or ``icarus``; ``waves`` records waveforms; ``seed`` fixes
     cocotb's seed (camera phases, bus pauses); ``build_dir`` receives the stimulus and
     the simulation's record (the HDL build itself goes under ``build/cocotb/``);
@@ -275,6 +328,8 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
     TypeError, ValueError
         Naming the parameter (``cameras`` not whole stereo pairs, ``frames`` or ``rows``
         beyond the dataset).
+    NoSolvingWindow
+        When the slice's cameras solve no row set in the emulator.
     """
     from golden.dataset import Dataset
     from hdl.checks import check_int
@@ -288,27 +343,33 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
     n_frames, height, width = dataset.cameras[0].rows.shape
     check_int("frames", frames, 1, n_frames)
     check_int("rows", rows, 1, height)
-    params, coef_raw, chosen = slice_params(dataset.rig, cameras, frames * rows)
+    params, config, chosen = slice_params(dataset.rig, cameras, rows, frames * rows)
     say = print if progress else (lambda *_: None)
+    first_row, solvable = solving_window(config, dataset, chosen, frames, rows)
+    coef_raw = config.coef_raw[:, first_row:first_row + rows]
     build_dir = Path(build_dir)
     build_dir.mkdir(parents=True, exist_ok=True)
-    images = np.stack([dataset.cameras[k].rows[:frames, :rows] for k in chosen])
+    window = slice(first_row, first_row + rows)
+    images = np.stack([dataset.cameras[k].rows[:frames, window] for k in chosen])
     timing = DvpTiming(width=width, height=rows, hblank=HBLANK)
     pclk_ps = [PCLK_PS + k * PCLK_STEP_PS for k in range(cameras)]
     clock_ps = round(1e12 / params.clk_hz)
     period = timing.frame_pclks * max(pclk_ps) // clock_ps * 5 // 4 + 2_000
-    stim = {"images": images, "coef": coef_raw[:, :rows], "divisor": DIVISOR,
+    stim = {"images": images, "coef": coef_raw, "divisor": DIVISOR,
             "hblank": HBLANK, "pclk_ps": pclk_ps, "period": period}
     paths = {"in": build_dir / "stimulus.pkl", "out": build_dir / "record.pkl"}
     with open(paths["in"], "wb") as f:
         pickle.dump(stim, f)
     paths["out"].unlink(missing_ok=True)
-    say(f"[cosim] {cameras} cameras × {frames} frames × {rows} rows of {width} pixels on "
-        f"{sim}")
+    say(f"[cosim] cameras {list(chosen)} × {frames} frames × rows {first_row}–"
+        f"{first_row + rows - 1} of {width} pixels on {sim} (the emulator solves "
+        f"{solvable} of these row sets)")
+    timings = {}
     run_cocotb(RowtrackTop(params), name="rowtrack_cosim", sim=sim, waves=waves, seed=seed,
                test_module="sim_tests.cocotb.top.cosim_bench", tag=f"{cameras}x{width}",
                extra_env={"ROWTRACK_COSIM_IN": str(paths["in"].resolve()),
-                          "ROWTRACK_COSIM_OUT": str(paths["out"].resolve())})
+                          "ROWTRACK_COSIM_OUT": str(paths["out"].resolve())},
+               timings=timings, progress=progress)
     with open(paths["out"], "rb") as f:
         out = pickle.load(f)
 
@@ -328,4 +389,5 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
         clocks=out["clocks"], wall_s=out["wall_s"], row_sets=len(sets),
         clocks_per_row_set=float(np.mean([b - a + 1 for a, b in spans])) if spans else 0.0,
         latency_clocks=latency, clk_hz=float(params.clk_hz),
-        uart_packets_match=out["uart"] == uart and not out["uart_framing_errors"])
+        uart_packets_match=out["uart"] == uart and not out["uart_framing_errors"],
+        cameras=tuple(chosen), first_row=first_row, timings=timings)

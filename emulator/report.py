@@ -134,6 +134,8 @@ def metrics(outcome):
                   "speed_ratio": outcome.emulated.rows_per_s / hdl_rows_per_s,
                   "uart_packets_match": bool(cosim.uart_packets_match),
                   "cosim.rows": job.cosim["rows"], "cosim.cameras": job.cosim["cameras"],
+                  "cosim.first_row": cosim.first_row,
+                  "cosim.dataset_cameras": list(cosim.cameras),
                   "cosim.frames": job.cosim["frames"], "cosim.sim": job.sim})
     return m
 
@@ -258,8 +260,11 @@ def hardware_section(m):
         return ("No co-simulation figures in this run (`--cosim-rows 0`, or the "
                 "co-simulation failed: see the failures above).")
     return table([
-        ("slice", f"{m['cosim.cameras']} cameras × {m['cosim.frames']} frames × "
-                  f"{m['cosim.rows']} rows, {m['cosim.sim']}"),
+        ("slice", f"{m['cosim.cameras']} cameras (dataset cameras "
+                  f"{', '.join(map(str, m['cosim.dataset_cameras']))}) × {m['cosim.frames']} "
+                  f"frames × rows {m['cosim.first_row']}–"
+                  f"{m['cosim.first_row'] + m['cosim.rows'] - 1}, {m['cosim.sim']} (the rows "
+                  f"where the emulator solves most row sets of these cameras)"),
         ("pose records HDL / expected", f"{m['hdl_records']} / {m['hdl_expected']}"),
         ("records with a solved step (a slice of fewer than three stereo20 pairs cannot "
          "observe all six axes: its records are flagged, the solver's arithmetic untested)",
@@ -272,6 +277,9 @@ def hardware_section(m):
          f"need {m['row_sets_needed_per_s']:,.0f})"),
         ("latency `e2e.latency_us`", f"{m['latency_clocks']} clocks = "
                                      f"{m['latency_us']:.3f} µs"),
+        ("wall time: Verilog, simulator model build, simulation (`e2e.wall_s.cosim_*`)",
+         " / ".join(f"{m.get(f'wall_s.cosim_{k}', math.nan):.1f} s"
+                    for k in ("elaborate", "build", "simulate"))),
         ("HDL simulation `e2e.hdl_cycles_per_s` (clocks / wall time of the simulation, "
          "without building the simulator model)",
          f"{m['hdl_cycles_per_s']:,.0f} cycles/s = {m['hdl_rows_per_s']:,.2f} camera rows/s "
@@ -283,7 +291,7 @@ def hardware_section(m):
 
 def _markdown(outcome, m, plots):
     job = outcome.job
-    source = (f"dataset `{job.dataset}`" if outcome.job.dataset is not None
+    source = (f"dataset `{job.dataset_path}`" if job.dataset_path is not None
               else f"simulated, `{job.trajectory}` motion, seed {job.seed}")
     failures = outcome.all_failures()
     res = resources()

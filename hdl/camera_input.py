@@ -258,6 +258,9 @@ class CameraInput(wiring.Component):
         self.params = params
         self.camera = camera
         self.domain = domain
+        #: The clock domains it uses without defining them, in port order
+        #: (:func:`hdl.verilog.to_verilog`).
+        self.clock_domains = ("sync", domain)
         super().__init__({
             "dvp": In(dvp_signature(params.pixel_bits)),
             "now": In(params.timestamp_bits),

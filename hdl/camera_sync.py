@@ -294,6 +294,9 @@ class CameraFrontEnd(wiring.Component):
             raise ValueError(f"domains must be distinct, not {domains!r}")
         self.params = params
         self.domains = domains
+        #: The clock domains it uses without defining them, in port order
+        #: (:func:`hdl.verilog.to_verilog`).
+        self.clock_domains = ("sync", *domains)
         super().__init__({
             "dvp": In(dvp_signature(params.pixel_bits)).array(params.n_cameras),
             "cfg": In(front_config_layout(params)),

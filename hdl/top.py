@@ -218,6 +218,9 @@ class RowtrackTop(wiring.Component):
         n = params.camera.n_cameras
         self.domains = tuple(domains) if domains is not None else \
             tuple(f"pclk{k}" for k in range(n))
+        #: The clock domains it uses without defining them, in port order
+        #: (:func:`hdl.verilog.to_verilog`).
+        self.clock_domains = ("sync", *self.domains)
         super().__init__({
             "axi": In(AXI4LiteSignature(32)),
             "dvp": In(dvp_signature(params.camera.pixel_bits)).array(n),

@@ -4,10 +4,10 @@ import json
 from pathlib import Path
 
 from amaranth.back import verilog
-from amaranth.hdl import Shape
+from amaranth.hdl import ClockDomain, ClockSignal, Module, ResetSignal, Shape, Value
 from amaranth.lib import wiring
 
-__all__ = ["write_verilog", "sidecar"]
+__all__ = ["write_verilog", "to_verilog", "sidecar"]
 
 
 def sidecar(component, name):
@@ -28,8 +28,46 @@ def sidecar(component, name):
     }
 
 
+def to_verilog(component, name):
+    """``component``'s Verilog text, the same in every Python process.
+
+    Amaranth creates the clock domains a design uses without defining them in set
+    order, which depends on the string hash seed; with several such domains (the camera
+    pixel clocks) every process would write the ports in another order, and a simulator
+    would rebuild an unchanged design. A component with several domains lists them in a
+    ``clock_domains`` attribute (port order); they are created here in that order, with
+    the ports Amaranth would give them (``clk``/``rst`` for ``sync``, ``<name>_clk`` and
+    ``<name>_rst`` otherwise).
+
+    Raises
+    ------
+    ValueError
+        The design uses a clock domain that it neither defines nor lists.
+    """
+    domains = tuple(getattr(component, "clock_domains", ()))
+    if not domains:
+        return verilog.convert(component, name=name, emit_src=False)
+    # Ports as plain signals: Amaranth names them after the signals (a signature's
+    # members are named by their path, a domain's clock and reset as stated above) and
+    # gives their direction from the design.
+    ports = [Value.cast(value) for _, _, value in component.signature.flatten(component)]
+    ports += [signal(domain) for domain in domains for signal in (ClockSignal, ResetSignal)]
+
+    def define(domain):
+        if domain not in domains:
+            raise ValueError(f"{type(component).__name__} uses the clock domain {domain!r}, "
+                             f"which its clock_domains {domains!r} does not list")
+        m = Module()
+        m.domains += ClockDomain(domain)
+        return m
+
+    return verilog.convert(component, name=name, emit_src=False, ports=ports,
+                           missing_domain=define)
+
+
 def write_verilog(component, name, out_dir):
-    """Elaborate ``component`` to ``out_dir/name.v`` and ``out_dir/name.json``.
+    """Elaborate ``component`` to ``out_dir/name.v`` and ``out_dir/name.json``
+    (:func:`to_verilog`).
 
     Returns the path of the Verilog file. A file whose content would not change is left
     untouched, so that its time stamp stays older than what was built from it (Verilator
@@ -38,7 +76,7 @@ def write_verilog(component, name, out_dir):
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     v_path = out_dir / f"{name}.v"
-    _write_if_changed(v_path, verilog.convert(component, name=name, emit_src=False))
+    _write_if_changed(v_path, to_verilog(component, name))
     _write_if_changed(out_dir / f"{name}.json",
                       json.dumps(sidecar(component, name), indent=2) + "\n")
     return v_path

@@ -87,6 +87,7 @@ class Job:
     config: object
     frames: int
     dataset: object = None
+    dataset_path: Path = None
     trajectory: str = DEFAULT_TRAJECTORY
     seed: int = 1
     cosim: dict = None
@@ -168,7 +169,8 @@ def _cosim_slice(args, rig, config, frames):
             raise UsageError(f"{flag} must be between 1 and the {limit} {what}, not {value}")
     from emulator.cosim import slice_params
     try:
-        slice_params(rig, args.cosim_cameras, args.cosim_frames * args.cosim_rows)
+        slice_params(rig, args.cosim_cameras, args.cosim_rows,
+                     args.cosim_frames * args.cosim_rows)
     except (TypeError, ValueError) as exc:
         raise UsageError(f"--cosim-cameras {args.cosim_cameras}: {exc}") from None
     return {"rows": args.cosim_rows, "cameras": args.cosim_cameras,
@@ -205,6 +207,7 @@ def check_inputs(args):
     if dataset is None:
         _simulation_inputs(args, rig, frames)
     return Job(rig=rig, config=config, frames=frames, dataset=dataset,
+               dataset_path=args.dataset,
                trajectory=args.trajectory or DEFAULT_TRAJECTORY, seed=args.seed,
                cosim=_cosim_slice(args, rig, config, frames), sim=args.sim, waves=args.waves,
                out=out)
@@ -243,15 +246,19 @@ def run_job(job, progress=True):
     walls["compare"] = time.perf_counter() - start
     cosim = None
     if job.cosim is not None:
-        from emulator.cosim import cosim_slice
+        from emulator.cosim import NoSolvingWindow, cosim_slice
         start = time.perf_counter()
         try:
             cosim = cosim_slice(dataset, **job.cosim, sim=job.sim, waves=job.waves,
                                 seed=job.seed, build_dir=Path("build/cosim"),
                                 progress=progress)
+        except NoSolvingWindow as exc:
+            failures.append(f"HDL co-simulation not run: {exc}")
         except AssertionError as exc:      # the cocotb bench itself failed
             failures.append(f"HDL co-simulation: {exc}")
         walls["cosim"] = time.perf_counter() - start
+        if cosim is not None:
+            walls.update({f"cosim_{k}": v for k, v in cosim.timings.items()})
     walls["total"] = time.perf_counter() - started
     return Outcome(job=job, dataset=dataset, golden=golden, accuracy=accuracy,
                    emulated=emulated, scheme=scheme, comparison=comparison,

