@@ -244,25 +244,34 @@ def run_job(job, progress=True):
     _, worst = e2e.measurement_agreement(job.config, emulated, scheme)
     failures = e2e.check_tolerances(comparison, worst)
     walls["compare"] = time.perf_counter() - start
-    cosim = None
-    if job.cosim is not None:
-        from emulator.cosim import NoSolvingWindow, cosim_slice
-        start = time.perf_counter()
-        try:
-            cosim = cosim_slice(dataset, **job.cosim, sim=job.sim, waves=job.waves,
-                                seed=job.seed, build_dir=Path("build/cosim"),
-                                progress=progress)
-        except NoSolvingWindow as exc:
-            failures.append(f"HDL co-simulation not run: {exc}")
-        except AssertionError as exc:      # the cocotb bench itself failed
-            failures.append(f"HDL co-simulation: {exc}")
-        walls["cosim"] = time.perf_counter() - start
-        if cosim is not None:
-            walls.update({f"cosim_{k}": v for k, v in cosim.timings.items()})
+    cosim, cosim_failures, cosim_walls = cosimulate(job, dataset, progress)
+    failures += cosim_failures
+    walls.update(cosim_walls)
     walls["total"] = time.perf_counter() - started
     return Outcome(job=job, dataset=dataset, golden=golden, accuracy=accuracy,
                    emulated=emulated, scheme=scheme, comparison=comparison,
                    failures=failures, cosim=cosim, walls=walls)
+
+
+def cosimulate(job, dataset, progress):
+    """The co-simulated slice of a run: ``(CosimResult or None, failure lines, wall
+    seconds by phase)``; none of it for ``--cosim-rows 0``."""
+    if job.cosim is None:
+        return None, [], {}
+    from emulator.cosim import NoSolvingWindow, cosim_slice
+    start = time.perf_counter()
+    cosim, failures = None, []
+    try:
+        cosim = cosim_slice(dataset, **job.cosim, sim=job.sim, waves=job.waves,
+                            seed=job.seed, build_dir=Path("build/cosim"), progress=progress)
+    except NoSolvingWindow as exc:
+        failures.append(f"HDL co-simulation not run: {exc}")
+    except AssertionError as exc:      # the cocotb bench itself failed
+        failures.append(f"HDL co-simulation: {exc}")
+    walls = {"cosim": time.perf_counter() - start}
+    if cosim is not None:
+        walls.update({f"cosim_{k}": v for k, v in cosim.timings.items()})
+    return cosim, failures, walls
 
 
 def run(args):

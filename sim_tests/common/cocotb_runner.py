@@ -21,6 +21,7 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+from emulator.progress import timed_phase
 from hdl.verilog import write_verilog
 
 __all__ = ["SIMULATORS", "simulator_from_env", "run_cocotb", "BUILD_ROOT"]
@@ -102,9 +103,10 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     :func:`sim_tests.common.cocotb_env.load_params` / ``load_sidecar``. ``tag`` separates
     build directories of parametrized cases. ``timings`` (a dict) receives the wall
     seconds of ``elaborate`` (Amaranth to Verilog), ``build`` (the simulator's model)
-    and ``simulate``; ``progress`` shows a bar over Verilator's C++ files. An unchanged
-    design is not rebuilt: its Verilog file keeps its time stamp and Verilator skips
-    identical inputs. Returns the results file path.
+    and ``simulate``; ``progress`` shows bars (over Verilator's C++ files; over the
+    seconds the other phases took last time, :func:`emulator.progress.timed_phase`).
+    An unchanged design is not rebuilt: its Verilog file keeps its time stamp and
+    Verilator skips identical inputs. Returns the results file path.
     """
     from cocotb_tools.runner import get_results, get_runner
 
@@ -120,7 +122,9 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
 
     start = time.perf_counter()
     build_dir = BUILD_ROOT / (name + (f"-{tag}" if tag else "")) / sim
-    verilog_path = write_verilog(component, name, build_dir)
+    phases = build_dir / "phase_times.json"
+    with timed_phase(f"{name}: Verilog", "elaborate", phases, progress):
+        verilog_path = write_verilog(component, name, build_dir)
     with open(build_dir / "params.pkl", "wb") as f:
         pickle.dump(getattr(component, "params", None), f)
     timings["elaborate"] = time.perf_counter() - start
@@ -148,9 +152,10 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     env = {"ROWTRACK_BUILD_DIR": str(build_dir), "ROWTRACK_TOPLEVEL": name}
     env.update(extra_env or {})
     start = time.perf_counter()
-    results = runner.test(hdl_toplevel=name, test_module=test_module, build_dir=build_dir,
-                          test_dir=build_dir, seed=seed, waves=waves, extra_env=env,
-                          testcase=testcase, timescale=("1ns", "1ps"))
+    with timed_phase(f"{name}: simulation", "simulate", phases, progress):
+        results = runner.test(hdl_toplevel=name, test_module=test_module,
+                              build_dir=build_dir, test_dir=build_dir, seed=seed, waves=waves,
+                              extra_env=env, testcase=testcase, timescale=("1ns", "1ps"))
     timings["simulate"] = time.perf_counter() - start
     num_tests, num_failed = get_results(results)
     assert num_tests > 0, f"cocotb ran no test from {test_module} (SEED={seed})"

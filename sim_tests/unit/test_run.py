@@ -45,7 +45,9 @@ SLICE = {"rows": 4, "cameras": 2, "frames": 2}
 def _with_cosim(outcome, **changes):
     """The run as if it had co-simulated a 2-camera, 2-frame, 4-row slice."""
     job = dataclasses.replace(outcome.job, cosim=SLICE)
-    return dataclasses.replace(outcome, job=job, cosim=_cosim_result(outcome, **changes))
+    cosim = _cosim_result(outcome, **changes)
+    walls = {**outcome.walls, **{f"cosim_{k}": v for k, v in cosim.timings.items()}}
+    return dataclasses.replace(outcome, job=job, cosim=cosim, walls=walls)
 
 
 def _cosim_result(outcome, **changes):
@@ -55,7 +57,9 @@ def _cosim_result(outcome, **changes):
     records = {k: np.asarray(v)[:8] for k, v in outcome.emulated.records.items()}
     fields = dict(records=records, expected=records, mismatches=0, first_mismatch=None,
                   clocks=40_000, wall_s=2.0, row_sets=8, clocks_per_row_set=800.0,
-                  latency_clocks=300, clk_hz=100e6, uart_packets_match=True)
+                  latency_clocks=300, clk_hz=100e6, uart_packets_match=True,
+                  cameras=(0, 1), first_row=3,
+                  timings={"elaborate": 1.0, "build": 2.0, "simulate": 3.0})
     return CosimResult(**{**fields, **changes})
 
 
@@ -136,6 +140,60 @@ def test_end_to_end_with_the_cosimulation(tmp_path):
         assert figures[key] > 0, key
     for plot in PLOTS:
         assert (tmp_path / plot).is_file(), plot
+
+
+def test_a_dataset_run_names_its_file_and_reports_the_slice(outcome, tmp_path):
+    """--dataset: the report names the file (it once embedded the whole Dataset's repr,
+    120 kB of arrays) and says which cameras and rows the slice played."""
+    path = tmp_path / "clip.npz"
+    outcome.dataset.save(path)
+    job = run_command.check_inputs(build_parser().parse_args(
+        ["run", "--dataset", str(path), "--cosim-rows", "0", "--no-progress"]))
+    done = _with_cosim(dataclasses.replace(outcome, job=job))
+    write_report(done, tmp_path / "report")
+    text = (tmp_path / "report" / "report.md").read_text()
+    assert f"dataset `{path}`" in text
+    assert "Dataset(" not in text and "array(" not in text
+    assert len(text) < 20_000
+    assert "(dataset cameras 0, 1) × 2 frames × rows 3–6" in text
+    assert "1.0 s / 2.0 s / 3.0 s" in text
+
+
+def _flat(dataset):
+    """``dataset`` with every row grey: no confident measurement anywhere."""
+    from types import SimpleNamespace
+    return SimpleNamespace(rig=dataset.rig, cameras=[
+        SimpleNamespace(rows=np.full_like(c.rows, 128), time=c.time) for c in dataset.cameras])
+
+
+def test_the_slice_plays_the_rows_the_emulator_solves_most(outcome):
+    from emulator.cosim import slice_params, solving_window
+    from emulator.pipeline import run
+    from types import SimpleNamespace
+    _, config, chosen = slice_params(outcome.dataset.rig, 6, 4, 12)
+    first, solved = solving_window(config, outcome.dataset, chosen, 3, 4)
+    records = run(config, SimpleNamespace(cameras=[outcome.dataset.cameras[k]
+                                                   for k in chosen]), 3).records
+    ok = np.asarray(records["flags"]) == 0
+    per_row = np.bincount(np.asarray(records["row"])[ok], minlength=32)
+    best = max(per_row[r:r + 4].sum() for r in range(32 - 3))
+    assert solved == best > 0
+    assert per_row[first:first + 4].sum() == best
+
+
+def test_no_solving_window_is_one_line_and_a_failed_run(outcome):
+    from emulator import cosim
+    _, config, chosen = cosim.slice_params(outcome.dataset.rig, 6, 4, 12)
+    with pytest.raises(cosim.NoSolvingWindow, match=r"the emulator solves no row set of "
+                                                    r"cameras \[.*\] in frames 0–2"):
+        cosim.solving_window(config, _flat(outcome.dataset), chosen, 3, 4)
+
+    job = dataclasses.replace(outcome.job, cosim={"rows": 4, "cameras": 6, "frames": 3})
+    cosim, failures, walls = run_command.cosimulate(job, _flat(outcome.dataset), False)
+    assert cosim is None and set(walls) == {"cosim"}
+    assert len(failures) == 1
+    assert failures[0].startswith("HDL co-simulation not run: the emulator solves no row set")
+    assert "\n" not in failures[0]
 
 
 # --- bad input: a clear message, exit 2, before any long work ---------------------------

@@ -65,13 +65,40 @@ def check_rows(run, sets, expected_good):
     return good
 
 
+#: Clocks by which two row starts must be apart for their order as the camera sync sees
+#: it to be certain (each crosses into the system clock one to two clocks after its
+#: PCLK edge).
+ORDER_MARGIN = 2
+
+
+def pairable_rows(pk, pm, run_k, run_m, offset, height):
+    """Camera ``k``'s rows of one frame that the sync must pair with the master's and
+    those it may pair. It pairs row y when neither camera has started row y + 1 before
+    the other's row y (``hdl.camera_sync``: the latest unpaired row start of each side is
+    kept), so a skew of about a row period or more leaves a row unpaired; starts within
+    ``ORDER_MARGIN`` clocks of each other may go either way."""
+    def start(player, runs, y):
+        return player.times[runs[y][0] + offset] / SYS_PS if y < height else float("inf")
+    certain, possible = set(), set()
+    for y in range(height):
+        margin = min(start(pm, run_m, y + 1) - start(pk, run_k, y),
+                     start(pk, run_k, y + 1) - start(pm, run_m, y))
+        if margin > ORDER_MARGIN:
+            certain.add(y)
+        if margin > -ORDER_MARGIN:
+            possible.add(y)
+    return certain, possible
+
+
 def check_skews(run, frames, tolerance=1):
     """Measured skews equal the skews between the PCLK edges that wrote the events into
-    the crossings, within ``tolerance`` clocks. Returns the largest error against those
-    edges and against the edges that sampled the events at the pins (the two differ by
+    the crossings, within ``tolerance`` clocks, for every frame and for the rows the sync
+    pairs (:func:`pairable_rows`). Returns the largest error against those edges and
+    against the edges that sampled the events at the pins (the two differ by
     ``glitch_pclks + 1`` times the difference of the cameras' PCLK periods)."""
     g = run.p.glitch_pclks
     master = run.p.master
+    height = run.sc.timing.height
     runs = [row_runs(pl, g) for pl in run.players]
     worst = {"write": 0.0, "pin": 0.0}
     for k in range(run.p.n_cameras):
@@ -79,26 +106,29 @@ def check_skews(run, frames, tolerance=1):
             continue
         pk, pm = run.players[k], run.players[master]
         measured_f = [s["frame_skew"] for c, cam, s in run.skews if cam == k and s["frame_valid"]]
-        measured_r = [(s["row"], s["row_skew"]) for c, cam, s in run.skews
-                      if cam == k and s["row_valid"]]
         assert len(measured_f) == len(frames)
-        assert [y for y, _ in measured_r] == [y for _ in frames
-                                              for y in range(run.sc.timing.height)]
+        measured_r = {}             # frame index -> {row: skew}; a new frame when rows restart
+        f, last = 0, -1
+        for c, cam, s in run.skews:
+            if cam == k and s["row_valid"]:
+                f, last = (f + 1, s["row"]) if s["row"] <= last else (f, s["row"])
+                measured_r.setdefault(f, {})[s["row"]] = s["row_skew"]
+        for i, f in enumerate(frames):
+            certain, possible = pairable_rows(pk, pm, runs[k][f], runs[master][f], g + 1,
+                                              height)
+            rows = set(measured_r.get(i, {}))
+            assert certain <= rows <= possible, (
+                f"camera {k} frame {f}: rows paired {sorted(rows)}, must be "
+                f"{sorted(certain)}, may be {sorted(possible)}")
         for edge, offset in (("write", g + 1), ("pin", 0)):
-            injected = []
-            for f in frames:
-                injected.append(pk.times[pk.frame_starts[f] + offset]
-                                - pm.times[pm.frame_starts[f] + offset])
-                for y in range(run.sc.timing.height):
-                    injected.append(pk.times[runs[k][f][y][0] + offset]
-                                    - pm.times[runs[master][f][y][0] + offset])
-            measured = []
             for i, f in enumerate(frames):
-                measured.append(measured_f[i])
-                measured.extend(m for _, m in measured_r[i * run.sc.timing.height:
-                                                         (i + 1) * run.sc.timing.height])
-            errors = [abs(m - t / SYS_PS) for m, t in zip(measured, injected)]
-            worst[edge] = max([worst[edge]] + errors)
+                pairs = [(measured_f[i], pk.times[pk.frame_starts[f] + offset]
+                          - pm.times[pm.frame_starts[f] + offset])]
+                pairs += [(skew, pk.times[runs[k][f][y][0] + offset]
+                           - pm.times[runs[master][f][y][0] + offset])
+                          for y, skew in sorted(measured_r.get(i, {}).items())]
+                errors = [abs(m - t / SYS_PS) for m, t in pairs]
+                worst[edge] = max([worst[edge]] + errors)
     assert worst["write"] <= tolerance, (
         f"skew measured {worst['write']:.2f} clocks away from the injected skew")
     return worst
