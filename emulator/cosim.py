@@ -369,7 +369,7 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
                test_module="sim_tests.cocotb.top.cosim_bench", tag=f"{cameras}x{width}",
                extra_env={"ROWTRACK_COSIM_IN": str(paths["in"].resolve()),
                           "ROWTRACK_COSIM_OUT": str(paths["out"].resolve())},
-               timings=timings, progress=progress)
+               timings=timings, progress=progress, cache_key=repr(params))
     with open(paths["out"], "rb") as f:
         out = pickle.load(f)
 

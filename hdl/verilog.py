@@ -1,5 +1,6 @@
 """Writing a component's Verilog plus the JSON sidecar that benches and docs read."""
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -65,21 +66,50 @@ def to_verilog(component, name):
                            missing_domain=define)
 
 
-def write_verilog(component, name, out_dir):
+def write_verilog(component, name, out_dir, *, cache_key=None):
     """Elaborate ``component`` to ``out_dir/name.v`` and ``out_dir/name.json``
     (:func:`to_verilog`).
 
     Returns the path of the Verilog file. A file whose content would not change is left
     untouched, so that its time stamp stays older than what was built from it (Verilator
-    and make then skip rebuilding an unchanged design).
+    and make then skip rebuilding an unchanged design). ``cache_key``, a string that
+    determines the design (such as the repr of the parameters the component is built
+    from), skips the elaboration when the files were written for the same key, the same
+    source of ``hdl/`` and ``golden/`` and the same Amaranth version.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     v_path = out_dir / f"{name}.v"
-    _write_if_changed(v_path, to_verilog(component, name))
+    key_path = out_dir / f"{name}.key"
+    key = _design_key(component, name, cache_key) if cache_key is not None else None
+    if key is None or not v_path.exists() or not key_path.exists() \
+            or key_path.read_text() != key:
+        key_path.unlink(missing_ok=True)
+        _write_if_changed(v_path, to_verilog(component, name))
+        if key is not None:
+            key_path.write_text(key)
     _write_if_changed(out_dir / f"{name}.json",
                       json.dumps(sidecar(component, name), indent=2) + "\n")
     return v_path
+
+
+def _design_key(component, name, cache_key):
+    """A digest of what a component's Verilog depends on: its class and name, the
+    caller's ``cache_key``, its clock domains, the Python source of the gateware and of
+    the reference maths it takes constants from, and the Amaranth version."""
+    import amaranth
+
+    import golden
+    digest = hashlib.sha256()
+    for part in (type(component).__module__, type(component).__qualname__, name,
+                 cache_key, repr(getattr(component, "clock_domains", ())),
+                 amaranth.__version__):
+        digest.update(part.encode() + b"\0")
+    for package in (Path(__file__).parent, Path(golden.__file__).parent):
+        for source in sorted(package.rglob("*.py")):
+            digest.update(str(source.relative_to(package.parent)).encode() + b"\0")
+            digest.update(source.read_bytes())
+    return digest.hexdigest()
 
 
 def _write_if_changed(path, text):

@@ -96,7 +96,8 @@ def _icarus_dump_module(build_dir, toplevel):
 
 
 def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
-               testcase=None, extra_env=None, tag="", timings=None, progress=False):
+               testcase=None, extra_env=None, tag="", timings=None, progress=False,
+               cache_key=None):
     """Elaborate ``component`` and run cocotb ``test_module`` (a dotted module name) on it.
 
     The component's ``params`` (if any) and ``latency`` reach the test through
@@ -106,7 +107,8 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     and ``simulate``; ``progress`` shows bars (over Verilator's C++ files; over the
     seconds the other phases took last time, :func:`emulator.progress.timed_phase`).
     An unchanged design is not rebuilt: its Verilog file keeps its time stamp and
-    Verilator skips identical inputs. Returns the results file path.
+    Verilator skips identical inputs; with ``cache_key`` it is not even elaborated
+    (:func:`hdl.verilog.write_verilog`). Returns the results file path.
     """
     from cocotb_tools.runner import get_results, get_runner
 
@@ -124,7 +126,7 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     build_dir = BUILD_ROOT / (name + (f"-{tag}" if tag else "")) / sim
     phases = build_dir / "phase_times.json"
     with timed_phase(f"{name}: Verilog", "elaborate", phases, progress):
-        verilog_path = write_verilog(component, name, build_dir)
+        verilog_path = write_verilog(component, name, build_dir, cache_key=cache_key)
     with open(build_dir / "params.pkl", "wb") as f:
         pickle.dump(getattr(component, "params", None), f)
     timings["elaborate"] = time.perf_counter() - start
@@ -145,9 +147,19 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
             build_args += ["-s", "rowtrack_dump"]
     runner = get_runner(sim)
     start = time.perf_counter()
+    # With the bars shown, the compiler's command lines go to a log (its tail is printed
+    # when the build fails) instead of scrolling through them.
+    log = build_dir / "build.log" if progress else None
     with _environment(env_changes), _build_progress(build_dir, sim == "verilator" and progress):
-        runner.build(sources=sources, hdl_toplevel=name, build_dir=build_dir,
-                     build_args=build_args, timescale=("1ns", "1ps"), waves=build_waves)
+        try:
+            runner.build(sources=sources, hdl_toplevel=name, build_dir=build_dir,
+                         build_args=build_args, timescale=("1ns", "1ps"), waves=build_waves,
+                         log_file=log)
+        except RuntimeError:
+            if log is not None and log.exists():
+                print("".join(log.read_text().splitlines(keepends=True)[-40:]))
+                print(f"[cocotb] the {sim} build failed; its whole log: {log}")
+            raise
     timings["build"] = time.perf_counter() - start
     env = {"ROWTRACK_BUILD_DIR": str(build_dir), "ROWTRACK_TOPLEVEL": name}
     env.update(extra_env or {})

@@ -56,3 +56,22 @@ def test_a_clock_domain_missing_from_clock_domains_is_named():
     with pytest.raises(ValueError, match="uses the clock domain 'pclk1', which its "
                                          "clock_domains"):
         to_verilog(front, "front")
+
+
+def test_a_cached_design_is_not_elaborated_again(tmp_path, monkeypatch):
+    import hdl.verilog
+    path = write_verilog(MultiplyAccumulate(MacParams()), "mac", tmp_path,
+                         cache_key=repr(MacParams()))
+    text = path.read_text()
+
+    def fail(*_):
+        raise AssertionError("elaborated although the key is unchanged")
+    monkeypatch.setattr(hdl.verilog, "to_verilog", fail)
+    assert write_verilog(MultiplyAccumulate(MacParams()), "mac", tmp_path,
+                         cache_key=repr(MacParams())).read_text() == text
+    other = MacParams(a_fmt=SQ(3, 16))
+    with pytest.raises(AssertionError, match="elaborated"):
+        write_verilog(MultiplyAccumulate(other), "mac", tmp_path, cache_key=repr(other))
+    monkeypatch.undo()
+    assert write_verilog(MultiplyAccumulate(other), "mac", tmp_path,
+                         cache_key=repr(other)).read_text() != text
