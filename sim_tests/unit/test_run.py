@@ -125,15 +125,18 @@ def test_a_failed_comparison_exits_non_zero_and_says_where(outcome, tmp_path, mo
 
 def test_end_to_end_with_the_cosimulation(tmp_path):
     """The whole job with a 6-camera (three pairs: the smallest stereo20 slice whose rows
-    solve), 2-frame, 2-row slice of the HDL top, on Icarus (the Verilator build of the
-    top takes minutes; ``make run`` uses Verilator)."""
+    solve), 2-frame, 2-row slice of the HDL top, on Icarus (``make run`` uses Verilator):
+    bit-exact records and UART packets, one record per row set, solved rows, a latency.
+    The same slice on its own (``test_top.py::test_cosim_slice_is_bit_exact``) runs with
+    RUN_SLOW=1."""
     code = main(["run", *TINY, "--cosim-rows", "2", "--cosim-cameras", "6", "--sim", "icarus",
                  "--out", str(tmp_path)])
     assert code == 0
     figures = json.loads((tmp_path / "metrics.json").read_text())
     assert set(REQUIRED) <= set(figures)
-    assert figures["e2e.hdl_mismatches"] == 0 and figures["e2e.hdl_records"] > 0
-    assert figures["e2e.hdl_records"] == figures["e2e.hdl_expected"]
+    assert figures["e2e.hdl_mismatches"] == 0 and figures["e2e.uart_packets_match"]
+    assert figures["e2e.hdl_records"] == figures["e2e.hdl_expected"] == 2 * 2, \
+        "a record per row set of the 2-frame, 2-row slice"
     assert figures["e2e.hdl_solved_records"] > 0      # the solver's arithmetic was compared
     for key in ("e2e.pose_rate_hz", "e2e.latency_us", "e2e.emulator_rows_per_s",
                 "e2e.hdl_cycles_per_s"):

@@ -54,16 +54,14 @@ def tiny_dataset(seed):
                     SLICE["frames"] / 120, seed=seed)
 
 
-@pytest.mark.parametrize("sim", [
-    pytest.param("verilator", marks=pytest.mark.skipif(not os.environ.get("RUN_SLOW"),
-                                                       reason="long build: set RUN_SLOW=1")),
-    "icarus",
-])
+@pytest.mark.skipif(not os.environ.get("RUN_SLOW"),
+                    reason="the default suite co-simulates this slice in "
+                           "test_run.py::test_end_to_end_with_the_cosimulation: set RUN_SLOW=1")
+@pytest.mark.parametrize("sim", ["verilator", "icarus"])
 def test_cosim_slice_is_bit_exact(sim, tmp_path):
     """HDL pose records (PS FIFO and UART) equal the emulator's for the row sets the HDL
-    front end produced, records were produced and rows were solved. Icarus in the
-    default suite: the Verilator C++ build of a six-camera top takes longer than the
-    whole Icarus run."""
+    front end produced, records were produced and rows were solved. The default suite
+    runs the same slice through ``rowtrack run`` on Icarus (``test_run.py``)."""
     from emulator.cosim import cosim_slice
     seed = int(os.environ.get("SEED", "1"))
     print(f"SEED={seed}")
