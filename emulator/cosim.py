@@ -4,8 +4,8 @@
 pairs, plays the dataset's rows on its DVP pins, reads the pose records back from the PS
 FIFO registers and the UART line, and compares them with the emulator fed with exactly
 the row sets the HDL front end produced (their time stamps are the HDL clock's). The
-cocotb side lives in ``sim_tests/cocotb/top/cosim_bench.py``; this module prepares its
-input, runs it through :func:`sim_tests.common.cocotb_runner.run_cocotb` and judges the
+cocotb side lives in ``emulator/hdl_sim/cosim_bench.py``; this module prepares its
+input, runs it through :func:`emulator.hdl_sim.runner.run_cocotb` and judges the
 result with :func:`compare_records`.
 """
 
@@ -73,7 +73,7 @@ class CosimResult:
         numbers the window's rows from 0.
     timings : dict
         Wall seconds of ``elaborate`` (Verilog), ``build`` (the simulator's model) and
-        ``simulate`` (:func:`sim_tests.common.cocotb_runner.run_cocotb`).
+        ``simulate`` (:func:`emulator.hdl_sim.runner.run_cocotb`).
     """
     records: dict
     expected: dict
@@ -247,7 +247,7 @@ def row_sets_from_columns(layout, columns):
     """The row sets in the aligned columns the engine took: ``[{camera: beats}]`` and
     the clock each set's first and last column was taken (the fork's rule: a set ends
     with the column on which every lane still in it carries ``last``)."""
-    from sim_tests.common.payload import unpack
+    from emulator.hdl_sim.payload import unpack
     sets, spans, current, first = [], [], {}, None
     for clock, raw in columns:
         column = unpack(layout, raw)
@@ -332,10 +332,10 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
         When the slice's cameras solve no row set in the emulator.
     """
     from golden.dataset import Dataset
-    from hdl.checks import check_int
+    from golden.checks import check_int
     from hdl.top import RowtrackTop
-    from sim_tests.common.cocotb_runner import SIMULATORS, run_cocotb
-    from sim_tests.common.dvp import DvpTiming
+    from emulator.hdl_sim.runner import SIMULATORS, run_cocotb
+    from emulator.hdl_sim.dvp import DvpTiming
     if isinstance(dataset, (str, os.PathLike)):
         dataset = Dataset.load(dataset)
     if sim not in SIMULATORS:
@@ -366,7 +366,7 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
         f"{solvable} of these row sets)")
     timings = {}
     run_cocotb(RowtrackTop(params), name="rowtrack_cosim", sim=sim, waves=waves, seed=seed,
-               test_module="sim_tests.cocotb.top.cosim_bench", tag=f"{cameras}x{width}",
+               test_module="emulator.hdl_sim.cosim_bench", tag=f"{cameras}x{width}",
                extra_env={"ROWTRACK_COSIM_IN": str(paths["in"].resolve()),
                           "ROWTRACK_COSIM_OUT": str(paths["out"].resolve())},
                timings=timings, progress=progress, cache_key=repr(params))

@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hdl.checks import check_int
+from .checks import check_int
 
 __all__ = ["DescriptorParams", "MatchParams", "MatchResult", "CostPeaks", "dog2_kernel",
            "response", "describe", "strength", "hamming_costs", "transitions",

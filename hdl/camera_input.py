@@ -28,7 +28,8 @@ from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.fifo import AsyncFIFO, SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
-from .checks import check_int
+from golden.checks import check_int
+
 from .streams import (ROW_FLAG_BITS, RowFlag, aligned_row_layout, camera_event_layout,
                       camera_pixel_layout, dvp_signature, skew_measurement_layout)
 

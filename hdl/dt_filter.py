@@ -37,7 +37,8 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from .checks import check_int
+from golden.checks import check_int
+
 from .fixed import (Overflow, Rounding, SQ, UQ, add_format, hdl_add, hdl_mul, hdl_resize,
                     mul_format)
 

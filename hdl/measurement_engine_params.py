@@ -10,10 +10,10 @@ sizes the lanes so that a camera beat of the front end *is* a lane's input beat.
 
 from dataclasses import dataclass, replace
 
+from golden.checks import check_int
 from golden.descriptor import STEREO_MATCH, MatchParams
 
 from .camera_input import CameraParams
-from .checks import check_int
 from .measurement_router_params import RouterParams
 from .pose_params import PoseSolverParams
 from .row_descriptor_params import RowDescriptorParams

@@ -10,9 +10,9 @@ range, and the matcher's schedule.
 
 from dataclasses import dataclass, replace
 
+from golden.checks import check_int
 from golden.descriptor import STEREO_MATCH, DescriptorParams, MatchParams, dog2_kernel
 
-from .checks import check_int
 from .fixed import SQ, UQ, QFormat, Rounding
 
 __all__ = ["RowDescriptorParams", "TEMPORAL_640X480", "STEREO_640X480"]

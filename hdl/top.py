@@ -23,9 +23,10 @@ from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from golden.checks import check_int
+
 from .camera_input import CameraParams
 from .camera_sync import CameraFrontEnd
-from .checks import check_int
 from .measurement_engine import MeasurementEngine
 from .measurement_engine_params import EngineParams
 from .pose_packet import PoseOutput, PoseOutputParams, PoseSource

@@ -1,7 +1,7 @@
 """Benchmark of the camera front end (issue 6): throughput and latency measured on the
 generated Verilog with cocotb + Verilator, resources from synth_xilinx.
 
-The simulation is the ``performance`` test of ``sim_tests/cocotb/camera``: eight
+The simulation is the ``performance`` test of ``emulator/benches/camera_cocotb.py``: eight
 cameras with 640-pixel rows, PCLK as fast as the system clock (each camera at its own
 phase), no backpressure, every set checked against the emulator cycle by cycle and
 every row against the pixels sent.
@@ -48,11 +48,11 @@ def _stdout_to_stderr():
 
 def _simulate(params):
     from hdl.camera_sync import CameraFrontEnd
-    from sim_tests.common.cocotb_runner import run_cocotb
+    from emulator.hdl_sim.runner import run_cocotb
     with tempfile.TemporaryDirectory() as tmp, _stdout_to_stderr():
         path = Path(tmp) / "figures.json"
         run_cocotb(CameraFrontEnd(params), name="camera_front", tag="perf8", sim="verilator",
-                   test_module="sim_tests.cocotb.camera.front_end_bench",
+                   test_module="emulator.benches.camera_cocotb",
                    testcase=["performance"], seed=SEED,
                    extra_env={"ROWTRACK_FIGURES": str(path)})
         return json.loads(path.read_text())

@@ -31,12 +31,12 @@ TOP4_CLOCKS_PER_ROW_SET = 700
 def _simulate(lane, name):
     """Figures of the full-size cocotb run, plus its simulated clocks and wall time
     (from the results file: the test alone, not the Verilator build)."""
-    from sim_tests.common.clocking import CLOCK_PERIOD_NS
-    from sim_tests.common.cocotb_runner import run_cocotb
+    from emulator.hdl_sim.clocking import CLOCK_PERIOD_NS
+    from emulator.hdl_sim.runner import run_cocotb
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "figures.json"
         results = run_cocotb(lane, name=name, tag="full", sim="verilator", seed=SEED,
-                             test_module="sim_tests.cocotb.row_descriptor.figures_bench",
+                             test_module="emulator.benches.row_descriptor_cocotb",
                              extra_env={"ROWTRACK_FIGURES": str(path)})
         figures = json.loads(path.read_text())
     case = ET.parse(results).find(".//testcase")
@@ -52,7 +52,7 @@ def _speed_dataset():
     from golden.scene import default_scene_spec
     from golden.simulator import simulate
     from golden.trajectory import make_trajectory
-    from sim_tests.common.cocotb_runner import BUILD_ROOT
+    from emulator.hdl_sim.runner import BUILD_ROOT
     path = BUILD_ROOT / "row_descriptor-stereo20-dataset.npz"
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -125,9 +125,9 @@ def _golden_agreement(params):
     largest confidence of textureless and periodic rows."""
     from emulator.row_descriptor import against_golden, confidences, subpixel_errors
     from golden.dataset import Dataset
-    from sim_tests.cocotb.row_descriptor.stimulus import (moving_rows, periodic_rows,
+    from emulator.hdl_sim.row_stimulus import (moving_rows, periodic_rows,
                                                           simulator_dataset)
-    from sim_tests.common.cocotb_runner import BUILD_ROOT
+    from emulator.hdl_sim.runner import BUILD_ROOT
     rng = np.random.default_rng(SEED)
     frames, _ = moving_rows(rng, 2, 400, params.width, noise=1.5)
     textured = subpixel_errors(frames[1], frames[0], rng.integers(-10, 11, 400), params)
@@ -217,7 +217,7 @@ pair) with `STEREO_640X480` (window [{s.match.shift_min}, {s.match.shift_max}],
 
 Throughput and latency: {f['pixels_played'] // t.width} rows of 640 pixels (three
 frames of 24 rows) played at one pixel per clock into the generated Verilog (cocotb +
-Verilator, `sim_tests/cocotb/row_descriptor/figures_bench.py`); every one of the
+Verilator, `emulator/benches/row_descriptor_cocotb.py`); every one of the
 {f['measurements_checked']} measurements compared with `emulator/row_descriptor.py`
 ({f['hdl_mismatches']} mismatches). Resources: Yosys `synth_xilinx -family xc7` of one
 lane; the eight-camera figures are eight lanes (they share nothing). LUT levels: the

@@ -16,7 +16,7 @@ from amaranth.sim import Simulator
 from emulator.camera_input import CameraInputModel, SystemClock, capture_words
 from hdl.camera_input import CameraInput, CameraParams
 from hdl.streams import RowFlag
-from sim_tests.common.dvp import DvpPlayer, DvpTiming, Fault, drive_amaranth
+from emulator.hdl_sim.dvp import DvpPlayer, DvpTiming, Fault, drive_amaranth
 
 SEED = int(os.environ.get("SEED", "6"))
 SYS_PS = 10_000

@@ -8,7 +8,7 @@ import pytest
 
 from emulator.cli import main
 from hdl.mac import MultiplyAccumulate
-from sim_tests.common import cocotb_runner
+from emulator.hdl_sim import runner as cocotb_runner
 
 
 def rowtrack(*args):

@@ -22,7 +22,7 @@ from hdl.pose_params import PoseSolverParams
 from hdl.row_set_fork import RowSetFork
 from sim_tests.cocotb.measurement_engine.stimulus import (engine_params, make_stimulus,
                                                           simulated_dataset, small_rig)
-from sim_tests.common.payload import unpack
+from emulator.hdl_sim.payload import unpack
 from sim_tests.unit.test_camera_input import rejected_components
 
 SEED = int(os.environ.get("SEED", "5"))

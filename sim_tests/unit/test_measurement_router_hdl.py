@@ -17,7 +17,7 @@ from hdl.measurement_router import (MeasurementRouter, RouterParams, default_rou
                                     ticket_layout)
 from sim_tests.cocotb.measurement_router.stimulus import (NARROW as PARAMS, expected,
                                                           synthetic)
-from sim_tests.common.payload import pack
+from emulator.hdl_sim.payload import pack
 
 SEED = int(os.environ.get("SEED", "1"))
 

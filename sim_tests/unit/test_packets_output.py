@@ -9,7 +9,7 @@ from amaranth.sim import Simulator
 from emulator import packets
 from hdl.fixed import SQ
 from hdl.pose_packet import Framer, PacketParams, PoseOutput, PoseOutputParams, PoseSource
-from sim_tests.common.payload import unpack
+from emulator.hdl_sim.payload import unpack
 from sim_tests.unit.test_packets import random_record
 
 P = PacketParams()

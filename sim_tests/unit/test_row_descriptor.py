@@ -21,9 +21,9 @@ from hdl.fixed import SQ, UQ
 from hdl.matcher import SerialDivider
 from hdl.row_descriptor import DescriptorFIR, RowDescriptor, StereoRowDescriptor
 from hdl.row_descriptor_params import STEREO_640X480, TEMPORAL_640X480, RowDescriptorParams
-from sim_tests.cocotb.row_descriptor.stimulus import (frame_beats, inject_faults,
+from emulator.hdl_sim.row_stimulus import (frame_beats, inject_faults,
                                                       moving_rows, row_beats)
-from sim_tests.common.payload import pack, unpack
+from emulator.hdl_sim.payload import pack, unpack
 
 SEED = int(os.environ.get("SEED", 20261124))
 

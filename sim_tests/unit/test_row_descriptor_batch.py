@@ -19,9 +19,9 @@ from golden.dataset import Dataset
 from golden.descriptor import STEREO_MATCH, MatchParams, describe, response, strength
 from golden.descriptor import hamming_costs as golden_costs
 from hdl.row_descriptor_params import STEREO_640X480, TEMPORAL_640X480, RowDescriptorParams
-from sim_tests.cocotb.row_descriptor.stimulus import (frame_beats, inject_faults,
+from emulator.hdl_sim.row_stimulus import (frame_beats, inject_faults,
                                                       moving_rows, simulator_dataset)
-from sim_tests.common.cocotb_runner import BUILD_ROOT
+from emulator.hdl_sim.runner import BUILD_ROOT
 
 SEED = int(os.environ.get("SEED", 20261123))
 

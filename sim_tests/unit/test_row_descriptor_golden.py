@@ -16,8 +16,8 @@ from emulator.row_descriptor import against_golden, confidences, subpixel_errors
 from golden.dataset import Dataset
 from golden.descriptor import MatchParams
 from hdl.row_descriptor_params import TEMPORAL_640X480
-from sim_tests.cocotb.row_descriptor.stimulus import moving_rows, periodic_rows, simulator_dataset
-from sim_tests.common.cocotb_runner import BUILD_ROOT
+from emulator.hdl_sim.row_stimulus import moving_rows, periodic_rows, simulator_dataset
+from emulator.hdl_sim.runner import BUILD_ROOT
 
 SEED = int(os.environ.get("SEED", 20261125))
 

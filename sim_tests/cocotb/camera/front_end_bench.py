@@ -4,21 +4,21 @@ skew and counter is checked against emulator.camera_sync cycle by cycle, and aga
 what the cameras sent.
 
 Environment: ``ROWTRACK_DATASET`` (a dataset .npz to play instead of random images),
-``RUN_SLOW=1`` (the long randomized run), ``ROWTRACK_FIGURES`` (where the performance
-test writes its figures).
+``RUN_SLOW=1`` (the long randomized run). The full-rate figures of the benchmark are
+``emulator/benches/camera_cocotb.py``.
 """
 
-import json
 import os
 import random
 
 import cocotb
 
+from emulator.hdl_sim.camera_harness import (FrontEndRun, Scenario, all_rows, check_rows,
+                                             check_skews, check_timestamps, dataset_images,
+                                             latencies)
+from emulator.hdl_sim.cocotb_env import load_params
+from emulator.hdl_sim.dvp import FAULT_KINDS, DvpTiming, Fault
 from hdl.streams import RowFlag
-from sim_tests.common.cocotb_env import load_params
-from sim_tests.common.dvp import DvpTiming, Fault, FAULT_KINDS
-from sim_tests.cocotb.camera.harness import (SYS_PS, FrontEndRun, Scenario, dataset_images,
-                                             row_runs, write_time)
 
 TIMING = DvpTiming(width=16, height=6, hblank=6, hblank_jitter=3)
 PERIOD = 240
@@ -35,133 +35,6 @@ def _scenario(params, **changes):
 
 def _rng():
     return random.Random(cocotb.RANDOM_SEED)
-
-
-def _all_rows(run):
-    """(camera, frame, row) of every row the cameras were asked to send."""
-    return {(k, f, y) for k in range(run.p.n_cameras) for f in range(run.sc.n_frames)
-            for y in range(run.sc.timing.height)}
-
-
-def check_rows(run, sets, expected_good):
-    """Good rows carry their pixels bit-exact; flagged rows carry a prefix of theirs;
-    every row in ``expected_good`` arrives good, in a set with its own frame and row."""
-    good = set()
-    for s in sets:
-        for k, lane in s["lanes"].items():
-            assert (lane["frame"], lane["row"]) == (s["frame"], s["row"])
-            frame, row = lane["frame"], lane["row"]
-            if frame >= run.sc.n_frames or row >= run.sc.timing.height:
-                continue
-            truth = [int(v) for v in run.images[k, frame, row]]
-            if lane["flags"] == 0:
-                assert lane["pixels"] == truth, f"camera {k} frame {frame} row {row} differs"
-                good.add((k, frame, row))
-            else:
-                assert lane["pixels"] == truth[:len(lane["pixels"])], (
-                    f"flagged row camera {k} frame {frame} row {row} is not a prefix")
-    missing = expected_good - good
-    assert not missing, f"good rows that did not arrive: {sorted(missing)[:10]}"
-    return good
-
-
-#: Clocks by which two row starts must be apart for their order as the camera sync sees
-#: it to be certain (each crosses into the system clock one to two clocks after its
-#: PCLK edge).
-ORDER_MARGIN = 2
-
-
-def pairable_rows(pk, pm, run_k, run_m, offset, height):
-    """Camera ``k``'s rows of one frame that the sync must pair with the master's and
-    those it may pair. It pairs row y when neither camera has started row y + 1 before
-    the other's row y (``hdl.camera_sync``: the latest unpaired row start of each side is
-    kept), so a skew of about a row period or more leaves a row unpaired; starts within
-    ``ORDER_MARGIN`` clocks of each other may go either way."""
-    def start(player, runs, y):
-        return player.times[runs[y][0] + offset] / SYS_PS if y < height else float("inf")
-    certain, possible = set(), set()
-    for y in range(height):
-        margin = min(start(pm, run_m, y + 1) - start(pk, run_k, y),
-                     start(pk, run_k, y + 1) - start(pm, run_m, y))
-        if margin > ORDER_MARGIN:
-            certain.add(y)
-        if margin > -ORDER_MARGIN:
-            possible.add(y)
-    return certain, possible
-
-
-def check_skews(run, frames, tolerance=1):
-    """Measured skews equal the skews between the PCLK edges that wrote the events into
-    the crossings, within ``tolerance`` clocks, for every frame and for the rows the sync
-    pairs (:func:`pairable_rows`). Returns the largest error against those edges and
-    against the edges that sampled the events at the pins (the two differ by
-    ``glitch_pclks + 1`` times the difference of the cameras' PCLK periods)."""
-    g = run.p.glitch_pclks
-    master = run.p.master
-    height = run.sc.timing.height
-    runs = [row_runs(pl, g) for pl in run.players]
-    worst = {"write": 0.0, "pin": 0.0}
-    for k in range(run.p.n_cameras):
-        if k == master:
-            continue
-        pk, pm = run.players[k], run.players[master]
-        measured_f = [s["frame_skew"] for c, cam, s in run.skews if cam == k and s["frame_valid"]]
-        assert len(measured_f) == len(frames)
-        measured_r = {}             # frame index -> {row: skew}; a new frame when rows restart
-        f, last = 0, -1
-        for c, cam, s in run.skews:
-            if cam == k and s["row_valid"]:
-                f, last = (f + 1, s["row"]) if s["row"] <= last else (f, s["row"])
-                measured_r.setdefault(f, {})[s["row"]] = s["row_skew"]
-        for i, f in enumerate(frames):
-            certain, possible = pairable_rows(pk, pm, runs[k][f], runs[master][f], g + 1,
-                                              height)
-            rows = set(measured_r.get(i, {}))
-            assert certain <= rows <= possible, (
-                f"camera {k} frame {f}: rows paired {sorted(rows)}, must be "
-                f"{sorted(certain)}, may be {sorted(possible)}")
-        for edge, offset in (("write", g + 1), ("pin", 0)):
-            for i, f in enumerate(frames):
-                pairs = [(measured_f[i], pk.times[pk.frame_starts[f] + offset]
-                          - pm.times[pm.frame_starts[f] + offset])]
-                pairs += [(skew, pk.times[runs[k][f][y][0] + offset]
-                           - pm.times[runs[master][f][y][0] + offset])
-                          for y, skew in sorted(measured_r.get(i, {}).items())]
-                errors = [abs(m - t / SYS_PS) for m, t in pairs]
-                worst[edge] = max([worst[edge]] + errors)
-    assert worst["write"] <= tolerance, (
-        f"skew measured {worst['write']:.2f} clocks away from the injected skew")
-    return worst
-
-
-def check_timestamps(run, sets):
-    """Each time stamp is the system cycle in which its word was read from the crossing:
-    one to two clocks after the PCLK edge that wrote it."""
-    g = run.p.glitch_pclks
-    runs = [row_runs(pl, g) for pl in run.players]
-    for s in sets:
-        for k, lane in s["lanes"].items():
-            if lane["flags"]:
-                continue
-            first, last = runs[k][lane["frame"]][lane["row"]]
-            for stamp, sample in ((lane["t_first"], first), (lane["t_last"], last)):
-                d = run.t0 + stamp * SYS_PS - write_time(run.players[k], sample, g)
-                assert SYS_PS < d < 2 * SYS_PS, (
-                    f"camera {k} frame {lane['frame']} row {lane['row']}: time stamp "
-                    f"{stamp} is {d / SYS_PS:.2f} clocks after its pixel was written")
-
-
-def latencies(run, sets):
-    """Per set, clocks from the latest camera's last pixel at its input register (the
-    PCLK edge that samples it) to the edge that takes the set's last pixel from ``o``."""
-    g = run.p.glitch_pclks
-    runs = [row_runs(pl, g) for pl in run.players]
-    out = []
-    for s in sets:
-        pin = max(run.players[k].times[runs[k][lane["frame"]][lane["row"]][1]]
-                  for k, lane in s["lanes"].items())
-        out.append((run.t0 + (s["last_cycle"] + 1) * SYS_PS - pin) / SYS_PS)
-    return out
 
 
 @cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"])
@@ -188,7 +61,7 @@ async def _clean_run(dut, ready, images=None):
     await run.run()
     run.check_model()
     sets = run.sets()
-    check_rows(run, sets, _all_rows(run))
+    check_rows(run, sets, all_rows(run))
     assert all(s["missing"] == 0 and len(s["lanes"]) == params.n_cameras for s in sets)
     check_timestamps(run, sets)
     worst = check_skews(run, range(3))
@@ -218,7 +91,7 @@ async def desync_flagged(dut):
                       rng)
     await run.run()
     run.check_model()
-    check_rows(run, run.sets(), _all_rows(run))
+    check_rows(run, run.sets(), all_rows(run))
     check_skews(run, range(3))
     sync = run.status["sync"]
     assert sync["desync_count"][2] == 3 and sync["desync_count"][1] == 0
@@ -249,7 +122,7 @@ async def faults_flagged(dut):
     # and the rest of the frame a stalled camera now lags behind in.
     touched = ({(1, 0, 1), (1, 0, 3), (2, 1, 3)} | {(1, 3, y) for y in range(2, height)}
                | {(2, 2, y) for y in range(3, height)} | {(2, 4, y) for y in range(height)})
-    check_rows(run, sets, _all_rows(run) - touched)
+    check_rows(run, sets, all_rows(run) - touched)
     flags = {(k, s["frame"], s["row"]): lane["flags"] for s in sets
              for k, lane in s["lanes"].items()}
     assert flags[1, 0, 1] == RowFlag.SHORT
@@ -284,7 +157,7 @@ async def lost_camera(dut):
     await run.run()
     run.check_model()
     sets = run.sets()
-    others = {(k, f, y) for k, f, y in _all_rows(run) if k != 2 or f == 0}
+    others = {(k, f, y) for k, f, y in all_rows(run) if k != 2 or f == 0}
     check_rows(run, sets, others)
     later = [s for s in sets if s["frame"] >= 1]
     assert all(s["missing"] == 0b100 and 2 not in s["lanes"] for s in later)
@@ -340,37 +213,3 @@ async def random_no_deadlock(dut):
     assert all(inp.pixels.level == 0 and not inp.row_open for inp in model.inputs), \
         "rows are stuck in the front end"
     assert not model.aligner.streaming
-
-
-@cocotb.test(skip=not os.environ.get("ROWTRACK_FIGURES"))
-async def performance(dut):
-    """Full rate, PCLK as fast as the system clock: pixels per clock per camera and the
-    latency from a row's last pixel at the pins to its last pixel out of the aligner."""
-    params = load_params()
-    rng = _rng()
-    n = params.n_cameras
-    width = params.max_width
-    timing = DvpTiming(width=width, height=4, hblank=8)
-    periods = tuple([SYS_PS] * n)
-    phases = tuple(1_001 + 2_222 * k for k in range(n))
-    frame = timing.frame_pclks + 40
-    run = FrontEndRun(dut, params, Scenario(
-        n_frames=2, timing=timing, periods_ps=periods, phases_ps=phases,
-        delays=tuple(k % 3 for k in range(n)), period=frame, skew_threshold=100,
-        align_timeout=200), rng)
-    await run.run()
-    run.check_model()
-    sets = run.sets()
-    check_rows(run, sets, _all_rows(run))
-    rates = []
-    for s in sets:
-        first = min(lane["first_cycle"] for lane in s["lanes"].values())
-        rates.append(width / (s["last_cycle"] - first + 1))
-    figures = {"cameras": n, "width": width, "sets": len(sets),
-               "px_per_clock": min(rates), "latency_clocks": max(latencies(run, sets)),
-               "skew_error_clocks": check_skews(run, range(2))["write"]}
-    dut._log.info(f"performance: {figures}")
-    path = os.environ.get("ROWTRACK_FIGURES")
-    if path:
-        with open(path, "w") as f:
-            json.dump(figures, f)

@@ -9,7 +9,7 @@ import pytest
 
 from hdl.camera_input import CameraParams
 from hdl.camera_sync import CameraFrontEnd
-from sim_tests.common.cocotb_runner import BUILD_ROOT, run_cocotb
+from emulator.hdl_sim.runner import BUILD_ROOT, run_cocotb
 
 BENCH = "sim_tests.cocotb.camera.front_end_bench"
 

@@ -17,9 +17,9 @@ from cocotb.triggers import ClockCycles
 
 from emulator.dt_filter import filter_frame, sigma_register
 from hdl.dt_filter import DomainTransformFilter
-from sim_tests.common.clocking import reset, start_clock
-from sim_tests.common.cocotb_env import load_params, load_sidecar
-from sim_tests.common.streams import StreamSink, StreamSource
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
+from emulator.hdl_sim.streams import StreamSink, StreamSource
 
 #: (sigma_s in pixels, sigma_r in guide LSBs), used by the frames in turn.
 SIGMAS = [(8.0, 24.0), (30.0, 60.0), (3.5, 12.0)]

@@ -13,7 +13,7 @@ import pytest
 
 from golden.dt_scenes import make_scene
 from hdl.dt_filter import DomainTransformFilter, DtFilterParams
-from sim_tests.common.cocotb_runner import run_cocotb
+from emulator.hdl_sim.runner import run_cocotb
 
 SLOW = pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="set RUN_SLOW=1")
 

@@ -6,9 +6,9 @@ import cocotb
 import numpy as np
 
 from emulator.mac import mac_model
-from sim_tests.common.cocotb_env import load_params, load_sidecar
-from sim_tests.common.clocking import reset, start_clock
-from sim_tests.common.streams import StreamSink, StreamSource
+from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.streams import StreamSink, StreamSource
 
 
 def _random_vectors(params, rng, count):

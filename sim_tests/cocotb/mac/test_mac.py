@@ -4,7 +4,7 @@ import pytest
 
 from hdl.mac import MacParams, MultiplyAccumulate
 from hdl.fixed import Overflow, Rounding, SQ, UQ
-from sim_tests.common.cocotb_runner import run_cocotb
+from emulator.hdl_sim.runner import run_cocotb
 
 CASES = {
     "default": MacParams(),

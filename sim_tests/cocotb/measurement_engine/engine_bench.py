@@ -13,10 +13,10 @@ from emulator.measurement_engine import row_set_columns, run_engine
 from golden.dataset import Dataset
 from hdl.measurement_engine_params import engine_config_layout, engine_status_layout
 from hdl.pose_solver import measurement_layout
-from sim_tests.common.clocking import reset, start_clock
-from sim_tests.common.cocotb_env import load_params, load_sidecar
-from sim_tests.common.payload import pack, unpack
-from sim_tests.common.streams import StreamSink, StreamSource
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
+from emulator.hdl_sim.payload import pack, unpack
+from emulator.hdl_sim.streams import StreamSink, StreamSource
 
 from .stimulus import make_stimulus, priming_frame
 

@@ -18,7 +18,7 @@ from golden.trajectory import make_trajectory
 from hdl.camera_input import CameraParams
 from hdl.measurement_engine_params import EngineParams
 from hdl.pose_params import PoseSolverParams
-from sim_tests.cocotb.row_descriptor.stimulus import row_beats
+from emulator.hdl_sim.row_stimulus import row_beats
 
 __all__ = ["WIDTH", "HEIGHT", "FRAMES", "small_rig", "engine_params", "Stimulus",
            "make_stimulus", "priming_frame", "simulated_dataset"]

@@ -5,7 +5,7 @@ golden simulator (dataset made once under build/)."""
 import pytest
 
 from hdl.measurement_engine import MeasurementEngine
-from sim_tests.common.cocotb_runner import BUILD_ROOT, run_cocotb
+from emulator.hdl_sim.runner import BUILD_ROOT, run_cocotb
 
 from .stimulus import engine_params, simulated_dataset, small_rig
 

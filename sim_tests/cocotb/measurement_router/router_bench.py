@@ -17,10 +17,10 @@ from cocotb.triggers import ClockCycles
 
 from hdl.measurement_router import router_status_layout, ticket_layout
 from hdl.pose_solver import measurement_layout
-from sim_tests.common.cocotb_env import load_params
-from sim_tests.common.clocking import reset, start_clock
-from sim_tests.common.payload import unpack
-from sim_tests.common.streams import StreamSink, StreamSource
+from emulator.hdl_sim.cocotb_env import load_params
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.payload import unpack
+from emulator.hdl_sim.streams import StreamSink, StreamSource
 
 from .stimulus import expected, synthetic
 

@@ -14,7 +14,7 @@ from golden.scene import default_scene_spec
 from golden.simulator import simulate
 from golden.trajectory import make_trajectory
 from hdl.measurement_router import MeasurementRouter
-from sim_tests.common.cocotb_runner import BUILD_ROOT, run_cocotb
+from emulator.hdl_sim.runner import BUILD_ROOT, run_cocotb
 
 from .stimulus import NARROW, expected, lane_streams
 

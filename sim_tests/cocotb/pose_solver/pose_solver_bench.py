@@ -15,10 +15,10 @@ from cocotb.triggers import ClockCycles, RisingEdge
 
 from emulator.pose_solver import pose_solver_model
 from hdl.pose_solver import PoseSolver, counters_layout, measurement_layout, record_layout
-from sim_tests.common.cocotb_env import load_params, load_sidecar
-from sim_tests.common.clocking import reset, start_clock
-from sim_tests.common.payload import unpack
-from sim_tests.common.streams import StreamSink, StreamSource
+from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.payload import unpack
+from emulator.hdl_sim.streams import StreamSink, StreamSource
 
 from .stimulus import build_case, mixed_rows
 

@@ -10,7 +10,7 @@ import os
 import pytest
 
 from hdl.pose_solver import PoseSolver
-from sim_tests.common.cocotb_runner import run_cocotb
+from emulator.hdl_sim.runner import run_cocotb
 
 from .stimulus import build_case
 

@@ -8,10 +8,10 @@ import cocotb
 from cocotb.triggers import ReadOnly, RisingEdge
 
 from hdl.regs import Access, WORD_BYTES
-from sim_tests.common.clocking import reset, start_clock
-from sim_tests.common.cocotb_env import load_params
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.cocotb_env import load_params
 
-from .access import Registers, element_bits, piece_mask, port_name, with_word, word_bits
+from emulator.hdl_sim.registers import Registers, element_bits, piece_mask, port_name, with_word, word_bits
 
 
 def _by_access(regmap, access):

@@ -3,7 +3,7 @@
 import pytest
 
 from hdl.top import TopParams, register_file
-from sim_tests.common.cocotb_runner import run_cocotb
+from emulator.hdl_sim.runner import run_cocotb
 
 
 @pytest.mark.parametrize("sim", ["verilator", "icarus"])

@@ -7,10 +7,10 @@ import cocotb
 import numpy as np
 
 from emulator.row_descriptor import StereoLaneModel
-from sim_tests.common.cocotb_env import load_params, load_sidecar
+from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
 
-from .driving import Lane, split_rows
-from .stimulus import frame_beats, inject_faults, moving_rows
+from emulator.hdl_sim.row_driving import Lane, split_rows
+from emulator.hdl_sim.row_stimulus import frame_beats, inject_faults, moving_rows
 
 
 def pair_stimulus(params, rng, disparity, faults):

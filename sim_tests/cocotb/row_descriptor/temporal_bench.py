@@ -9,9 +9,9 @@ import numpy as np
 
 from emulator.row_descriptor import TemporalLaneModel
 from golden.dataset import Dataset
-from sim_tests.common.cocotb_env import load_params, load_sidecar
+from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
 
-from .driving import Lane, make_stimulus
+from emulator.hdl_sim.row_driving import Lane, make_stimulus
 
 
 #: One model for all tests of a simulation: reset does not clear the lane's reference

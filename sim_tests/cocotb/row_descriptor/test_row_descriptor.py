@@ -7,9 +7,9 @@ import pytest
 from golden.descriptor import STEREO_MATCH, MatchParams
 from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor
 from hdl.row_descriptor_params import RowDescriptorParams
-from sim_tests.common.cocotb_runner import BUILD_ROOT, run_cocotb
+from emulator.hdl_sim.runner import BUILD_ROOT, run_cocotb
 
-from sim_tests.cocotb.row_descriptor.stimulus import simulator_dataset
+from emulator.hdl_sim.row_stimulus import simulator_dataset
 
 #: 160-pixel rows, 4 rows per frame, 2 segments; 240-pixel stereo rows (window [10, 70]).
 TEMPORAL = RowDescriptorParams(width=160, height=4, centre_range=4,

@@ -11,7 +11,7 @@ import pytest
 
 from hdl.camera_input import CameraParams
 from hdl.top import RowtrackTop, TopParams
-from sim_tests.common.cocotb_runner import run_cocotb
+from emulator.hdl_sim.runner import run_cocotb
 
 
 def bench_params():

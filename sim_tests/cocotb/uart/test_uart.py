@@ -4,7 +4,7 @@ packets byte for byte) on both simulators."""
 import pytest
 
 from hdl.top import PoseLink, TopParams
-from sim_tests.common.cocotb_runner import run_cocotb
+from emulator.hdl_sim.runner import run_cocotb
 
 
 @pytest.mark.parametrize("sim", ["verilator", "icarus"])

@@ -4,53 +4,17 @@
 import random
 
 import cocotb
-from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
+from cocotb.triggers import ClockCycles, RisingEdge
 
 from emulator import packets
-from sim_tests.common.clocking import reset, start_clock
-from sim_tests.common.cocotb_env import load_params
-from sim_tests.common.payload import pack, unpack
-from sim_tests.common.streams import StreamSink
+from emulator.hdl_sim.uart_line import UartMonitor, wait_idle
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.cocotb_env import load_params
+from emulator.hdl_sim.payload import pack, unpack
+from emulator.hdl_sim.streams import StreamSink
 
 #: Small divisors keep the simulation short; the timing model is the same at any value.
 DIVISORS = {"fast": 16, "fractional": 16 * 3 + 5}
-
-
-class UartMonitor:
-    """Decodes 8N1 frames on the ``line`` port: a falling edge starts a frame; each
-    later bit is sampled in the middle of its duration
-    (:func:`emulator.packets.uart_bit_clocks`); a frame whose stop bit is not high is a
-    framing error."""
-
-    def __init__(self, dut, uart, divisor, *, line="tx"):
-        self.dut = dut
-        self.line = getattr(dut, line)
-        self.bits = packets.uart_bit_clocks(uart, divisor)
-        self.received = bytearray()
-        self.framing_errors = 0
-        cocotb.start_soon(self._run())
-
-    async def _run(self):
-        clk, tx = self.dut.clk, self.line
-        starts = [sum(self.bits[:k]) for k in range(len(self.bits))]
-        while True:
-            await RisingEdge(clk)
-            await ReadOnly()
-            if int(tx.value):
-                continue
-            elapsed, samples = 0, [0]         # this clock is the start bit's first
-            for start, clocks in zip(starts[1:], self.bits[1:]):
-                while elapsed < start + clocks // 2:
-                    await RisingEdge(clk)
-                    elapsed += 1
-                await ReadOnly()
-                samples.append(int(tx.value))
-            while elapsed < sum(self.bits) - 1:
-                await RisingEdge(clk)
-                elapsed += 1
-            if samples[-1] != 1:
-                self.framing_errors += 1
-            self.received.append(sum(bit << k for k, bit in enumerate(samples[1:9])))
 
 
 def random_pose(rng, source):
@@ -87,15 +51,6 @@ async def _send(dut, layout, pose):
     dut.pose__valid.value = 1
     await RisingEdge(dut.clk)
     dut.pose__valid.value = 0
-
-
-async def wait_idle(dut, monitor, clocks):
-    """Wait until the monitored line has been idle for ``clocks``."""
-    idle = 0
-    while idle < clocks:
-        await RisingEdge(dut.clk)
-        await ReadOnly()
-        idle = idle + 1 if int(monitor.line.value) else 0
 
 
 def _status(dut, params):

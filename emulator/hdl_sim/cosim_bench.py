@@ -17,11 +17,11 @@ import time
 import cocotb
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
 
-from sim_tests.cocotb.top.top_bench import engine_input, start_top
-from sim_tests.cocotb.uart.uart_bench import UartMonitor, wait_idle
-from sim_tests.common.clocking import CLOCK_PERIOD_NS
-from sim_tests.common.dvp import DvpPlayer, DvpTiming, drive_cocotb
-from sim_tests.common.payload import unpack
+from .clocking import CLOCK_PERIOD_NS
+from .dvp import DvpPlayer, DvpTiming, drive_cocotb
+from .payload import unpack
+from .top_harness import engine_input, start_top
+from .uart_line import UartMonitor, wait_idle
 
 #: Clocks without a new pose record, once the cameras are done, that end the run.
 QUIET_CLOCKS = 3000

@@ -9,11 +9,10 @@ import random
 import cocotb
 import numpy as np
 
+from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
+from emulator.hdl_sim.row_driving import Lane, split_rows
+from emulator.hdl_sim.row_stimulus import frame_beats, moving_rows
 from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel
-from sim_tests.common.cocotb_env import load_params, load_sidecar
-
-from .driving import Lane, split_rows
-from .stimulus import frame_beats, moving_rows
 
 #: Rows per frame played (row indices 0 … ROWS − 1 of the lane's frame) and frames.
 ROWS, FRAMES = 24, 3

@@ -1,7 +1,7 @@
 """The camera front end on the cocotb bench: cameras, downstream, model and truth.
 
 :class:`FrontEndRun` drives :class:`hdl.camera_sync.CameraFrontEnd`'s generated
-Verilog: one :class:`~sim_tests.common.dvp.DvpPlayer` per camera with its own PCLK
+Verilog: one :class:`~emulator.hdl_sim.dvp.DvpPlayer` per camera with its own PCLK
 (period, phase, jitter), triggered by the block's own FSIN outputs, plays image rows;
 the downstream ``ready`` follows a seeded per-cycle pattern; every transfer on ``o``
 and every skew strobe is recorded with its system cycle. Afterwards
@@ -21,9 +21,9 @@ from cocotb.utils import get_sim_time
 from emulator.camera_input import SystemClock
 from emulator.camera_sync import FrontEndModel
 from hdl.camera_sync import front_config_layout, front_status_layout
-from sim_tests.common.clocking import CLOCK_PERIOD_NS, reset, start_clock
-from sim_tests.common.dvp import DvpPlayer, DvpTiming, drive_cocotb
-from sim_tests.common.payload import pack, unpack
+from emulator.hdl_sim.clocking import CLOCK_PERIOD_NS, reset, start_clock
+from emulator.hdl_sim.dvp import DvpPlayer, DvpTiming, drive_cocotb
+from emulator.hdl_sim.payload import pack, unpack
 
 __all__ = ["SYS_PS", "Scenario", "FrontEndRun", "row_runs", "write_time", "dataset_images"]
 
@@ -243,3 +243,132 @@ def row_runs(player, glitch_pclks):
 def write_time(player, sample, glitch_pclks):
     """Time of the PCLK edge that writes the word of ``sample`` into the crossing."""
     return player.times[sample + glitch_pclks + 1]
+
+
+# --- checks of a run against what the cameras sent ---------------------------------
+
+def all_rows(run):
+    """(camera, frame, row) of every row the cameras were asked to send."""
+    return {(k, f, y) for k in range(run.p.n_cameras) for f in range(run.sc.n_frames)
+            for y in range(run.sc.timing.height)}
+
+
+def check_rows(run, sets, expected_good):
+    """Good rows carry their pixels bit-exact; flagged rows carry a prefix of theirs;
+    every row in ``expected_good`` arrives good, in a set with its own frame and row."""
+    good = set()
+    for s in sets:
+        for k, lane in s["lanes"].items():
+            assert (lane["frame"], lane["row"]) == (s["frame"], s["row"])
+            frame, row = lane["frame"], lane["row"]
+            if frame >= run.sc.n_frames or row >= run.sc.timing.height:
+                continue
+            truth = [int(v) for v in run.images[k, frame, row]]
+            if lane["flags"] == 0:
+                assert lane["pixels"] == truth, f"camera {k} frame {frame} row {row} differs"
+                good.add((k, frame, row))
+            else:
+                assert lane["pixels"] == truth[:len(lane["pixels"])], (
+                    f"flagged row camera {k} frame {frame} row {row} is not a prefix")
+    missing = expected_good - good
+    assert not missing, f"good rows that did not arrive: {sorted(missing)[:10]}"
+    return good
+
+
+#: Clocks by which two row starts must be apart for their order as the camera sync sees
+#: it to be certain (each crosses into the system clock one to two clocks after its
+#: PCLK edge).
+ORDER_MARGIN = 2
+
+
+def pairable_rows(pk, pm, run_k, run_m, offset, height):
+    """Camera ``k``'s rows of one frame that the sync must pair with the master's and
+    those it may pair. It pairs row y when neither camera has started row y + 1 before
+    the other's row y (``hdl.camera_sync``: the latest unpaired row start of each side is
+    kept), so a skew of about a row period or more leaves a row unpaired; starts within
+    ``ORDER_MARGIN`` clocks of each other may go either way."""
+    def start(player, runs, y):
+        return player.times[runs[y][0] + offset] / SYS_PS if y < height else float("inf")
+    certain, possible = set(), set()
+    for y in range(height):
+        margin = min(start(pm, run_m, y + 1) - start(pk, run_k, y),
+                     start(pk, run_k, y + 1) - start(pm, run_m, y))
+        if margin > ORDER_MARGIN:
+            certain.add(y)
+        if margin > -ORDER_MARGIN:
+            possible.add(y)
+    return certain, possible
+
+
+def check_skews(run, frames, tolerance=1):
+    """Measured skews equal the skews between the PCLK edges that wrote the events into
+    the crossings, within ``tolerance`` clocks, for every frame and for the rows the sync
+    pairs (:func:`pairable_rows`). Returns the largest error against those edges and
+    against the edges that sampled the events at the pins (the two differ by
+    ``glitch_pclks + 1`` times the difference of the cameras' PCLK periods)."""
+    g = run.p.glitch_pclks
+    master = run.p.master
+    height = run.sc.timing.height
+    runs = [row_runs(pl, g) for pl in run.players]
+    worst = {"write": 0.0, "pin": 0.0}
+    for k in range(run.p.n_cameras):
+        if k == master:
+            continue
+        pk, pm = run.players[k], run.players[master]
+        measured_f = [s["frame_skew"] for c, cam, s in run.skews if cam == k and s["frame_valid"]]
+        assert len(measured_f) == len(frames)
+        measured_r = {}             # frame index -> {row: skew}; a new frame when rows restart
+        f, last = 0, -1
+        for c, cam, s in run.skews:
+            if cam == k and s["row_valid"]:
+                f, last = (f + 1, s["row"]) if s["row"] <= last else (f, s["row"])
+                measured_r.setdefault(f, {})[s["row"]] = s["row_skew"]
+        for i, f in enumerate(frames):
+            certain, possible = pairable_rows(pk, pm, runs[k][f], runs[master][f], g + 1,
+                                              height)
+            rows = set(measured_r.get(i, {}))
+            assert certain <= rows <= possible, (
+                f"camera {k} frame {f}: rows paired {sorted(rows)}, must be "
+                f"{sorted(certain)}, may be {sorted(possible)}")
+        for edge, offset in (("write", g + 1), ("pin", 0)):
+            for i, f in enumerate(frames):
+                pairs = [(measured_f[i], pk.times[pk.frame_starts[f] + offset]
+                          - pm.times[pm.frame_starts[f] + offset])]
+                pairs += [(skew, pk.times[runs[k][f][y][0] + offset]
+                           - pm.times[runs[master][f][y][0] + offset])
+                          for y, skew in sorted(measured_r.get(i, {}).items())]
+                errors = [abs(m - t / SYS_PS) for m, t in pairs]
+                worst[edge] = max([worst[edge]] + errors)
+    assert worst["write"] <= tolerance, (
+        f"skew measured {worst['write']:.2f} clocks away from the injected skew")
+    return worst
+
+
+def check_timestamps(run, sets):
+    """Each time stamp is the system cycle in which its word was read from the crossing:
+    one to two clocks after the PCLK edge that wrote it."""
+    g = run.p.glitch_pclks
+    runs = [row_runs(pl, g) for pl in run.players]
+    for s in sets:
+        for k, lane in s["lanes"].items():
+            if lane["flags"]:
+                continue
+            first, last = runs[k][lane["frame"]][lane["row"]]
+            for stamp, sample in ((lane["t_first"], first), (lane["t_last"], last)):
+                d = run.t0 + stamp * SYS_PS - write_time(run.players[k], sample, g)
+                assert SYS_PS < d < 2 * SYS_PS, (
+                    f"camera {k} frame {lane['frame']} row {lane['row']}: time stamp "
+                    f"{stamp} is {d / SYS_PS:.2f} clocks after its pixel was written")
+
+
+def latencies(run, sets):
+    """Per set, clocks from the latest camera's last pixel at its input register (the
+    PCLK edge that samples it) to the edge that takes the set's last pixel from ``o``."""
+    g = run.p.glitch_pclks
+    runs = [row_runs(pl, g) for pl in run.players]
+    out = []
+    for s in sets:
+        pin = max(run.players[k].times[runs[k][lane["frame"]][lane["row"]][1]]
+                  for k, lane in s["lanes"].items())
+        out.append((run.t0 + (s["last_cycle"] + 1) * SYS_PS - pin) / SYS_PS)
+    return out

@@ -7,7 +7,7 @@ import logging
 
 from cocotbext.axi import AxiLiteBus, AxiLiteMaster, AxiResp
 
-from sim_tests.common.payload import pack
+from .payload import pack
 
 __all__ = ["Registers", "port_name", "element_bits", "word_bits", "piece_mask", "with_word"]
 

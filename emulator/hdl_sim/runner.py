@@ -101,7 +101,7 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     """Elaborate ``component`` and run cocotb ``test_module`` (a dotted module name) on it.
 
     The component's ``params`` (if any) and ``latency`` reach the test through
-    :func:`sim_tests.common.cocotb_env.load_params` / ``load_sidecar``. ``tag`` separates
+    :func:`emulator.hdl_sim.cocotb_env.load_params` / ``load_sidecar``. ``tag`` separates
     build directories of parametrized cases. ``timings`` (a dict) receives the wall
     seconds of ``elaborate`` (Amaranth to Verilog), ``build`` (the simulator's model)
     and ``simulate``; ``progress`` shows bars (over Verilator's C++ files; over the

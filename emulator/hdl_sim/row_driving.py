@@ -1,14 +1,13 @@
-"""cocotb side of the row-descriptor benches: play beat streams row by row (the centre
+"""cocotb side of the row-descriptor benches and tests: play beat streams row by row (the centre
 port follows each row), collect measurements, check them against the model and, at
 full rate, check every measurement's clock cycle."""
 
 import cocotb
 import numpy as np
 
-from sim_tests.common.clocking import reset, start_clock
-from sim_tests.common.streams import StreamSink, StreamSource
-
-from .stimulus import frame_beats, inject_faults, moving_rows
+from .clocking import reset, start_clock
+from .row_stimulus import frame_beats, inject_faults, moving_rows
+from .streams import StreamSink, StreamSource
 
 __all__ = ["split_rows", "make_stimulus", "Lane"]
 
