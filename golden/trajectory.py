@@ -208,7 +208,6 @@ def make_trajectory(motion, *, seed=0, linear_speed=None, angular_speed=None):
     """
     linear = linear_speed or SpeedProfile.constant(1.4)
     angular = angular_speed or SpeedProfile.constant(math.radians(120))
-    zero = SpeedProfile.constant(0.0)
     if motion == "head":
         return HeadMotion(seed=seed, linear_rms=linear.speeds[0], angular_rms=angular.speeds[0])
     if motion == "paper":

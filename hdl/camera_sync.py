@@ -151,7 +151,7 @@ class CameraSync(wiring.Component):
                           Rounding.FLOOR, Overflow.SATURATE)
 
     def _monitor(self, m):
-        p, cfg, status = self.params, self.cfg, self.status
+        p = self.params
         master = self.events[p.master]
         m_frame = Signal(p.frame_bits)
         m_frame_t = Signal(p.timestamp_bits)

@@ -32,7 +32,7 @@ import functools
 import math
 from dataclasses import dataclass, replace
 
-from amaranth.hdl import Cat, Module, Mux, ResetSignal, Signal, unsigned
+from amaranth.hdl import Cat, Module, Mux, ResetSignal, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out

@@ -14,11 +14,12 @@ __all__ = ["write_verilog", "to_verilog", "sidecar"]
 def sidecar(component, name):
     """Parameters, latency and ports of ``component`` as plain data."""
     ports = []
-    for path, member in component.signature.members.flatten():
-        if member.is_port:
-            ports.append({"name": "__".join(str(p) for p in path),
-                          "direction": "in" if member.flow is wiring.In else "out",
-                          "width": Shape.cast(member.shape).width})
+    # The signature flattened on the component itself, so that an array member gives
+    # one port per element (``dvp__0__vsync``), as in the Verilog.
+    for path, member, value in component.signature.flatten(component):
+        ports.append({"name": "__".join(str(p) for p in path),
+                      "direction": "in" if member.flow is wiring.In else "out",
+                      "width": Shape.cast(member.shape).width})
     params = getattr(component, "params", None)
     return {
         "name": name,

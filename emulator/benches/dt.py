@@ -215,7 +215,7 @@ def _runtime_figures():
 
 
 def measure():
-    from hdl.dt_filter import DomainTransformFilter, DtFilterParams
+    from hdl.dt_filter import DomainTransformFilter
     params, figures = _hardware_figures()
     synth = synth_report(DomainTransformFilter(params), "dt_filter")
     figures.update({key: synth[key] for key in ("lut", "ff", "bram36", "dsp48", "lut_levels")})

@@ -17,6 +17,10 @@ def add_arguments(parser):
                         help="print one flat JSON object of figures with dotted keys")
     parser.add_argument("--write-docs", type=Path, metavar="DIR",
                         help="also write DIR/<name>.md and DIR/figures.json")
+    parser.add_argument("--render-docs", type=Path, metavar="DIR",
+                        help="measure nothing: rewrite DIR/<name>.md from the figures in "
+                             "DIR/figures.json (after a change to a page's text), keeping "
+                             "each page's measurement line")
     parser.add_argument("--list", action="store_true", help="list the benchmarks and exit")
 
 
@@ -30,6 +34,8 @@ def run(args):
     if unknown:
         raise UsageError(f"unknown benchmark {unknown[0]!r}; "
                          f"benchmarks are: {', '.join(bench.names())}")
+    if args.render_docs:
+        return _render_docs(bench, args.render_docs, selected)
     figures = {}
     for name in selected:
         print(f"[bench] {name} ...", file=sys.stderr, flush=True)
@@ -40,6 +46,10 @@ def run(args):
             (args.write_docs / f"{name}.md").write_text(bench.report(name, figures))
         merged_path = args.write_docs / "figures.json"
         merged = json.loads(merged_path.read_text()) if merged_path.exists() else {}
+        # A re-measured benchmark's figures replace all of its old ones: a figure it no
+        # longer reports must not linger.
+        merged = {key: value for key, value in merged.items()
+                  if not any(bench.owns(name, key) for name in selected)}
         merged.update(figures)
         merged_path.write_text(json.dumps(dict(sorted(merged.items())), indent=2) + "\n")
         print(f"[bench] wrote {args.write_docs}/", file=sys.stderr)
@@ -49,4 +59,21 @@ def run(args):
         width = max((len(k) for k in figures), default=0)
         for key, value in sorted(figures.items()):
             print(f"{key:<{width}}  {value}")
+    return 0
+
+
+def _render_docs(bench, out, selected):
+    """Rewrite the pages of ``selected`` benchmarks from ``out/figures.json``."""
+    path = out / "figures.json"
+    if not path.exists():
+        raise UsageError(f"--render-docs {out}: there is no {path} to render from")
+    figures = json.loads(path.read_text())
+    for name in selected:
+        page = out / f"{name}.md"
+        measured = bench.page_measured_line(page.read_text()) if page.exists() else None
+        if measured is None:
+            raise UsageError(f"--render-docs: {page} has no measurement line; measure it "
+                             f"with `rowtrack bench --only {name} --write-docs {out}`")
+        page.write_text(bench.report(name, figures, measured))
+    print(f"[bench] rendered {', '.join(selected)} in {out}/", file=sys.stderr)
     return 0

@@ -11,7 +11,7 @@ from emulator.cli import main
 from hdl import board
 from hdl.board.ps7 import FCLK0_NET, PS7
 from hdl.board.spec import BoardSpec, CameraPins
-from hdl.board.zynq import XC7Z020_CLG400_CLOCK_P, ZynqTop, default_params
+from hdl.board.zynq import XC7Z020_CLG400_CLOCK_P, ZynqTop
 from hdl.top import TopParams
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
@@ -60,7 +60,7 @@ def test_board_pins_are_unique_and_clock_capable(name):
         assert spec.resolve(cam.pclk) in XC7Z020_CLG400_CLOCK_P
     table = spec.pin_table()
     assert table.count("\n") == 2 + 12 * spec.n_cameras
-    assert f"| pose UART TXD (out) | " in table
+    assert "| pose UART TXD (out) | " in table
 
 
 def test_board_spec_checks():

@@ -3,7 +3,6 @@
 import random
 
 import cocotb
-import numpy as np
 
 from emulator.mac import mac_model
 from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
