@@ -9,6 +9,7 @@ input, runs it through :func:`emulator.hdl_sim.runner.run_cocotb` and judges the
 result with :func:`compare_records`.
 """
 
+import json
 import os
 import pickle
 from dataclasses import dataclass
@@ -306,6 +307,18 @@ def _latency(out, sets, frames_of_sets, fifo_clocks):
     return int(worst)
 
 
+def _benchmark_times():
+    """The default slice's Verilog and simulation times as the e2e benchmark measured them
+    (``docs/results/figures.json``): the progress bars' estimate before a first run."""
+    from emulator.report import FIGURES_JSON
+    try:
+        figures = json.loads(FIGURES_JSON.read_text())
+    except (OSError, ValueError):
+        return {}
+    return {phase: figures[f"e2e.wall_s.cosim_{phase}"] for phase in ("elaborate", "simulate")
+            if f"e2e.wall_s.cosim_{phase}" in figures}
+
+
 def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=False,
                 seed=None, build_dir="build/cosim", progress=None):
     """Co-simulate ``rows`` rows of ``frames`` frames of ``cameras`` cameras of
@@ -369,7 +382,8 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
                test_module="emulator.hdl_sim.cosim_bench", tag=f"{cameras}x{width}",
                extra_env={"ROWTRACK_COSIM_IN": str(paths["in"].resolve()),
                           "ROWTRACK_COSIM_OUT": str(paths["out"].resolve())},
-               timings=timings, progress=progress, cache_key=repr(params))
+               timings=timings, progress=progress, cache_key=repr(params),
+               estimates=_benchmark_times())
     with open(paths["out"], "rb") as f:
         out = pickle.load(f)
 

@@ -97,7 +97,7 @@ def _icarus_dump_module(build_dir, toplevel):
 
 def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
                testcase=None, extra_env=None, tag="", timings=None, progress=False,
-               cache_key=None):
+               cache_key=None, estimates=None):
     """Elaborate ``component`` and run cocotb ``test_module`` (a dotted module name) on it.
 
     The component's ``params`` (if any) and ``latency`` reach the test through
@@ -105,7 +105,8 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     build directories of parametrized cases. ``timings`` (a dict) receives the wall
     seconds of ``elaborate`` (Amaranth to Verilog), ``build`` (the simulator's model)
     and ``simulate``; ``progress`` shows bars (over Verilator's C++ files; over the
-    seconds the other phases took last time, :func:`emulator.progress.timed_phase`).
+    seconds the other phases took last time, :func:`emulator.progress.timed_phase`, or
+    ``estimates`` of them, ``{"elaborate": s, "simulate": s}``, before a first run).
     An unchanged design is not rebuilt: its Verilog file keeps its time stamp and
     Verilator skips identical inputs; with ``cache_key`` it is not even elaborated
     (:func:`hdl.verilog.write_verilog`). Returns the results file path.
@@ -125,7 +126,9 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     start = time.perf_counter()
     build_dir = BUILD_ROOT / (name + (f"-{tag}" if tag else "")) / sim
     phases = build_dir / "phase_times.json"
-    with timed_phase(f"{name}: Verilog", "elaborate", phases, progress):
+    estimates = estimates or {}
+    with timed_phase(f"{name}: Verilog", "elaborate", phases, progress,
+                     estimates.get("elaborate")):
         verilog_path = write_verilog(component, name, build_dir, cache_key=cache_key)
     with open(build_dir / "params.pkl", "wb") as f:
         pickle.dump(getattr(component, "params", None), f)
@@ -164,7 +167,8 @@ def run_cocotb(component, *, name, test_module, sim=None, waves=None, seed=None,
     env = {"ROWTRACK_BUILD_DIR": str(build_dir), "ROWTRACK_TOPLEVEL": name}
     env.update(extra_env or {})
     start = time.perf_counter()
-    with timed_phase(f"{name}: simulation", "simulate", phases, progress):
+    with timed_phase(f"{name}: simulation", "simulate", phases, progress,
+                     estimates.get("simulate")):
         results = runner.test(hdl_toplevel=name, test_module=test_module,
                               build_dir=build_dir, test_dir=build_dir, seed=seed, waves=waves,
                               extra_env=env, testcase=testcase, timescale=("1ns", "1ps"))
