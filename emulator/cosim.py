@@ -192,15 +192,14 @@ def slice_params(rig, cameras, rows, records):
     Returns ``(params, config, chosen dataset cameras)``.
     """
     from emulator.pipeline import configure
+    from golden.checks import check_int
     from hdl.camera_input import CameraParams
     from hdl.pose_packet import PoseOutputParams
     from hdl.top import TopParams
     sub, chosen = slice_rig(rig, cameras)
     config = configure(sub, segments=SEGMENTS)
     lane = config.router.temporal
-    if isinstance(rows, bool) or not isinstance(rows, int) or not 1 <= rows <= lane.height:
-        raise ValueError(f"rows must be an integer from 1 to the rig's {lane.height} rows, "
-                         f"not {rows!r}")
+    check_int("rows", rows, 1, lane.height)
     camera = CameraParams(max_width=lane.width, max_height=rows)
     depth = 1 << max(records, 2).bit_length()
     params = TopParams.for_pairs(config.router.pairs, segments=SEGMENTS, camera=camera,
