@@ -17,7 +17,8 @@ from golden.metrics import AXES
 from golden.pose_lsq import UNKNOWNS
 
 __all__ = ["Outcome", "metrics", "cosim_failures", "resources", "write_report", "table",
-           "accuracy_section", "tolerance_section", "hardware_section", "FIGURES_JSON"]
+           "PHASES", "wall_times", "accuracy_section", "tolerance_section",
+           "hardware_section", "FIGURES_JSON"]
 
 FIGURES_JSON = Path(__file__).resolve().parent.parent / "docs" / "results" / "figures.json"
 
@@ -138,6 +139,17 @@ def metrics(outcome):
                   "cosim.dataset_cameras": list(cosim.cameras),
                   "cosim.frames": job.cosim["frames"], "cosim.sim": job.sim})
     return m
+
+
+#: The run's phases in the order they run (``e2e.wall_s.<phase>``).
+PHASES = ("simulate", "golden", "emulator", "compare", "cosim", "cosim_elaborate",
+          "cosim_build", "cosim_simulate", "total")
+
+
+def wall_times(m):
+    """``(phase, seconds)`` of the run's figures ``m``, in :data:`PHASES` order (the
+    order of a dict read back from figures.json is not the run's)."""
+    return [(phase, m[f"wall_s.{phase}"]) for phase in PHASES if f"wall_s.{phase}" in m]
 
 
 def _json_safe(value):
@@ -302,7 +314,7 @@ def _markdown(outcome, m, plots):
     else:
         resource_text = ("`docs/results/figures.json` holds no `top.*` figures; run "
                          "`rowtrack bench --only top --write-docs docs/results`.")
-    walls = table([(k[7:], f"{v:.1f} s") for k, v in m.items() if k.startswith("wall_s.")])
+    walls = table([(phase, f"{seconds:.1f} s") for phase, seconds in wall_times(m)])
     return "\n".join([
         "# rowtrack run", "",
         f"**{'FAILED' if failures else 'PASSED'}**" + "".join(f"\n- {f}" for f in failures),

@@ -10,7 +10,7 @@ the float scheme). ``hdl_cycles_per_s`` and ``speed_ratio`` use the wall time of
 simulation itself (:attr:`emulator.cosim.CosimResult.wall_s`, not the model build).
 """
 
-from emulator.report import accuracy_section, hardware_section, tolerance_section
+from emulator.report import accuracy_section, hardware_section, tolerance_section, wall_times
 from emulator.report import metrics as run_metrics
 
 
@@ -26,8 +26,8 @@ def measure():
 
 def report(figures):
     f = figures
-    walls = ", ".join(f"{k[7:]} {v:.1f} s" for k, v in f.items()
-                      if k.startswith("wall_s.") and k != "wall_s.total")
+    walls = ", ".join(f"{phase} {seconds:.1f} s" for phase, seconds in wall_times(f)
+                      if phase != "total")
     return f"""# End-to-end run (`rowtrack run`, default scenario)
 
 Rig `{f['rig']}`: {f['cameras']} cameras, {f['rows']} rows, {f['frames']} frames, K =
