@@ -9,7 +9,6 @@ input, runs it through :func:`emulator.hdl_sim.runner.run_cocotb` and judges the
 result with :func:`compare_records`.
 """
 
-import json
 import os
 import pickle
 from dataclasses import dataclass
@@ -309,11 +308,8 @@ def _latency(out, sets, frames_of_sets, fifo_clocks):
 def _benchmark_times():
     """The default slice's Verilog and simulation times as the e2e benchmark measured them
     (``docs/results/figures.json``): the progress bars' estimate before a first run."""
-    from emulator.report import FIGURES_JSON
-    try:
-        figures = json.loads(FIGURES_JSON.read_text())
-    except (OSError, ValueError):
-        return {}
+    from emulator.report import benchmark_figures
+    figures = benchmark_figures()
     return {phase: figures[f"e2e.wall_s.cosim_{phase}"] for phase in ("elaborate", "simulate")
             if f"e2e.wall_s.cosim_{phase}" in figures}
 

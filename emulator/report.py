@@ -17,8 +17,8 @@ from golden.metrics import AXES
 from golden.pose_lsq import UNKNOWNS
 
 __all__ = ["Outcome", "metrics", "cosim_failures", "resources", "write_report", "table",
-           "PHASES", "wall_times", "accuracy_section", "tolerance_section",
-           "hardware_section", "FIGURES_JSON"]
+           "PHASES", "wall_times", "benchmark_figures", "accuracy_section",
+           "tolerance_section", "hardware_section", "FIGURES_JSON"]
 
 FIGURES_JSON = Path(__file__).resolve().parent.parent / "docs" / "results" / "figures.json"
 
@@ -158,14 +158,19 @@ def _json_safe(value):
     return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
+def benchmark_figures(path=FIGURES_JSON):
+    """The figures ``rowtrack bench`` measured (``docs/results/figures.json``); empty
+    when the file is missing or unreadable."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return {}
+
+
 def resources(path=FIGURES_JSON):
     """The top's synthesis estimates ``top.*`` from ``docs/results/figures.json`` (empty
     when the file or the figures are missing)."""
-    try:
-        figures = json.loads(Path(path).read_text())
-    except (OSError, ValueError):
-        return {}
-    return {k[4:]: v for k, v in figures.items()
+    return {k[4:]: v for k, v in benchmark_figures(path).items()
             if k.startswith("top.") and k.count(".") == 1}
 
 
