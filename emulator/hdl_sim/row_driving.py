@@ -1,6 +1,6 @@
-"""cocotb side of the row-descriptor benches and tests: play beat streams row by row (the centre
-port follows each row), collect measurements, check them against the model and, at
-full rate, check every measurement's clock cycle."""
+"""cocotb side of the row-descriptor benches and tests: play beat streams row by row
+(the centre port follows each row), collect measurements, check them against the model
+and, at full rate, check every measurement's clock cycle."""
 
 import cocotb
 import numpy as np
