@@ -16,7 +16,7 @@ from golden.descriptor import STEREO_MATCH, MatchParams
 from .camera_input import CameraParams
 from .measurement_router_params import RouterParams
 from .pose_params import PoseSolverParams
-from .row_descriptor_params import RowDescriptorParams
+from .row_descriptor_params import DEFAULT_SEGMENTS, RowDescriptorParams
 
 __all__ = ["EngineParams", "engine_config_layout", "fork_status_layout",
            "engine_status_layout"]
@@ -64,7 +64,7 @@ class EngineParams:
     replace = replace
 
     @classmethod
-    def for_cameras(cls, camera, solver, pairs, *, segments=4):
+    def for_cameras(cls, camera, solver, pairs, *, segments=DEFAULT_SEGMENTS):
         """The engine behind a camera front end with parameters ``camera``.
 
         Lanes are ``camera.max_width × camera.max_height`` with the camera beat's widths;

@@ -15,7 +15,11 @@ from golden.descriptor import STEREO_MATCH, DescriptorParams, MatchParams, dog2_
 
 from .fixed import SQ, UQ, QFormat, Rounding
 
-__all__ = ["RowDescriptorParams", "TEMPORAL_640X480", "STEREO_640X480"]
+__all__ = ["RowDescriptorParams", "DEFAULT_SEGMENTS", "TEMPORAL_640X480", "STEREO_640X480"]
+
+#: Temporal segments per row (K) of a lane, the engine and the top unless told otherwise:
+#: the solver has one slot per camera and segment.
+DEFAULT_SEGMENTS = 4
 
 
 def _signed_bits(lo, hi):
@@ -63,7 +67,7 @@ class RowDescriptorParams:
     width: int = 640
     height: int = 480
     descriptor: DescriptorParams = DescriptorParams()
-    match: MatchParams = MatchParams(segments=4)
+    match: MatchParams = MatchParams(segments=DEFAULT_SEGMENTS)
     coeff_frac_bits: int = 16
     subpixel_frac_bits: int = 6
     confidence_fmt: QFormat = UQ(2, 6)

@@ -97,7 +97,8 @@ EXTRA_PREFIXES = ("host",)
 
 
 def measure():
-    from hdl.top import RowtrackTop, TopParams
+    from hdl.top import RowtrackTop
+    from hdl.top_params import TopParams
     params = TopParams()
     figures = {}
     synth = synth_report(RowtrackTop(params), "top")
@@ -114,7 +115,7 @@ def measure():
 
 
 def report(figures):
-    from hdl.top import TopParams
+    from hdl.top_params import TopParams
     params = TopParams()
     rows = "\n".join(f"| {key} | {value} |" for key, value in sorted(figures.items()))
     return f"""# SoC integration: top-level resources, UART link, host tool

@@ -13,7 +13,8 @@ from amaranth.lib import io, wiring
 from amaranth.lib.cdc import ResetSynchronizer
 
 from ..camera_input import CameraParams
-from ..top import RowtrackTop, TopParams
+from ..top import RowtrackTop
+from ..top_params import TopParams
 from .gp0 import GP0ToAXI4Lite
 from .ps7 import FCLK0_NET, PS7
 from .spec import BoardSpec

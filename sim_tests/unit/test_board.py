@@ -12,7 +12,7 @@ from hdl import board
 from hdl.board.ps7 import FCLK0_NET, PS7
 from hdl.board.spec import BoardSpec, CameraPins
 from hdl.board.zynq import XC7Z020_CLG400_CLOCK_P, ZynqTop
-from hdl.top import TopParams
+from hdl.top_params import TopParams
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 

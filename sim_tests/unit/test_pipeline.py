@@ -18,7 +18,7 @@ import pytest
 from emulator.e2e import (check_tolerances, compare_steps, measurement_agreement,
                           pose_errors, scheme_steps, true_steps)
 from emulator.pose_solver import pose_solver_model, rows_from_float
-from emulator.pipeline import configure, coefficient_table, run, segment_centres
+from emulator.pipeline import run
 from emulator.row_descriptor import TemporalLaneModel
 from golden.depth import stereo_pairs
 from golden.pose_lsq import UNKNOWNS, ShiftCoefficients, design_rows, shift_coefficients
@@ -27,6 +27,7 @@ from golden.scene import default_scene_spec
 from golden.simulator import simulate
 from golden.tracker import TrackerParams, track
 from golden.trajectory import make_trajectory
+from hdl.pipeline_config import PipelineConfig, coefficient_table, segment_centres
 from hdl.pose_params import PoseFlag
 
 SEED = int(os.environ.get("SEED", "1"))
@@ -48,7 +49,7 @@ def dataset(rig):
 
 @pytest.fixture(scope="module")
 def config(rig):
-    return configure(rig, segments=K)
+    return PipelineConfig.for_rig(rig, segments=K)
 
 
 @pytest.fixture(scope="module")
@@ -72,9 +73,42 @@ def test_configuration_follows_the_rig(rig, config):
     np.testing.assert_allclose(config.table[5], expected)
 
 
+def test_the_hdl_top_and_the_emulator_read_one_configuration(rig, config):
+    """One door: the emulator's lanes, router and solver are the HDL top's, and the
+    lanes' widths are the camera front end's (also where a height is a power of two)."""
+    top = config.top
+    assert config.router is top.engine.router and config.segments == top.segments == K
+    assert top.camera.n_cameras == 20 and top.solver.slots == 20 * K
+    assert config.router.temporal.row_bits == top.camera.row_bits
+    for height in (512, 1024):
+        tall = rig.replace_cameras(height=height, cy=(height - 1) / 2,
+                                   t_r=1 / (120 * height))
+        lane = PipelineConfig.for_rig(tall, segments=2).router.temporal
+        assert (lane.height, lane.segments) == (height, 2)
+        assert lane.row_bits == height.bit_length()
+
+
+def test_a_window_keeps_the_formats_of_the_full_height(config):
+    window = config.window(4)
+    assert window.camera.max_height == window.solver.rows == 4
+    assert window.engine.temporal.height == 4
+    full, cut = config.top.solver, window.solver
+    assert cut == dataclasses.replace(full, rows=4)
+    with pytest.raises(ValueError, match="rows"):
+        config.window(ROWS + 1)
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"segments": 0}, "segments"), ({"clk_hz": 1.5e8}, "clk_hz"),
+    ({"coef_width": 2}, "width")])
+def test_bad_configuration_names_the_parameter(rig, changes, message):
+    with pytest.raises((TypeError, ValueError), match=message):
+        PipelineConfig.for_rig(rig, **changes)
+
+
 def test_a_camera_without_stereo_partner_is_rejected():
     with pytest.raises(ValueError, match=r"cameras \[0, 1, 2, 3\] have no rectified stereo"):
-        configure(preset("radial4"))
+        PipelineConfig.for_rig(preset("radial4"))
 
 
 def test_coefficient_table_is_camera_major(rig, config):

@@ -8,7 +8,7 @@ from amaranth.sim import Simulator
 
 from hdl.regs import (Access, RESP_OKAY, RESP_SLVERR, Register, RegisterFile, RegisterGroup,
                       RegisterMap)
-from hdl.top import TopParams
+from hdl.top_params import TopParams
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 BASE = 0x4000_0000

@@ -4,7 +4,8 @@ import pytest
 
 from hdl.camera_input import CameraParams
 from hdl.pose_params import PoseSolverParams
-from hdl.top import RowtrackTop, TopParams
+from hdl.top import RowtrackTop
+from hdl.top_params import TopParams
 
 
 def test_defaults_wire_four_cameras_in_two_pairs():

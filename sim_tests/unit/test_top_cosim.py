@@ -60,7 +60,7 @@ def test_row_sets_are_recovered_from_the_engine_columns():
     from emulator.cosim import row_sets_from_columns
     from emulator.measurement_engine import row_set_columns
     from hdl.camera_input import CameraParams
-    from hdl.top import TopParams
+    from hdl.top_params import TopParams
     from emulator.hdl_sim.payload import pack
 
     params = TopParams.for_pairs(((0, 1),), camera=CameraParams(max_width=256, max_height=8))

@@ -8,12 +8,12 @@ import pickle
 import numpy as np
 import pytest
 
-from emulator.pipeline import configure
 from golden.rig import preset
 from golden.scene import default_scene_spec
 from golden.simulator import simulate
 from golden.trajectory import make_trajectory
 from hdl.measurement_router import MeasurementRouter
+from hdl.pipeline_config import PipelineConfig
 from emulator.hdl_sim.runner import BUILD_ROOT, run_cocotb
 
 from .stimulus import NARROW, expected, lane_streams
@@ -37,7 +37,7 @@ def test_router_real_rows():
     dataset = simulate(rig, default_scene_spec(seed), make_trajectory("paper"),
                        FRAMES / 120, seed=seed)
     params, tickets, temporal, stereo = lane_streams(
-        configure(rig, segments=4), dataset, FRAMES, PAIRS, np.random.default_rng(seed))
+        PipelineConfig.for_rig(rig), dataset, FRAMES, PAIRS, np.random.default_rng(seed))
     want, status = expected(params, tickets, temporal, stereo)
     weighted = sum(t["conf"] != 0 for t in want)
     print(f"{len(tickets)} row sets, {len(want)} transfers, {weighted} with weight, "

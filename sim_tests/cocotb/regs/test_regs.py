@@ -2,7 +2,8 @@
 
 import pytest
 
-from hdl.top import TopParams, register_file
+from hdl.top import register_file
+from hdl.top_params import TopParams
 from emulator.hdl_sim.runner import run_cocotb
 
 

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from hdl.camera_input import CameraParams
-from hdl.top import RowtrackTop, TopParams
+from hdl.top import RowtrackTop
+from hdl.top_params import TopParams
 from emulator.hdl_sim.runner import run_cocotb
 
 

@@ -3,7 +3,8 @@ packets byte for byte) on both simulators."""
 
 import pytest
 
-from hdl.top import PoseLink, TopParams
+from hdl.top import PoseLink
+from hdl.top_params import TopParams
 from emulator.hdl_sim.runner import run_cocotb
 
 
