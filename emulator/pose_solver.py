@@ -25,7 +25,8 @@ import numpy as np
 
 from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, mul, resize
 from golden import pose_lsq
-from hdl.pose_params import DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag, seed_tables
+from hdl.pose_params import (DEFAULT_COEF_WIDTH, DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag,
+                             seed_tables)
 
 __all__ = ["PoseRows", "Value", "StepResult", "accumulate", "scale_system",
            "rsqrt_seed", "solve_rows", "integrate_rows",
@@ -479,7 +480,7 @@ def rows_from_float(params, slot, shift, cue, weight, row, time):
                     time=np.asarray(time, dtype=np.int64) & ((1 << params.time_bits) - 1))
 
 
-def rig_solver(rig, cue_scale, coef_width=18, **changes):
+def rig_solver(rig, cue_scale, coef_width=DEFAULT_COEF_WIDTH, **changes):
     """Parameters and coefficient store for a rig: ``(params, raw coefficients, float
     table)``, with the coefficient formats picked from the rig's table at ``coef_width``
     bits and ``changes`` applied to the other parameters."""

@@ -21,13 +21,11 @@ from golden.descriptor import segment_bounds
 from golden.pose_lsq import shift_coefficients
 
 from .camera_input import CameraParams
-from .pose_params import coefficient_formats, quantize_coefficients
+from .pose_params import DEFAULT_COEF_WIDTH, coefficient_formats, quantize_coefficients
 from .top_params import DEFAULT_SEGMENTS, TopParams
 
 __all__ = ["PipelineConfig", "segment_centres", "coefficient_table"]
 
-#: Coefficient store width (one 18-bit DSP48 operand).
-DEFAULT_COEF_WIDTH = 18
 #: System clock (FCLK_CLK0) the time stamps count.
 DEFAULT_CLK_HZ = 100_000_000
 

@@ -15,10 +15,13 @@ import numpy as np
 from .fixed import SQ, UQ, QFormat, Overflow, Rounding
 
 __all__ = ["PoseFlag", "PoseSolverParams", "coefficient_formats", "quantize_coefficients",
-           "COEF_GROUPS", "SEED_TABLE_FMT", "SLOPE_FMT", "DELTA_BITS", "seed_tables"]
+           "COEF_GROUPS", "DEFAULT_COEF_WIDTH", "SEED_TABLE_FMT", "SLOPE_FMT", "DELTA_BITS",
+           "seed_tables"]
 
 #: The three coefficient groups of a table row (see golden.pose_lsq): a_T, a_C, a_R.
 COEF_GROUPS = ("t", "c", "r")
+#: Coefficient store width picked for a rig's table (one 18-bit DSP48 operand).
+DEFAULT_COEF_WIDTH = 18
 
 
 class PoseFlag(enum.IntFlag):
