@@ -6,6 +6,8 @@ and :mod:`hdl.measurement_router` (the gateware) build from the same object.
 
 from dataclasses import dataclass, field
 
+from golden.checks import check_int
+
 from .pose_params import PoseSolverParams
 from .row_descriptor_params import RowDescriptorParams
 
@@ -42,10 +44,7 @@ class RouterParams:
     pair_of: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        if isinstance(self.cameras, bool) or not isinstance(self.cameras, int):
-            raise TypeError(f"cameras must be an integer, not {self.cameras!r}")
-        if self.cameras < 1:
-            raise ValueError(f"cameras must be a positive integer, not {self.cameras}")
+        check_int("cameras", self.cameras, 1)
         for name in ("temporal", "stereo"):
             if not isinstance(getattr(self, name), RowDescriptorParams):
                 raise TypeError(f"{name} must be a RowDescriptorParams, not "

@@ -26,6 +26,8 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
+from golden.checks import check_int
+
 from .fixed import Overflow, QFormat, Rounding, SQ, hdl_resize
 
 __all__ = ["PacketField", "PacketParams", "PoseSource", "PoseOutputParams", "crc16_step",
@@ -38,11 +40,9 @@ CRC16_INIT = 0xFFFF
 
 
 def _check_bits(name, value, multiple_of=8, high=64):
-    if not isinstance(value, int) or isinstance(value, bool):
-        raise TypeError(f"{name} must be an integer, not {value!r}")
-    if value <= 0 or value % multiple_of or value > high:
-        raise ValueError(f"{name} must be a positive multiple of {multiple_of} up to {high}, "
-                         f"not {value}")
+    check_int(name, value, multiple_of, high)
+    if value % multiple_of:
+        raise ValueError(f"{name} must be a multiple of {multiple_of}, not {value}")
 
 
 @dataclass(frozen=True)
@@ -90,8 +90,7 @@ class PacketParams:
     quaternion_fmt: QFormat = SQ(2, 14)
 
     def __post_init__(self):
-        if not isinstance(self.sync, int) or isinstance(self.sync, bool):
-            raise TypeError(f"sync must be an integer, not {self.sync!r}")
+        check_int("sync", self.sync)
         if not 0 <= self.sync <= 0xFFFF or (self.sync >> 8) == (self.sync & 0xFF):
             raise ValueError(f"sync must be a 16-bit word with two different bytes, "
                              f"not {self.sync:#x}")
@@ -226,11 +225,7 @@ class PoseOutputParams:
                                  f"{getattr(self.source, name)}")
         for name, low, high in (("fifo_depth", 2, 1 << 16), ("count_bits", 8, 64),
                                 ("decimation_bits", 1, 32)):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool):
-                raise TypeError(f"{name} must be an integer, not {value!r}")
-            if not low <= value <= high:
-                raise ValueError(f"{name} must be between {low} and {high}, not {value}")
+            check_int(name, getattr(self, name), low, high)
         if self.fifo_depth & (self.fifo_depth - 1):
             raise ValueError(f"fifo_depth must be a power of two, not {self.fifo_depth}")
 

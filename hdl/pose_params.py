@@ -12,6 +12,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from golden.checks import check_int, check_number
+
 from .fixed import SQ, UQ, QFormat, Overflow, Rounding
 
 __all__ = ["PoseFlag", "PoseSolverParams", "coefficient_formats", "quantize_coefficients",
@@ -45,14 +47,6 @@ class PoseFlag(enum.IntFlag):
 def _check_format(name, value):
     if not isinstance(value, QFormat):
         raise TypeError(f"{name} must be a QFormat, not {value!r}")
-
-
-def _check_int(name, value, low, high=None):
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise TypeError(f"{name} must be an integer, not {value!r}")
-    if value < low or (high is not None and value > high):
-        bound = f"at least {low}" if high is None else f"in [{low}, {high}]"
-        raise ValueError(f"{name} must be {bound}, not {value}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -110,8 +104,8 @@ class PoseSolverParams:
     lanes: int = 3
 
     def __post_init__(self):
-        _check_int("slots", self.slots, 1, 1 << 12)
-        _check_int("rows", self.rows, 1, 1 << 16)
+        check_int("slots", self.slots, 1, 1 << 12)
+        check_int("rows", self.rows, 1, 1 << 16)
         for name in ("shift_fmt", "cue_fmt", "conf_fmt", "coef_t_fmt", "coef_c_fmt",
                      "coef_r_fmt", "a_fmt"):
             _check_format(name, getattr(self, name))
@@ -129,18 +123,16 @@ class PoseSolverParams:
         if len(widths) != 1:
             raise ValueError(f"coef_t_fmt, coef_c_fmt and coef_r_fmt must have one width, "
                              f"not {sorted(widths)}")
-        _check_int("engine_width", self.engine_width, 32, 64)
+        check_int("engine_width", self.engine_width, 32, 64)
         # the seed register keeps the table's fraction bits and one more
-        _check_int("pivot_log2", self.pivot_log2, 2,
+        check_int("pivot_log2", self.pivot_log2, 2,
                    2 * (self.engine_width - SEED_TABLE_FMT.frac_bits - 3))
-        if isinstance(self.min_diagonal, bool) or not isinstance(self.min_diagonal, (int, float)) \
-                or not math.isfinite(self.min_diagonal) or self.min_diagonal <= 0:
-            raise ValueError(f"min_diagonal must be a positive number, not {self.min_diagonal!r}")
-        _check_int("seed_bits", self.seed_bits, 3, 12)
-        _check_int("row_bits", self.row_bits, max(1, (self.rows - 1).bit_length()), 16)
-        _check_int("time_bits", self.time_bits, 1, 64)
-        _check_int("counter_bits", self.counter_bits, 1, 64)
-        _check_int("lanes", self.lanes, 1, 27)
+        check_number("min_diagonal", self.min_diagonal, 0, low_open=True)
+        check_int("seed_bits", self.seed_bits, 3, 12)
+        check_int("row_bits", self.row_bits, max(1, (self.rows - 1).bit_length()), 16)
+        check_int("time_bits", self.time_bits, 1, 64)
+        check_int("counter_bits", self.counter_bits, 1, 64)
+        check_int("lanes", self.lanes, 1, 27)
         if self.min_diagonal_raw > self.normal_fmt.max_raw:
             raise ValueError(f"min_diagonal {self.min_diagonal} does not fit the normal "
                              f"matrix format {self.normal_fmt}")
@@ -265,7 +257,7 @@ def coefficient_formats(table, width):
     table = np.asarray(table, dtype=float)
     if table.shape[-1] != 9:
         raise ValueError(f"table must have 9 coefficients on its last axis, not shape {table.shape}")
-    _check_int("width", width, 4, 48)
+    check_int("width", width, 4, 48)
     formats = {}
     for k, group in enumerate(COEF_GROUPS):
         largest = float(np.max(np.abs(table[..., 3 * k:3 * k + 3]), initial=0.0))

@@ -27,6 +27,8 @@ from amaranth.hdl import Cat, Const, Module, Shape, Signal, Value
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
+from golden.checks import check_int
+
 __all__ = ["Access", "Register", "RegisterGroup", "RegisterMap", "Word", "WORD_BYTES",
            "AXI4LiteSignature", "RegisterFile", "RESP_OKAY", "RESP_SLVERR"]
 
@@ -121,9 +123,7 @@ class Register:
             raise ValueError(f"shape of {self.name} must be at least one bit wide")
         if not isinstance(self.access, Access):
             raise TypeError(f"access of {self.name} must be an Access, not {self.access!r}")
-        if not isinstance(self.count, int) or isinstance(self.count, bool) or self.count < 1:
-            raise ValueError(f"count of {self.name} must be a positive integer, "
-                             f"not {self.count!r}")
+        check_int(f"count of {self.name}", self.count, 1)
         if self.reset and self.access is not Access.RW:
             raise ValueError(f"reset of {self.name} applies to RW registers only")
         if self.value and self.access is not Access.CONST:
@@ -370,10 +370,7 @@ class AXI4LiteSignature(wiring.Signature):
     ``AxiLiteBus.from_prefix(dut, name, bus_separator="__")``)."""
 
     def __init__(self, addr_width):
-        if not isinstance(addr_width, int) or isinstance(addr_width, bool) \
-                or not 3 <= addr_width <= 64:
-            raise ValueError(f"addr_width must be an integer between 3 and 64, "
-                             f"not {addr_width!r}")
+        check_int("addr_width", addr_width, 3, 64)
         self.addr_width = addr_width
         super().__init__({
             "awaddr": Out(addr_width), "awprot": Out(3), "awvalid": Out(1), "awready": In(1),

@@ -130,7 +130,7 @@ def test_quantize_refuses_what_does_not_fit():
 
 @pytest.mark.parametrize("args, error, message", [
     ((True, 0, 4), ValueError, "int_bits of a signed format must be at least 1"),
-    ((False, -1, 4), ValueError, "int_bits must be a non-negative integer, not -1"),
+    ((False, -1, 4), ValueError, "int_bits must be an integer at least 0, not -1"),
     ((False, 2, 1.5), TypeError, "frac_bits must be an integer, not 1.5"),
     ((False, 0, 0), ValueError, "at least one bit wide"),
 ])

@@ -142,9 +142,9 @@ def test_peak_ratio_offset_tames_tiny_costs_of_periodic_rows():
 
 
 @pytest.mark.parametrize("kwargs, error, message", [
-    ({"sigma": 0.1}, ValueError, "sigma must be between 0.5 and 8 pixels, not 0.1"),
+    ({"sigma": 0.1}, ValueError, "sigma must be a number between 0.5 and 8.0, not 0.1"),
     ({"sigma": "2"}, TypeError, "sigma must be a number"),
-    ({"strong_response": -1}, ValueError, "strong_response must be a number ≥ 0, not -1"),
+    ({"strong_response": -1}, ValueError, "strong_response must be a number at least 0, not -1"),
 ])
 def test_bad_descriptor_params(kwargs, error, message):
     with pytest.raises(error, match=message):
@@ -157,7 +157,7 @@ def test_bad_descriptor_params(kwargs, error, message):
     ({"min_strong": -2}, ValueError, "min_strong must be an integer at least 0, not -2"),
     ({"peak_ratio_offset": 1.5}, TypeError, "peak_ratio_offset must be an integer"),
     ({"shift_min": 1.5}, TypeError, "shift_min must be an integer"),
-    ({"peak_ratio_cap": 1.0}, ValueError, "peak_ratio_cap must be a number > 1"),
+    ({"peak_ratio_cap": 1.0}, ValueError, "peak_ratio_cap must be a number greater than 1"),
 ])
 def test_bad_match_params(kwargs, error, message):
     with pytest.raises(error, match=message):

@@ -86,11 +86,11 @@ def test_encode_rejects_bad_records():
     ({"sync": 0x1FFFF}, ValueError, "sync must be a 16-bit word with two different bytes"),
     ({"sync": 0x5555}, ValueError, "sync must be a 16-bit word with two different bytes"),
     ({"sync": "A55A"}, TypeError, "sync must be an integer"),
-    ({"row_bits": 12}, ValueError, "row_bits must be a positive multiple of 8"),
+    ({"row_bits": 12}, ValueError, "row_bits must be a multiple of 8"),
     ({"seq_bits": 16.0}, TypeError, "seq_bits must be an integer"),
     ({"position_fmt": UQ(8, 24)}, ValueError, "position_fmt must be signed"),
-    ({"quaternion_fmt": SQ(2, 13)}, ValueError, "quaternion_fmt width must be a positive "
-                                                "multiple of 8"),
+    ({"quaternion_fmt": SQ(2, 13)}, ValueError, "quaternion_fmt width must be a multiple "
+                                                "of 8, not 15"),
     ({"quaternion_fmt": 16}, TypeError, "quaternion_fmt must be a QFormat"),
 ])
 def test_packet_params_checks(kwargs, error, message):
@@ -101,7 +101,7 @@ def test_packet_params_checks(kwargs, error, message):
 @pytest.mark.parametrize("kwargs, error, message", [
     ({"packet": 3}, TypeError, "packet must be a PacketParams"),
     ({"fifo_depth": 100}, ValueError, "fifo_depth must be a power of two, not 100"),
-    ({"fifo_depth": 1}, ValueError, "fifo_depth must be between 2 and 65536, not 1"),
+    ({"fifo_depth": 1}, ValueError, "fifo_depth must be an integer between 2 and 65536, not 1"),
     ({"count_bits": "32"}, TypeError, "count_bits must be an integer"),
     ({"source": 1}, TypeError, "source must be a PoseSource"),
     ({"source": PoseSource(row_bits=17)}, ValueError, "source.row_bits must fit the packet's "

@@ -132,7 +132,7 @@ def test_pose_rows_rejects_unterminated_stream():
 
 @pytest.mark.parametrize("changes, error, message", [
     ({"cameras": 2.0}, TypeError, "cameras must be an integer"),
-    ({"cameras": 0}, ValueError, "cameras must be a positive integer"),
+    ({"cameras": 0}, ValueError, "cameras must be an integer at least 1"),
     ({"cameras": 5}, ValueError, "solver.slots must be cameras × segments = 20"),
     ({"pairs": ((0, 1),)}, ValueError, r"cameras \[2, 3\] have none"),
     ({"pairs": ((0, 1), (1, 2), (3, 0))}, ValueError, "camera 1 is in more than one pair"),

@@ -78,7 +78,7 @@ def test_table_round_trip_and_errors():
     assert np.array_equal(again.table(), coefficients.table())
     with pytest.raises(ValueError, match="9 coefficients"):
         G.ShiftCoefficients.from_table(np.zeros((2, 8)))
-    with pytest.raises(ValueError, match="segments must be a positive integer, not 0"):
+    with pytest.raises(ValueError, match="segments must be an integer at least 1, not 0"):
         G.segment_columns(640, 0)
 
 

@@ -112,7 +112,7 @@ def test_layout_crc_ignores_constant_values():
     (lambda: Register("a", 0, Access.RW, ""), ValueError, "shape of a must be at least one bit"),
     (lambda: Register("a", "8", Access.RW, ""), TypeError, "shape of a must be a width or a Layout"),
     (lambda: Register("a", 8, "rw", ""), TypeError, "access of a must be an Access"),
-    (lambda: Register("a", 8, Access.RW, "", count=0), ValueError, "count of a must be a positive"),
+    (lambda: Register("a", 8, Access.RW, "", count=0), ValueError, "count of a must be an integer at least 1"),
     (lambda: Register("a", 8, Access.RO, "", reset=1), ValueError, "reset of a applies to RW"),
     (lambda: Register("a", 8, Access.RW, "", value=1), ValueError, "value of a applies to CONST"),
     (lambda: Register("a", 8, Access.CONST, "", value=256), ValueError, "value of a must fit 8"),

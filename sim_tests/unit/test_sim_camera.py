@@ -74,10 +74,10 @@ def test_infeasible_timing_names_the_parameters():
 
 
 @pytest.mark.parametrize("kwargs, error, message", [
-    ({"width": 0}, ValueError, "width must be a positive integer, not 0"),
+    ({"width": 0}, ValueError, "width must be an integer at least 1, not 0"),
     ({"fx": "400"}, TypeError, "fx must be a number, not '400'"),
-    ({"t_e": -1e-3}, ValueError, "t_e must be non-negative, not -0.001"),
-    ({"noise_sigma": -1}, ValueError, "noise_sigma must be non-negative, not -1"),
+    ({"t_e": -1e-3}, ValueError, "t_e must be a number at least 0, not -0.001"),
+    ({"noise_sigma": -1}, ValueError, "noise_sigma must be a number at least 0, not -1"),
     ({"rotation": ((1, 0, 0), (0, 1, 0), (0, 0, -1))}, ValueError,
      "rotation must be a 3×3 proper rotation matrix"),
     ({"position": (0, 0)}, ValueError, r"position must be 3 finite numbers"),

@@ -154,12 +154,12 @@ def test_radial_rig_tracks_with_depth_bootstrapped_from_overlap():
 @pytest.mark.parametrize("changes, error, message", [
     (dict(reference="next"), ValueError, "reference must be one of homography, previous"),
     (dict(depth="lidar"), ValueError, "depth must be one of"),
-    (dict(segments=0), ValueError, "segments must be ≥ 1"),
+    (dict(segments=0), ValueError, "segments must be an integer at least 1"),
     (dict(segments=2.5), TypeError, "segments must be an integer"),
-    (dict(alpha=0.0), ValueError, "alpha must be > 0"),
+    (dict(alpha=0.0), ValueError, "alpha must be a number greater than 0"),
     (dict(parallax="yes"), TypeError, "parallax must be a bool"),
-    (dict(max_condition=-1.0), ValueError, "max_condition must be > 0"),
-    (dict(sigma=20.0), ValueError, "sigma must be between"),
+    (dict(max_condition=-1.0), ValueError, "max_condition must be a number greater than 0"),
+    (dict(sigma=20.0), ValueError, "sigma must be a number between"),
 ])
 def test_bad_parameters_are_named(changes, error, message):
     with pytest.raises(error, match=message):
