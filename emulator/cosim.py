@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hdl.row_descriptor_params import DEFAULT_SEGMENTS
+from hdl.descriptor.params import DEFAULT_SEGMENTS
 
 __all__ = ["RECORD_FIELDS", "CosimResult", "compare_records", "slice_rig", "slice_params",
            "NoSolvingWindow", "solving_window", "cosim_slice"]
@@ -40,7 +40,7 @@ class CosimResult:
     -------
     records : dict
         The HDL's pose records as read from the PS FIFO registers, raw integer arrays in
-        the packet formats (``emulator.packets``): ``row``, ``time``, ``flags``, ``q``
+        the packet formats (``emulator.output.packets``): ``row``, ``time``, ``flags``, ``q``
         (n, 4), ``p`` (n, 3).
     expected : dict
         The emulator's records for the same row sets, narrowed the same way.
@@ -192,7 +192,7 @@ def slice_params(rig, cameras, rows, records, segments=DEFAULT_SEGMENTS):
     ``records`` pose records. Returns ``(params, config, chosen dataset cameras)``.
     """
     from hdl.pipeline_config import PipelineConfig
-    from hdl.pose_packet import PoseOutputParams
+    from hdl.output.params import PoseOutputParams
     sub, chosen = slice_rig(rig, cameras, segments)
     config = PipelineConfig.for_rig(sub, segments=segments)
     depth = 1 << max(records, 2).bit_length()
@@ -255,11 +255,11 @@ def row_sets_from_columns(layout, columns):
 
 def expected_records(params, coef_raw, row_sets):
     """The emulator on the row sets the HDL front end produced: the engine model, the
-    solver model, and the PS FIFO's narrowing (``emulator.packets.keep_poses``), as
+    solver model, and the PS FIFO's narrowing (``emulator.output.packets.keep_poses``), as
     record arrays; plus the pose records' packets (UART bytes)."""
-    from emulator import packets
-    from emulator.measurement_engine import run_engine
-    from emulator.measurement_router import pose_rows
+    from emulator.output import packets
+    from emulator.measurement.engine import run_engine
+    from emulator.measurement.router import pose_rows
     from emulator.pose_solver import pose_solver_model
     engine = params.engine
     config = {"temporal": [0] * engine.cameras, "stereo": [0] * len(engine.pairs),

@@ -3,7 +3,7 @@
 Composed of the per-block models the cocotb benches check the HDL against (their own
 functions and classes, not copies): :class:`emulator.row_descriptor.TemporalLaneModel`
 (one per camera), :class:`emulator.row_descriptor.StereoLaneModel` (one per rectified
-pair), :mod:`emulator.measurement_router` and :func:`emulator.pose_solver.pose_solver_model`.
+pair), :mod:`emulator.measurement.router` and :func:`emulator.pose_solver.pose_solver_model`.
 
 What enters where the hardware's front end would be: each row of the dataset as a
 :class:`emulator.row_descriptor.FramedRow` (what the framer hands on for a clean row:
@@ -27,9 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .measurement_router import pose_rows, route_row
-from .pose_solver import pose_solver_model
-from .row_descriptor import FramedRow, StereoLaneModel, TemporalLaneModel
+from emulator.measurement.router import pose_rows, route_row
+from emulator.pose_solver import pose_solver_model
+from emulator.row_descriptor import FramedRow, StereoLaneModel, TemporalLaneModel
 
 __all__ = ["PipelineResult", "run"]
 

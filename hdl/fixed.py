@@ -9,7 +9,7 @@ with ``int_bits`` integer bits and ``frac_bits`` fraction bits. The same object 
   :func:`resize`, :func:`add`, :func:`mul`), used by the bit-accurate emulator.
 
 There is no second copy: the emulator and the HDL both call into this module, and the
-property tests in ``sim_tests/unit/test_fixed.py`` check that the two agree bit for bit.
+property tests in ``sim_tests/common/test_fixed.py`` check that the two agree bit for bit.
 
 Conventions
 -----------

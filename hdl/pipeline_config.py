@@ -20,9 +20,9 @@ from golden.depth import stereo_pairs
 from golden.descriptor import segment_bounds
 from golden.pose_lsq import shift_coefficients
 
-from .camera_input import CameraParams
-from .pose_params import DEFAULT_COEF_WIDTH, coefficient_formats, quantize_coefficients
-from .top_params import DEFAULT_SEGMENTS, TopParams
+from hdl.front_end.params import CameraParams
+from hdl.pose.params import DEFAULT_COEF_WIDTH, coefficient_formats, quantize_coefficients
+from hdl.top_params import DEFAULT_SEGMENTS, TopParams
 
 __all__ = ["PipelineConfig", "segment_centres", "coefficient_table"]
 

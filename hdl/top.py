@@ -2,15 +2,16 @@
 
 :class:`RowtrackTop` contains no logic of its own; it connects
 
-* the camera front end (:class:`hdl.camera_sync.CameraFrontEnd`: one DVP input per
+* the camera front end (:class:`hdl.front_end.camera_sync.CameraFrontEnd`: one DVP input per
   camera in its pixel-clock domain, the trigger/sync monitor and the row aligner),
-* the measurement engine (:class:`hdl.measurement_engine.MeasurementEngine`: a temporal
+* the measurement engine (:class:`hdl.measurement.engine.MeasurementEngine`: a temporal
   row-descriptor lane per camera, a stereo lane per pair, and the router that turns
   their segment measurements into the solver's slots with their depth cues),
 * the pose solver (:class:`hdl.pose_solver.PoseSolver`: coefficient store, normal
   equations, LDLᵀ solve, pose integration),
-* the pose output (:class:`PoseLink`: decimation, framing, UART, PS FIFO), and
-* the register file (:class:`hdl.regs.RegisterFile` of :func:`hdl.regmap.rowtrack_map`)
+* the pose output (:class:`hdl.output.link.PoseLink`: decimation, framing, UART, PS
+  FIFO), and
+* the register file (:class:`hdl.bus.register_file.RegisterFile` of :func:`hdl.bus.regmap.rowtrack_map`)
   to every block's configuration, status and the solver's coefficient load.
 
 The PS7 is not in here: the top takes AXI4-Lite through a port, so a cocotb bench can
@@ -18,68 +19,24 @@ stand in for the PS, and the board tops (:mod:`hdl.board`) add the PS7 and pins.
 """
 
 from amaranth.hdl import Module
-from amaranth.lib import stream, wiring
+from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .camera_sync import CameraFrontEnd
-from .measurement_engine import MeasurementEngine
-from .pose_packet import PoseOutput
-from .pose_solver import PoseSolver
-from .regs import AXI4LiteSignature, RegisterFile
-from .streams import dvp_signature
-from .top_params import TopParams
-from .uart import UartTx
+from hdl.front_end.camera_sync import CameraFrontEnd
+from hdl.measurement.engine import MeasurementEngine
+from hdl.output.link import PoseLink
+from hdl.pose_solver import PoseSolver
+from hdl.bus.axi4lite import AXI4LiteSignature
+from hdl.bus.register_file import RegisterFile
+from hdl.streams import dvp_signature
+from hdl.top_params import TopParams
 
-__all__ = ["PoseLink", "RowtrackTop", "register_file"]
+__all__ = ["RowtrackTop", "register_file"]
 
 
 def register_file(params=TopParams()):
     """The register file of the top built with ``params`` (a catalog entry of its own)."""
     return RegisterFile(params.regmap())
-
-
-class PoseLink(wiring.Component):
-    """Pose output and UART transmitter wired together.
-
-    Parameters
-    ----------
-    params : TopParams
-        Uses ``pose_output`` and ``uart``.
-
-    Members
-    -------
-    pose : In(stream.Signature(pose_output.source.layout()))
-    cfg : In(pose_output.config_layout())
-    divisor : In(uart.divisor_fmt.shape())
-    fifo : Out(stream.Signature(packet.record_layout()))
-    status : Out(pose_output.status_layout())
-    tx : Out(1)
-    """
-
-    def __init__(self, params=TopParams()):
-        if not isinstance(params, TopParams):
-            raise TypeError(f"params must be a TopParams, not {params!r}")
-        self.params = params
-        po = params.pose_output
-        super().__init__({
-            "pose": In(stream.Signature(po.source.layout())),
-            "cfg": In(po.config_layout()),
-            "divisor": In(params.uart.divisor_fmt.shape()),
-            "fifo": Out(stream.Signature(po.packet.record_layout())),
-            "status": Out(po.status_layout()),
-            "tx": Out(1, init=1),
-        })
-
-    def elaborate(self, platform):
-        m = Module()
-        m.submodules.output = output = PoseOutput(self.params.pose_output)
-        m.submodules.uart = uart = UartTx(self.params.uart)
-        wiring.connect(m, wiring.flipped(self.pose), output.pose)
-        wiring.connect(m, output.uart, uart.i)
-        wiring.connect(m, output.fifo, wiring.flipped(self.fifo))
-        m.d.comb += [output.cfg.eq(self.cfg), uart.divisor.eq(self.divisor),
-                     self.status.eq(output.status), self.tx.eq(uart.tx)]
-        return m
 
 
 class RowtrackTop(wiring.Component):
@@ -94,7 +51,7 @@ class RowtrackTop(wiring.Component):
     Members
     -------
     axi : In(AXI4LiteSignature(32))
-        Registers (:func:`hdl.regmap.rowtrack_map`), from the PS7's GP0 port.
+        Registers (:func:`hdl.bus.regmap.rowtrack_map`), from the PS7's GP0 port.
     dvp : In(dvp_signature(pixel_bits)).array(n_cameras)
         Camera ports, each in its pixel clock domain.
     trigger, expose : Out(1)
@@ -161,10 +118,10 @@ class RowtrackTop(wiring.Component):
         ]
 
         out = regs.pose_out
+        wiring.connect(m, out.fifo_pop, link.fifo_pop)
         m.d.comb += [
             link.cfg.eq(out.control), link.divisor.eq(out.uart_divisor),
-            out.status.eq(link.status), out.fifo_head.eq(link.fifo.payload),
-            link.fifo.ready.eq(out.fifo_pop.stb & out.fifo_pop.data),
+            out.status.eq(link.status), out.fifo_head.eq(link.fifo_head),
             self.uart_tx.eq(link.tx),
         ]
         return m

@@ -2,7 +2,7 @@
 
 A top is fixed by its cameras, their stereo pairs, the temporal segments per row (K),
 the solver's formats, the pose output, the UART and the system clock; the measurement
-engine's parameters follow from those (:meth:`hdl.measurement_engine_params.EngineParams.for_cameras`).
+engine's parameters follow from those (:meth:`hdl.measurement.engine_params.EngineParams.for_cameras`).
 :class:`hdl.pipeline_config.PipelineConfig` builds one from a rig.
 """
 
@@ -10,12 +10,12 @@ from dataclasses import dataclass, field, replace
 
 from golden.checks import check_int
 
-from .camera_input import CameraParams
-from .measurement_engine_params import EngineParams
-from .pose_packet import PoseOutputParams, PoseSource
-from .pose_params import PoseFlag, PoseSolverParams
-from .row_descriptor_params import DEFAULT_SEGMENTS
-from .uart import UartParams
+from hdl.front_end.params import CameraParams
+from hdl.measurement.engine_params import EngineParams
+from hdl.output.params import PoseOutputParams, PoseSource
+from hdl.pose.params import PoseFlag, PoseSolverParams
+from hdl.descriptor.params import DEFAULT_SEGMENTS
+from hdl.output.params import UartParams
 
 __all__ = ["TopParams", "solver_source", "DEFAULT_CAMERAS", "DEFAULT_SEGMENTS"]
 
@@ -118,5 +118,5 @@ class TopParams:
 
     def regmap(self):
         """The register map of the top built with these parameters."""
-        from .regmap import rowtrack_map         # the map's layouts come from the gateware
+        from hdl.bus.regmap import rowtrack_map
         return rowtrack_map(self)

@@ -1,6 +1,6 @@
 """Benchmark of the domain-transform work (issue 9).
 
-Hardware: ``hdl.dt_filter`` at its default build (640-pixel rows, 8-bit values, window 8)
+Hardware: ``hdl.dt.filter`` at its default build (640-pixel rows, 8-bit values, window 8)
 runs in the Amaranth simulator on rows of a synthetic scene, checked pixel for pixel
 against the emulator; latency and throughput are counted from that run, resources come
 from ``synth_xilinx``. Accuracy: the emulator against the float golden filter
@@ -16,7 +16,7 @@ import time
 import cv2
 import numpy as np
 
-from emulator import dt_filter as model
+from emulator.dt import filter as model
 from emulator.synth import synth_report
 
 __all__ = ["simulate_block", "measure", "report"]
@@ -40,7 +40,7 @@ def simulate_block(params, frames, *, seed, valid_prob=1.0, ready_prob=1.0):
     ``outputs`` a list of ``(cycle, value, last)``.
     """
     from amaranth.sim import Simulator
-    from hdl.dt_filter import DomainTransformFilter
+    from hdl.dt.filter import DomainTransformFilter
 
     dut = DomainTransformFilter(params)
     rng = random.Random(seed)
@@ -105,14 +105,14 @@ def _grey_scene(height, width, seed):
 
 def _hardware_figures():
     """Latency, throughput and tail from a simulated 640-pixel-wide frame."""
-    from hdl.dt_filter import DtFilterParams
+    from hdl.dt.filter import DtFilterParams
     params = DtFilterParams()
     guide, _ = _grey_scene(4, params.width, seed=11)
     s_raw, r_raw = model.sigma_register("sigma_s", 20.0), model.sigma_register("sigma_r", 50.0)
     inputs, outputs, dut = simulate_block(params, [(guide, guide, s_raw, r_raw)], seed=11)
     expected = model.filter_frame(params, guide, guide, s_raw, r_raw).ravel().tolist()
     if [value for _, value, _ in outputs] != expected:
-        raise AssertionError("dt_filter simulation differs from emulator.dt_filter")
+        raise AssertionError("dt_filter simulation differs from emulator.dt.filter")
     delays = {out[0] - cycle for out, cycle in zip(outputs, inputs)}
     if delays != {dut.latency}:
         raise AssertionError(f"latency {sorted(delays)} is not the block's {dut.latency}")
@@ -186,7 +186,7 @@ def _dts_figures():
 
 def _runtime_figures():
     """Seconds per megapixel on a 1536x1024 (1.57 MP) scene, best of two runs."""
-    from hdl.dt_filter import DtFilterParams
+    from hdl.dt.filter import DtFilterParams
     from golden.dt import normalized_convolution, recursive_filter
     from golden.dt_scenes import bicubic_target, downsample, make_scene
     from golden.dts import dts, target_confidence
@@ -215,7 +215,7 @@ def _runtime_figures():
 
 
 def measure():
-    from hdl.dt_filter import DomainTransformFilter
+    from hdl.dt.filter import DomainTransformFilter
     params, figures = _hardware_figures()
     synth = synth_report(DomainTransformFilter(params), "dt_filter")
     figures.update({key: synth[key] for key in ("lut", "ff", "bram36", "dsp48", "lut_levels")})
@@ -264,13 +264,13 @@ def report(f):
                          for k in FACTORS)
     return f"""# Domain-transform filter and solver
 
-See `docs/dt.md` for the algorithm and the hardware structure.
+See `docs/dt/dt.md` for the algorithm and the hardware structure.
 
-## Streaming filter `hdl/dt_filter.py` (default build)
+## Streaming filter `hdl/dt/filter.py` (default build)
 
 {f['width_px']}-pixel rows, 8-bit guide and values, vertical window L = {f['window_lines']}.
 Simulated in the Amaranth simulator on a synthetic scene, every output checked against
-`emulator/dt_filter.py`; resources from Yosys `synth_xilinx` (xc7).
+`emulator/dt/filter.py`; resources from Yosys `synth_xilinx` (xc7).
 
 | figure | value |
 |---|---|
