@@ -227,8 +227,9 @@ BAD_INPUTS = {
     "no stereo overlap": (lambda p: ["--rig", _rig_file(
         p, [{"name": "a"}, {"name": "b", "yaw_deg": 90}], width=640)],
         r"cannot run on the hardware pipeline: .*cameras \[0, 1\] have no rectified stereo"),
-    "rows too narrow": (lambda p: ["--rig", _rig_file(p, [{"name": "a"}, {"name": "b"}])],
-                        "cannot run on the hardware pipeline: width 64 leaves 0 columns"),
+    "rows too narrow": (lambda p: ["--rig", _rig_file(
+        p, [{"name": "a"}, {"name": "b", "position": [0.1, 0.0, 0.0]}])],
+                        "cannot run on the hardware pipeline: .*width 64 leaves 0 columns"),
     "preset without pairs": (lambda p: ["--rig", "radial4"], "no rectified stereo partner"),
     "unknown rig": (lambda p: ["--rig", "nine"], "must be one of stereo20"),
     "one frame": (lambda p: ["--frames", "1"], "at least 2 frames"),
