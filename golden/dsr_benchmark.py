@@ -8,9 +8,9 @@ the FBS result, all at full size. :func:`load_dev` reads it from :func:`data_dir
 results on the 8-bit disparity scale, RMSE against the ground truth over the whole image,
 geometric mean over the factors.
 
-Synthetic twin (:func:`degrade`): the same degradation applied to the project's
-synthetic scenes (:mod:`golden.dt_scenes`), with the benchmark's statistics as measured
-on the development scene:
+Synthetic twin (:func:`synthetic_scenes`, :func:`degrade`): the project's synthetic
+scenes (:mod:`golden.dt_scenes`) made to look like real data, with the benchmark's
+degradation as measured on the development scene:
 
 * the low-resolution disparity is the ``f x f`` block average (it fits the dev scene's
   input better than point sampling or a bicubic/bilinear decimation);
@@ -37,8 +37,9 @@ from .dt import _count, _positive
 from .dts import DtsParams, dts
 
 __all__ = ["FACTORS", "NOISE_KAPPA", "DATA_ENV", "DsrCase", "data_dir", "load_dev",
-           "benchmark_confidence", "degrade", "synthetic_cases", "grid_solver", "METHODS",
-           "run_method", "rmse", "geomean"]
+           "benchmark_confidence", "degrade", "synthetic_scenes", "synthetic_cases",
+           "grid_solver", "METHODS",
+           "run_method", "kendall_tau", "rmse", "geomean"]
 
 #: Upsampling factors of the benchmark (file index k: factor 2**k).
 FACTORS = (2, 4, 8, 16)
@@ -50,6 +51,14 @@ NOISE_KAPPA = 660.0
 MIN_DISPARITY = 64.0
 #: Std of the benchmark's confidence bump, in low-resolution pixels.
 CONFIDENCE_SIGMA = 0.25
+#: Colour contrast of the twin's objects against their background (1: the plain set).
+GUIDE_CONTRAST = 0.5
+#: Blur of the twin's guide, pixels.
+GUIDE_BLUR = 1.0
+#: Std of the twin's multi-scale guide texture, LSB.
+GUIDE_TEXTURE = 8.0
+#: The twin's disparities span the dev scene's ground truth range.
+DISPARITY_RANGE = (66.0, 217.0)
 #: Environment variable naming the development data directory.
 DATA_ENV = "ROWTRACK_DSR_DEV"
 
@@ -153,6 +162,38 @@ def degrade(depth, factor, seed):
     return target, benchmark_confidence(depth.shape, factor)
 
 
+def _fractal(shape, rng, octaves=6):
+    """Unit-std colour noise with energy at every scale (sum of blurred white noises)."""
+    out = np.zeros((*shape, 3))
+    for octave in range(octaves):
+        layer = cv2.GaussianBlur(rng.normal(size=(*shape, 3)), (0, 0), 2.0 ** octave)
+        out += layer / layer.std()
+    return out / out.std()
+
+
+def synthetic_scenes(count=4, height=384, width=512, seed=2019):
+    """The twin's scenes, :func:`golden.dt_scenes.make_scene` made to look like real data:
+
+    * objects at ``GUIDE_CONTRAST`` of their colour contrast against what lies behind
+      them (real depth edges often show weakly in colour);
+    * multi-scale colour texture of std ``GUIDE_TEXTURE`` LSB (matches the median colour
+      step between neighbours of the dev guide, 3.0 LSB, after the blur);
+    * the guide blurred by a Gaussian of ``GUIDE_BLUR`` pixels (optics);
+    * disparity mapped linearly onto ``DISPARITY_RANGE`` (which sets the noise level).
+    """
+    from .dt_scenes import Scene, make_scene
+    scenes = []
+    for k in range(count):
+        scene = make_scene(height, width, seed + k, contrast=GUIDE_CONTRAST)
+        texture = GUIDE_TEXTURE * _fractal(scene.depth.shape, np.random.default_rng(seed + k))
+        guide = cv2.GaussianBlur(scene.guide + texture, (0, 0), GUIDE_BLUR)
+        depth = scene.depth - scene.depth.min()
+        low, high = DISPARITY_RANGE
+        scenes.append(Scene(guide=np.clip(np.rint(guide), 0, 255).astype(np.uint8),
+                            depth=low + depth * (high - low) / max(depth.max(), 1e-12)))
+    return scenes
+
+
 def synthetic_cases(scenes, seed=2019):
     """:class:`DsrCase` for every scene and factor (noise seed ``seed + scene index``)."""
     cases = []
@@ -227,6 +268,16 @@ def run_method(name, case):
     if name not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, not {name!r}")
     return METHODS[name](case)
+
+
+def kendall_tau(a, b):
+    """Kendall's rank agreement of two score lists (1: the same order, -1: reversed)."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    if a.shape != b.shape or a.ndim != 1 or a.size < 2:
+        raise ValueError(f"scores must be two equal-length lists of at least 2, not "
+                         f"shapes {a.shape} and {b.shape}")
+    i, j = np.triu_indices(a.size, k=1)
+    return float(np.mean(np.sign(a[i] - a[j]) * np.sign(b[i] - b[j])))
 
 
 def rmse(estimate, truth):
