@@ -17,6 +17,9 @@ sets every pixel to the minimiser of its own terms with ``xbar`` held fixed:
 iteratively reweighted step). Each update is a convex combination of ``xbar`` and ``t``,
 so it is stable for every confidence and every ``lam``.
 
+The data weight is the confidence times ``(t / median t) ** disparity_power``: the
+inverse noise variance of a disparity map whose noise std falls as ``1 / t``.
+
 The domain transform's guide is the colour image and, with ``depth_sigma`` set, the
 target itself as one more channel: a change of ``depth_sigma`` times the target's robust
 range (1st to 99th percentile) counts as much as a colour change of ``sigma_r``, so
@@ -61,6 +64,10 @@ class DtsParams:
     depth_sigma : float or None
         Add the target as a guide channel whose change of ``depth_sigma`` times its
         robust range weighs like a colour change of ``sigma_r``; ``None``: colour only.
+    disparity_power : float
+        The data weight is ``c * (t / median t) ** disparity_power``: for a disparity
+        target whose noise std falls as ``1 / t`` (stereo, and the benchmark's noise
+        model) 2 weighs every pixel by its inverse noise variance; 0 switches it off.
     robust : float or None
         Charbonnier scale ``eps`` of the data term in target units; ``None`` is L2.
     hard_threshold : float or None
@@ -69,11 +76,12 @@ class DtsParams:
     The defaults are :meth:`for_factor` ``(4)``.
     """
     sigma_s: float = 32.0
-    sigma_r: float = 0.06
+    sigma_r: float = 0.08
     lam: float = 4 * LAM_PER_FACTOR
     iterations: int = 15
     norm: str = "l2"
-    depth_sigma: float | None = 0.1
+    depth_sigma: float | None = 0.08
+    disparity_power: float = 2.0
     robust: float | None = None
     hard_threshold: float | None = None
 
@@ -86,6 +94,11 @@ class DtsParams:
         for name in ("depth_sigma", "robust"):
             if getattr(self, name) is not None:
                 _positive(name, getattr(self, name))
+        power = self.disparity_power
+        if isinstance(power, bool) or not isinstance(power, (int, float, np.integer, np.floating)):
+            raise TypeError(f"disparity_power must be a number, not {power!r}")
+        if not (math.isfinite(power) and power >= 0):
+            raise ValueError(f"disparity_power must be a finite number >= 0, not {power}")
         if self.hard_threshold is not None:
             _positive("hard_threshold", self.hard_threshold)
             if self.hard_threshold > 1:
@@ -110,12 +123,18 @@ def _data_weight(residual, confidence, robust):
 
 
 def _solve_channel(target, guide, c, params):
+    pinned = None if params.hard_threshold is None else c >= params.hard_threshold
+    if params.disparity_power:
+        median = float(np.median(target))
+        if median <= 0:
+            raise ValueError(f"disparity_power {params.disparity_power} needs a target with a "
+                             f"positive median, not {median}")
+        c = c * (np.maximum(target, 0.0) / median) ** params.disparity_power
     if params.depth_sigma is not None:
         low, high = np.percentile(target, [1.0, 99.0])
         scale = params.sigma_r / (params.depth_sigma * max(high - low, 1e-12))
         guide = np.concatenate([guide.reshape(*target.shape, -1), (target * scale)[..., None]],
                                axis=-1)
-    pinned = None if params.hard_threshold is None else c >= params.hard_threshold
     radius = math.sqrt(3.0) * params.sigma_s
     boxes = [BoxBounds(transformed_coords(guide, params.sigma_s, params.sigma_r, axis, params.norm),
                        radius, axis) for axis in (1, 0)]
