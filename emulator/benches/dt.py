@@ -379,6 +379,7 @@ against the ground truth with one round (the hardware) and three (the golden def
 {rf}"""
 
 
+def report(f):
     return f"""# Domain-transform filter and solver
 
 See `docs/dt.md` for the algorithm and the hardware structure.
