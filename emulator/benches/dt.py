@@ -37,8 +37,9 @@ RF_ROUNDS = (1, 3)
 RF_SIGMA_S, RF_SIGMA_R = 16.0, 30.0
 
 
-def simulate_block(params, frames, *, seed, valid_prob=1.0, ready_prob=1.0):
-    """Stream ``frames`` through ``DomainTransformFilter(params)`` in the Amaranth simulator.
+def simulate_block(params, frames, *, seed, valid_prob=1.0, ready_prob=1.0, rounds=None):
+    """Stream ``frames`` through ``DomainTransformFilter(params)`` (or, with ``rounds``,
+    ``DomainTransformRounds(params, rounds)``) in the Amaranth simulator.
 
     ``frames`` are ``(guide, value, sigma_s_raw, sigma_r_raw)``; the sigma registers change
     between frames only and are held for the block's settle time before the next one.
@@ -47,9 +48,9 @@ def simulate_block(params, frames, *, seed, valid_prob=1.0, ready_prob=1.0):
     ``outputs`` a list of ``(cycle, value, last)``.
     """
     from amaranth.sim import Simulator
-    from hdl.dt_filter import DomainTransformFilter
+    from hdl.dt_filter import DomainTransformFilter, DomainTransformRounds
 
-    dut = DomainTransformFilter(params)
+    dut = DomainTransformFilter(params) if rounds is None else DomainTransformRounds(params, rounds)
     rng = random.Random(seed)
     expected = sum(f[0].size for f in frames)
     inputs, outputs = [], []
@@ -77,7 +78,7 @@ def simulate_block(params, frames, *, seed, valid_prob=1.0, ready_prob=1.0):
         ctx.set(dut.i.valid, 0)
 
     async def sink(ctx):
-        limit = 40 * expected + 40 * params.width * (params.window + 3) + 2000
+        limit = 40 * expected + 40 * (dut.latency + 3 * params.width) + 2000
         for _ in range(limit):
             ctx.set(dut.o.ready, int(rng.random() < ready_prob))
             await ctx.tick()
