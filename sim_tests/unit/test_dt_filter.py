@@ -92,7 +92,7 @@ def test_rounds_match_model(traffic):
     params = DtFilterParams(width=16, window=2)
     print(f"SEED={SEED}")
     busy = traffic == "full_rate"
-    frames = _test_frames(params, [6, 3], SEED + 2, [(12.0, 20.0)] * 2)
+    frames = _test_frames(params, [4, 2], SEED + 2, [(12.0, 20.0)] * 2)
     inputs, outputs, dut = simulate_block(params, frames, seed=SEED, rounds=3,
                                           valid_prob=1.0 if busy else 0.7,
                                           ready_prob=1.0 if busy else 0.6)
@@ -100,11 +100,11 @@ def test_rounds_match_model(traffic):
                                for frame in frames])
     got = np.array([value for _, value, _ in outputs])
     np.testing.assert_array_equal(got, expected, err_msg=f"SEED={SEED}")
-    assert [i for i, (_, _, last) in enumerate(outputs) if last] == [6 * 16 - 1, 9 * 16 - 1]
+    assert [i for i, (_, _, last) in enumerate(outputs) if last] == [4 * 16 - 1, 6 * 16 - 1]
     if busy:
         assert {out[0] - cycle for out, cycle in zip(outputs, inputs)} == {dut.latency}
         assert dut.latency == 3 * DomainTransformFilter(params).latency
-        assert outputs[6 * 16 - 1][0] - outputs[0][0] + 1 == 6 * 16
+        assert outputs[4 * 16 - 1][0] - outputs[0][0] + 1 == 4 * 16
 
 
 def test_rounds_scale_the_registers_by_the_schedule():
