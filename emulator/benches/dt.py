@@ -30,6 +30,8 @@ SIGMAS = [(5.0, 30.0), (20.0, 50.0), (60.0, 100.0), (200.0, 255.0)]
 WINDOWS = [1, 2, 4, 8, 16, 32, 64]
 #: Noise (std, depth units) on the low-resolution depth of the runtime scene.
 DEPTH_NOISE = 2.0
+#: Rounds of the measured DomainTransformRounds build (the golden default).
+ROUNDS_HW = 3
 #: Rounds compared for the hardware question (issue 20): does one RF round lose accuracy?
 RF_ROUNDS = (1, 3)
 #: RF settings of that comparison: sigma_s = RF_SIGMA_S sqrt(factor) pixels, sigma_r in
@@ -111,14 +113,16 @@ def _grey_scene(height, width, seed):
     return cv2.cvtColor(scene.guide, cv2.COLOR_BGR2GRAY).astype(np.int64), scene
 
 
-def _hardware_figures():
-    """Latency, throughput and tail from a simulated 640-pixel-wide frame."""
+def _hardware_figures(rounds=1):
+    """Latency, throughput and tail from a simulated 640-pixel-wide frame, through one
+    ``DomainTransformFilter`` or (``rounds`` > 1) a ``DomainTransformRounds``."""
     from hdl.dt_filter import DtFilterParams
     params = DtFilterParams()
     guide, _ = _grey_scene(4, params.width, seed=11)
     s_raw, r_raw = model.sigma_register("sigma_s", 20.0), model.sigma_register("sigma_r", 50.0)
-    inputs, outputs, dut = simulate_block(params, [(guide, guide, s_raw, r_raw)], seed=11)
-    expected = model.filter_frame(params, guide, guide, s_raw, r_raw).ravel().tolist()
+    inputs, outputs, dut = simulate_block(params, [(guide, guide, s_raw, r_raw)], seed=11,
+                                          rounds=None if rounds == 1 else rounds)
+    expected = model.filter_rounds(params, guide, guide, s_raw, r_raw, rounds).ravel().tolist()
     if [value for _, value, _ in outputs] != expected:
         raise AssertionError("dt_filter simulation differs from emulator.dt_filter")
     delays = {out[0] - cycle for out, cycle in zip(outputs, inputs)}
@@ -133,6 +137,28 @@ def _hardware_figures():
         "width_px": params.width,
         "window_lines": params.window,
     }
+
+
+def _rounds_accuracy(params, value_bits):
+    """Each of ROUNDS_HW emulated rounds against one golden round with the round's sigmas."""
+    from golden.dt import recursive_filter
+    from hdl.dt_filter import SIGMA_FMT
+    params = params.replace(value_bits=value_bits)
+    guide, scene = _grey_scene(480, params.width, seed=12)
+    value = guide if value_bits == 8 else np.rint(scene.depth * 257).astype(np.int64)
+    means, maxima = [], []
+    for sigma_s, sigma_r in SIGMAS:
+        current = value
+        for s_raw, r_raw in zip(*(model.round_registers(model.sigma_register(n, v), ROUNDS_HW)
+                                  for n, v in (("sigma_s", sigma_s), ("sigma_r", sigma_r)))):
+            out = model.filter_frame(params, guide, current, s_raw, r_raw)
+            err = np.abs(out - recursive_filter(
+                current.astype(float), guide.astype(float), sigma_s=SIGMA_FMT.to_float(s_raw),
+                sigma_r=SIGMA_FMT.to_float(r_raw), iterations=1, vertical_window=params.window))
+            means.append(float(err.mean()))
+            maxima.append(float(err.max()))
+            current = out
+    return {"pass_mean_err_lsb": round(max(means), 4), "pass_max_err_lsb": round(max(maxima), 4)}
 
 
 def _golden_horizontal(guide, value, sigma_s, sigma_r):
@@ -268,7 +294,7 @@ def _runtime_figures():
 
 
 def measure():
-    from hdl.dt_filter import DomainTransformFilter
+    from hdl.dt_filter import DomainTransformFilter, DomainTransformRounds
     params, figures = _hardware_figures()
     synth = synth_report(DomainTransformFilter(params), "dt_filter")
     figures.update({key: synth[key] for key in ("lut", "ff", "bram36", "dsp48", "lut_levels")})
@@ -282,6 +308,15 @@ def measure():
                                                if k.startswith("h_mean_err_lsb."))
         figures[prefix + "max_err_lsb"] = max(v for k, v in accuracy.items()
                                               if k.startswith("h_max_err_lsb."))
+    _, chain = _hardware_figures(rounds=ROUNDS_HW)
+    figures.update({f"rounds{ROUNDS_HW}.{key}": chain[key]
+                    for key in ("px_per_clock", "latency_clocks", "latency_rows")})
+    synth = synth_report(DomainTransformRounds(params, ROUNDS_HW), f"dt_rounds{ROUNDS_HW}")
+    figures.update({f"rounds{ROUNDS_HW}.{key}": synth[key]
+                    for key in ("lut", "ff", "bram36", "dsp48")})
+    for bits in (8, 16):
+        figures.update({f"rounds{ROUNDS_HW}.v{bits}.{key}": value
+                        for key, value in _rounds_accuracy(params, bits).items()})
     figures.update(_dsr_figures())
     figures.update(_runtime_figures())
     return figures
@@ -354,7 +389,8 @@ benchmark's confidence); RMSE on the 8-bit disparity scale over the whole image.
 
 DTS runtime: {f['dev.runtime_s_per_mp']} s per megapixel (15 iterations, numpy, one core).
 
-All ranked methods on the development scene:
+All ranked methods on the development scene (every DTS row weighs the data by
+(t / median t)^2, `disparity_power` 2):
 
 | method | 2x | 4x | 8x | 16x | geomean |
 |---|---|---|---|---|---|
@@ -372,8 +408,9 @@ Rank agreement of the synthetic twin with the development scene (Kendall's tau o
 ### One RF round or three (hardware question)
 
 Confidence-normalised RF, `RF(c t) / RF(c)`, of the development targets along the grey
-guide (sigma_s = {RF_SIGMA_S:g} sqrt(factor) px, sigma_r = {RF_SIGMA_R:g} LSB), RMSE
-against the ground truth with one round (the hardware) and three (the golden default):
+guide (sigma_s = {RF_SIGMA_S:g} sqrt(factor) px, sigma_r = {RF_SIGMA_R:g} LSB, golden,
+exact vertical pass), RMSE against the ground truth with one round
+(`DomainTransformFilter`) and three (the golden default, `DomainTransformRounds`):
 
 | rounds | 2x | 4x | 8x | 16x |
 |---|---|---|---|---|
@@ -401,6 +438,25 @@ Simulated in the Amaranth simulator on a synthetic scene, every output checked a
 | DSP48E1 | {f['dsp48']} |
 | LUT levels (longest path) | {f['lut_levels']} |
 | 16-bit values: LUT / FF / BRAM36 / DSP48E1 | {f['v16.lut']} / {f['v16.ff']} / {f['v16.bram36']} / {f['v16.dsp48']} |
+
+### Three rounds: `DomainTransformRounds` (golden default schedule)
+
+The same build as {ROUNDS_HW} chained stages with the registers scaled by the schedule and
+the guide carried through FIFOs; simulated the same way, every output checked against
+`emulator.dt_filter.filter_rounds`.
+
+| figure | value |
+|---|---|
+| pixels per clock | {f[f'rounds{ROUNDS_HW}.px_per_clock']} |
+| latency, clocks | {f[f'rounds{ROUNDS_HW}.latency_clocks']} ({f[f'rounds{ROUNDS_HW}.latency_rows']} rows) |
+| LUT / FF | {f[f'rounds{ROUNDS_HW}.lut']} / {f[f'rounds{ROUNDS_HW}.ff']} |
+| BRAM36 | {f[f'rounds{ROUNDS_HW}.bram36']} |
+| DSP48E1 | {f[f'rounds{ROUNDS_HW}.dsp48']} |
+| worst round against one golden round with its sigmas, 8-bit: mean / max LSB | {f[f'rounds{ROUNDS_HW}.v8.pass_mean_err_lsb']} / {f[f'rounds{ROUNDS_HW}.v8.pass_max_err_lsb']} |
+| the same, 16-bit | {f[f'rounds{ROUNDS_HW}.v16.pass_mean_err_lsb']} / {f[f'rounds{ROUNDS_HW}.v16.pass_max_err_lsb']} |
+
+(Rounds measured per pass on the 480x640 scene below, all four sigma settings, window
+{f['window_lines']}.)
 
 ## Emulator against the float golden filter
 
@@ -434,12 +490,13 @@ The error decays like a**L with a = exp(-sqrt(2)/sigma_s): long for large sigma_
 
 ## Depth super-resolution: synthetic twin
 
-{f['synth.scenes']} scenes of {f['synth.width']}x{f['synth.height']} from `golden/dt_scenes.py`, degraded as the
-real benchmark (`golden/dsr_benchmark.py`): objects at half colour contrast against
-their background and the guide blurred by 1 px; the low-resolution disparity is the
-block average with depth-dependent noise (std 660 / disparity) rounded to 8 bits,
-bicubic-upsampled (OpenCV), with the benchmark's confidence pattern. RMSE geometric mean
-over the scenes.
+{f['synth.scenes']} scenes of {f['synth.width']}x{f['synth.height']} from `golden/dt_scenes.py` made to look like the real
+data and degraded as the real benchmark (`golden/dsr_benchmark.py`): disparity on the
+dev scene's range (66-217), objects at half colour contrast against their background,
+multi-scale guide texture (std 8 LSB), guide blurred by 1 px; the low-resolution
+disparity is the block average with depth-dependent noise (std 660 / disparity) rounded
+to 8 bits, bicubic-upsampled (OpenCV), with the benchmark's confidence pattern. RMSE
+geometric mean over the scenes.
 
 | method | 2x | 4x | 8x | 16x | geomean |
 |---|---|---|---|---|---|

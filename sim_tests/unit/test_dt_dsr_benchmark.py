@@ -95,3 +95,16 @@ def test_dts_on_a_crop_of_the_dev_scene():
         print(f"{case.factor}x: bicubic {bicubic:.3f}, DTS {solved:.3f}, "
               f"FBS {dsr.rmse(case.reference, case.truth):.3f}")
         assert bicubic / solved >= MIN_CROP_GAIN
+
+
+def test_results_page_says_when_the_dev_data_was_missing():
+    import json
+    from pathlib import Path
+    from emulator.benches import dt
+    results = Path(__file__).resolve().parents[2] / "docs" / "results" / "figures.json"
+    figures = {key[3:]: value for key, value in json.loads(results.read_text()).items()
+               if key.startswith("dt.") and not key.startswith(("dt.dev.", "dt.rank_tau."))}
+    figures["dev.missing"] = "no development scene in '/nowhere'"
+    page = dt.report(figures)
+    assert "Not measured: no development scene in '/nowhere'" in page
+    assert dsr.DATA_ENV in page
