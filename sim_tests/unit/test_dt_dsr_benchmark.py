@@ -69,7 +69,8 @@ def test_unknown_method_is_named():
 def test_missing_data_names_the_directory_and_variable(tmp_path, monkeypatch):
     monkeypatch.setenv(dsr.DATA_ENV, str(tmp_path))
     assert dsr.data_dir() == tmp_path
-    with pytest.raises(FileNotFoundError, match=f"no development scene in .* \\(set {dsr.DATA_ENV}"):
+    message = f"no development scene in .* \\(set {dsr.DATA_ENV}"
+    with pytest.raises(FileNotFoundError, match=message):
         dsr.load_dev()
 
 
