@@ -16,13 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
+from hdl.descriptor.params import DEFAULT_SEGMENTS
+
 __all__ = ["RECORD_FIELDS", "CosimResult", "compare_records", "slice_rig", "slice_params",
            "NoSolvingWindow", "solving_window", "cosim_slice"]
 
 #: Pose-record fields compared, element by element (``q`` and ``p`` are arrays).
 RECORD_FIELDS = ("row", "time", "flags", "q", "p")
-#: Temporal segments per row of the slice's engine (the solver's slots per camera).
-SEGMENTS = 4
 #: UART divisor of the slice (raw ``UartParams.divisor_fmt``: one clock per bit), so a
 #: packet leaves before the next row's record and the UART carries every record.
 DIVISOR = 16
@@ -40,7 +40,7 @@ class CosimResult:
     -------
     records : dict
         The HDL's pose records as read from the PS FIFO registers, raw integer arrays in
-        the packet formats (``emulator.packets``): ``row``, ``time``, ``flags``, ``q``
+        the packet formats (``emulator.output.packets``): ``row``, ``time``, ``flags``, ``q``
         (n, 4), ``p`` (n, 3).
     expected : dict
         The emulator's records for the same row sets, narrowed the same way.
@@ -152,10 +152,10 @@ def compare_records(records, expected, frames=None):
 
 # --- the slice -------------------------------------------------------------------------
 
-def slice_rig(rig, cameras):
+def slice_rig(rig, cameras, segments=DEFAULT_SEGMENTS):
     """The ``cameras / 2`` rectified pairs of ``rig`` that observe the motion best (the
-    smallest condition number of :attr:`golden.rig.Rig.observability` with the slice's
-    segments; the first such set in pair order on a tie) as a rig of their own, and the
+    smallest condition number of :attr:`golden.rig.Rig.observability` with ``segments``
+    points per row; the first such set in pair order on a tie) as a rig of their own, and the
     dataset camera behind each of its cameras (pairs become (0, 1), (2, 3), ...). On
     stereo20 no two pairs observe all six degrees of freedom: the smallest slice that
     can solve rows has three pairs."""
@@ -172,39 +172,31 @@ def slice_rig(rig, cameras):
     def sub_rig(combo):
         chosen = [k for j in combo for k in pairs[j][:2]]
         return Rig(name=f"{rig.name}-slice", cameras=tuple(rig.cameras[k] for k in chosen),
-                   row_points=SEGMENTS, nominal_depth=rig.nominal_depth,
+                   row_points=segments, nominal_depth=rig.nominal_depth,
                    allow_unobservable=True), chosen
 
     candidates = [sub_rig(combo) for combo in combinations(range(len(pairs)), cameras // 2)]
     return min(candidates, key=lambda c: c[0].observability.condition)
 
 
-def slice_params(rig, cameras, rows, records):
-    """:class:`hdl.top.TopParams` of the slice and the pipeline of its sub-rig.
+def slice_params(rig, cameras, rows, records, segments=DEFAULT_SEGMENTS):
+    """:class:`hdl.top_params.TopParams` of the slice and the pipeline of its sub-rig.
 
     The top has ``cameras`` ports (whole pairs of ``rig``, :func:`slice_rig`) and is
-    built for cameras of the rig's width and ``rows`` rows, the window it plays: the
-    lanes, the router and the solver's arithmetic are the full design's, the memories
-    indexed by row (reference rows, coefficient store, pose ring) hold the window's rows.
-    Its formats and coefficients are those of :func:`emulator.pipeline.configure` for the
-    sub-rig at full height, and its PS FIFO is deep enough for ``records`` pose records.
-    Returns ``(params, config, chosen dataset cameras)``.
+    built for cameras of the rig's width and ``rows`` rows, the window it plays
+    (:meth:`hdl.pipeline_config.PipelineConfig.window`): the lanes, the router and the
+    solver's arithmetic are the full design's, the memories indexed by row (reference
+    rows, coefficient store, pose ring) hold the window's rows. Its formats and
+    coefficients are the sub-rig's :class:`~hdl.pipeline_config.PipelineConfig` with
+    ``segments`` temporal segments at full height, and its PS FIFO is deep enough for
+    ``records`` pose records. Returns ``(params, config, chosen dataset cameras)``.
     """
-    from emulator.pipeline import configure
-    from golden.checks import check_int
-    from hdl.camera_input import CameraParams
-    from hdl.pose_packet import PoseOutputParams
-    from hdl.top import TopParams
-    sub, chosen = slice_rig(rig, cameras)
-    config = configure(sub, segments=SEGMENTS)
-    lane = config.router.temporal
-    check_int("rows", rows, 1, lane.height)
-    camera = CameraParams(max_width=lane.width, max_height=rows)
+    from hdl.pipeline_config import PipelineConfig
+    from hdl.output.params import PoseOutputParams
+    sub, chosen = slice_rig(rig, cameras, segments)
+    config = PipelineConfig.for_rig(sub, segments=segments)
     depth = 1 << max(records, 2).bit_length()
-    params = TopParams.for_pairs(config.router.pairs, segments=SEGMENTS, camera=camera,
-                                 solver=config.router.solver,
-                                 pose_output=PoseOutputParams(fifo_depth=depth),
-                                 clk_hz=round(config.clk_hz))
+    params = config.window(rows, pose_output=PoseOutputParams(fifo_depth=depth))
     return params, config, chosen
 
 
@@ -263,11 +255,11 @@ def row_sets_from_columns(layout, columns):
 
 def expected_records(params, coef_raw, row_sets):
     """The emulator on the row sets the HDL front end produced: the engine model, the
-    solver model, and the PS FIFO's narrowing (``emulator.packets.keep_poses``), as
+    solver model, and the PS FIFO's narrowing (``emulator.output.packets.keep_poses``), as
     record arrays; plus the pose records' packets (UART bytes)."""
-    from emulator import packets
-    from emulator.measurement_engine import run_engine
-    from emulator.measurement_router import pose_rows
+    from emulator.output import packets
+    from emulator.measurement.engine import run_engine
+    from emulator.measurement.router import pose_rows
     from emulator.pose_solver import pose_solver_model
     engine = params.engine
     config = {"temporal": [0] * engine.cameras, "stereo": [0] * len(engine.pairs),
@@ -314,8 +306,9 @@ def _benchmark_times():
             if f"e2e.wall_s.cosim_{phase}" in figures}
 
 
-def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=False,
-                seed=None, build_dir="build/cosim", progress=None):
+def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, segments=DEFAULT_SEGMENTS,
+                sim="verilator", waves=False, seed=None, build_dir="build/cosim",
+                progress=None):
     """Co-simulate ``rows`` rows of ``frames`` frames of ``cameras`` cameras of
     ``dataset`` (a :class:`golden.dataset.Dataset` or its path) through the HDL top and
     compare with the emulator; a :class:`CosimResult`.
@@ -325,7 +318,7 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
     rows (with two, every row is flagged). ``rows`` consecutive rows of each frame, at
     full width, where the emulator solves most row sets on the slice's cameras
     (:func:`solving_window`), are played as frames of ``rows`` rows (the top is built for
-    them, :func:`slice_params`).
+    them, :func:`slice_params`), with ``segments`` temporal segments per row.
     ``sim``: ``verilator`` or ``icarus``; ``waves`` records waveforms; ``seed`` fixes
     cocotb's seed (camera phases, bus pauses); ``build_dir`` receives the stimulus and
     the simulation's record (the HDL build itself goes under ``build/cocotb/``);
@@ -351,7 +344,8 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, sim="verilator", waves=
     n_frames, height, width = dataset.cameras[0].rows.shape
     check_int("frames", frames, 1, n_frames)
     check_int("rows", rows, 1, height)
-    params, config, chosen = slice_params(dataset.rig, cameras, rows, frames * rows)
+    params, config, chosen = slice_params(dataset.rig, cameras, rows, frames * rows,
+                                          segments)
     say = print if progress else (lambda *_: None)
     first_row, solvable = solving_window(config, dataset, chosen, frames, rows)
     coef_raw = config.coef_raw[:, first_row:first_row + rows]

@@ -27,7 +27,7 @@ __all__ = ["true_steps", "golden_steps", "float_steps", "agreement", "compare_st
            "SchemeResult", "scheme_steps", "measurement_agreement", "check_tolerances",
            "SUBPIXEL_TOLERANCE", "WELL_TEXTURED", "STEP_TOLERANCE"]
 
-#: The lanes' documented sub-pixel agreement with the float matcher (docs/row_descriptor.md).
+#: The lanes' documented sub-pixel agreement with the float matcher (docs/descriptor/row_descriptor.md).
 SUBPIXEL_TOLERANCE = 1 / 16
 #: A segment is well textured where the float scheme's weight (peak ratio) is at least
 #: this, as in the lanes' own comparison with the golden matcher.

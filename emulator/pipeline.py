@@ -3,7 +3,7 @@
 Composed of the per-block models the cocotb benches check the HDL against (their own
 functions and classes, not copies): :class:`emulator.row_descriptor.TemporalLaneModel`
 (one per camera), :class:`emulator.row_descriptor.StereoLaneModel` (one per rectified
-pair), :mod:`emulator.measurement_router` and :func:`emulator.pose_solver.pose_solver_model`.
+pair), :mod:`emulator.measurement.router` and :func:`emulator.pose_solver.pose_solver_model`.
 
 What enters where the hardware's front end would be: each row of the dataset as a
 :class:`emulator.row_descriptor.FramedRow` (what the framer hands on for a clean row:
@@ -27,94 +27,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from golden.depth import stereo_pairs
-from golden.descriptor import STEREO_MATCH, MatchParams, segment_bounds
-from golden.pose_lsq import shift_coefficients
-from hdl.pose_params import PoseSolverParams, coefficient_formats, quantize_coefficients
-from hdl.row_descriptor_params import RowDescriptorParams
+from emulator.measurement.router import pose_rows, route_row
+from emulator.pose_solver import pose_solver_model
+from emulator.row_descriptor import FramedRow, StereoLaneModel, TemporalLaneModel
 
-from .measurement_router import RouterParams, pose_rows, route_row
-from .pose_solver import pose_solver_model
-from .row_descriptor import FramedRow, StereoLaneModel, TemporalLaneModel
-
-__all__ = ["PipelineConfig", "PipelineResult", "configure", "segment_centres",
-           "coefficient_table", "run"]
-
-
-@dataclass(frozen=True)
-class PipelineConfig:
-    """Everything the pipeline model needs for one rig.
-
-    Members
-    -------
-    router : RouterParams
-        Lane and solver parameters, stereo pairing.
-    coef_raw : ndarray (slots, rows, 9)
-        The solver's coefficient store (raw).
-    table : ndarray (slots, rows, 9)
-        The float coefficients it was quantized from.
-    clk_hz : float
-        System clock: time stamps are clocks of this frequency.
-    """
-    router: RouterParams
-    coef_raw: np.ndarray
-    table: np.ndarray
-    clk_hz: float
-
-
-def segment_centres(lane):
-    """Pixel columns of the centres of a lane's segments (run-time centre 0): where the
-    coefficient of each segment's equation is evaluated."""
-    return np.array([(lo + hi - 1) / 2 for lo, hi in
-                     segment_bounds(lane.width, lane.descriptor, lane.match)])
-
-
-def coefficient_table(rig, lane, cue_scales):
-    """Float coefficient table (cameras · K, rows, 9), camera-major, at the lane's
-    segment centres, each camera with its cue scale ``1/(f·b)``."""
-    rows = np.arange(lane.height, dtype=float)[None, :]
-    centres = segment_centres(lane)[:, None]
-    return np.concatenate([shift_coefficients(cam, centres, rows, scale).table()
-                           for cam, scale in zip(rig.cameras, cue_scales)])
-
-
-def _bits(count):
-    return max(1, (count - 1).bit_length())
-
-
-def configure(rig, *, segments=4, coef_width=18, clk_hz=100e6):
-    """The pipeline for ``rig``: lanes of ``segments`` temporal segments (one stereo
-    segment), one coefficient slot per camera and segment at ``coef_width`` bits.
-
-    Raises
-    ------
-    ValueError
-        If the cameras differ in size, or a camera has no rectified stereo partner (the
-        only depth cue the hardware has).
-    """
-    sizes = {(cam.width, cam.height) for cam in rig.cameras}
-    if len(sizes) != 1:
-        raise ValueError(f"rig cameras must share one image size, not {sorted(sizes)}")
-    (width, height), = sizes
-    common = {"width": width, "height": height, "camera_bits": _bits(len(rig.cameras)),
-              "row_bits": _bits(height)}
-    temporal = RowDescriptorParams(**common, match=MatchParams(segments=segments))
-    stereo = RowDescriptorParams(**common, match=STEREO_MATCH)
-    pairs = stereo_pairs(rig)
-    scales = np.full(len(rig.cameras), np.nan)
-    for left, right, focal_baseline in pairs:
-        scales[[left, right]] = 1.0 / focal_baseline
-    if np.isnan(scales).any():
-        missing = [n for n in range(len(rig.cameras)) if np.isnan(scales[n])]
-        raise ValueError(f"rig {rig.name!r}: cameras {missing} have no rectified stereo "
-                         f"partner, the hardware's only depth cue")
-    table = coefficient_table(rig, temporal, scales)
-    solver = PoseSolverParams(slots=table.shape[0], rows=height,
-                              **coefficient_formats(table, coef_width))
-    router = RouterParams(cameras=len(rig.cameras), pairs=tuple((a, b) for a, b, _ in pairs),
-                          temporal=temporal, stereo=stereo, solver=solver)
-    return PipelineConfig(router=router, coef_raw=quantize_coefficients(solver, table),
-                          table=table, clk_hz=clk_hz)
+__all__ = ["PipelineResult", "run"]
 
 
 @dataclass(frozen=True)
@@ -170,8 +87,9 @@ def _framed(dataset, camera, frame, row, config, t0):
 
 
 def run(config, dataset, frames=None, *, progress=False):
-    """Run the dataset (first ``frames`` frames, default all) through the pipeline;
-    ``progress`` shows a bar over the frames.
+    """Run the dataset (first ``frames`` frames, default all) through the pipeline of
+    ``config`` (:class:`hdl.pipeline_config.PipelineConfig`); ``progress`` shows a bar
+    over the frames.
 
     Each lane takes a whole frame of its rows at once (the lane models' batched path,
     equal to row by row); the router then takes the row sets in (frame, row) order."""

@@ -1,10 +1,10 @@
 """Bit-accurate model of :class:`hdl.pose_solver.PoseSolver`.
 
 Integers only, quantizing exactly where the hardware does, with the formats of
-:class:`hdl.pose_params.PoseSolverParams` and the arithmetic of :mod:`hdl.fixed`.
+:class:`hdl.pose.params.PoseSolverParams` and the arithmetic of :mod:`hdl.fixed`.
 Every rounded value is the half-even rounding of an *exact* sum of exact products, so
 the order in which the hardware accumulates does not matter. The algorithm, step by
-step, is in ``docs/pose_solver.md``:
+step, is in ``docs/pose/pose_solver.md``:
 
 1. design rows ``a = [w a_T, a_R + w a_C]`` from the coefficient store (rounded to
    ``a_fmt``), then exact sums ``N = Σ c aᵀa`` and ``r = Σ c a s``;
@@ -25,7 +25,8 @@ import numpy as np
 
 from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, mul, resize
 from golden import pose_lsq
-from hdl.pose_params import DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag, seed_tables
+from hdl.pose.params import (DEFAULT_COEF_WIDTH, DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT,
+                             PoseFlag, seed_tables)
 
 __all__ = ["PoseRows", "Value", "StepResult", "accumulate", "scale_system",
            "rsqrt_seed", "solve_rows", "integrate_rows",
@@ -293,7 +294,7 @@ def _cholesky_solve(params, scaled, rhs, scales, trace=None):
     """Cholesky ``N̂ = G Gᵀ`` with the forward substitution carried along, the back
     substitution with ``L = G·ρ``, then ``Y = S x``. Returns (six step Values, ILL mask,
     saturated mask). ``trace``, a dict, receives every intermediate under the names of
-    :func:`hdl.pose_program.build_row_program`."""
+    :func:`hdl.pose.program.build_row_program`."""
     n = len(np.asarray(scales[0].raw))
     entry = {pair: v for pair, v in zip(UPPER, scaled)}
     unit, lower, sol = params.unit_fmt, params.lower_fmt, params.solution_fmt
@@ -343,7 +344,7 @@ def _cholesky_solve(params, scaled, rhs, scales, trace=None):
 
 def solve_trace(params, coef_raw, rows):
     """Every intermediate of the solve of every row: dict name -> Value (the names of
-    :func:`hdl.pose_program.build_row_program`; ``N``/``b``/``s`` for the scaled inputs)."""
+    :func:`hdl.pose.program.build_row_program`; ``N``/``b``/``s`` for the scaled inputs)."""
     normal, rhs = accumulate(params, coef_raw, rows)
     scaled, scaled_rhs, scales, _, _ = scale_system(params, normal, rhs)
     trace = {f"N{i}{j}": v for (i, j), v in zip(UPPER, scaled)}
@@ -479,11 +480,11 @@ def rows_from_float(params, slot, shift, cue, weight, row, time):
                     time=np.asarray(time, dtype=np.int64) & ((1 << params.time_bits) - 1))
 
 
-def rig_solver(rig, cue_scale, coef_width=18, **changes):
+def rig_solver(rig, cue_scale, coef_width=DEFAULT_COEF_WIDTH, **changes):
     """Parameters and coefficient store for a rig: ``(params, raw coefficients, float
     table)``, with the coefficient formats picked from the rig's table at ``coef_width``
     bits and ``changes`` applied to the other parameters."""
-    from hdl.pose_params import PoseSolverParams, coefficient_formats, quantize_coefficients
+    from hdl.pose.params import PoseSolverParams, coefficient_formats, quantize_coefficients
     table = pose_lsq.rig_coefficient_table(rig, cue_scale)
     params = PoseSolverParams(slots=table.shape[0], rows=table.shape[1],
                               **coefficient_formats(table, coef_width), **changes)

@@ -183,7 +183,7 @@ def _plots(outcome, out):
     from emulator.commands.track import plot_trajectory
     from emulator.e2e import golden_steps, true_steps
 
-    from .report_plots import emulator_camera_confidence, plot_confidence, plot_steps
+    from emulator.report_plots import emulator_camera_confidence, plot_confidence, plot_steps
     job, dataset, emulated = outcome.job, outcome.dataset, outcome.emulated
     frames, rows = emulated.frame, emulated.records["row"]
     times = dataset.cameras[0].time[frames, rows]

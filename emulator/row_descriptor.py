@@ -1,6 +1,6 @@
 """Bit-accurate model of the row-descriptor lanes (``hdl/row_descriptor.py``).
 
-Integers only, from the same :class:`hdl.row_descriptor_params.RowDescriptorParams` as
+Integers only, from the same :class:`hdl.descriptor.params.RowDescriptorParams` as
 the gateware. The conventions (borders, shift sign, compare range, segments, first
 minimum, second minimum at distance ≥ 2) are :mod:`golden.descriptor`'s, and so are the
 integer parts of the computation: the bit changes and the cost peaks are called

@@ -12,6 +12,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .checks import check_int, check_number
 from .lens import LENS_PRESETS, distort, fold_radius, radial_factor, undistort
 from .rotations import is_rotation
 
@@ -33,17 +34,6 @@ def focal_for_vfov(vfov_deg, height, k1=0.0, k2=0.0):
         raise ValueError(f"vfov_deg {vfov_deg} reaches beyond the fold radius of lens "
                          f"(k1={k1}, k2={k2})")
     return (height / 2) / (ru * radial_factor(ru * ru, k1, k2))
-
-
-def _check_number(name, value, *, positive=False, nonnegative=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a number, not {value!r}")
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite, not {value!r}")
-    if positive and value <= 0:
-        raise ValueError(f"{name} must be positive, not {value!r}")
-    if nonnegative and value < 0:
-        raise ValueError(f"{name} must be non-negative, not {value!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -102,15 +92,13 @@ class Camera:
         if not isinstance(self.name, str) or not self.name:
             raise TypeError(f"name must be a non-empty string, not {self.name!r}")
         for name in ("width", "height", "exposure_samples"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"{name} must be a positive integer, not {value!r}")
+            check_int(name, getattr(self, name), 1)
         for name in ("fx", "fy", "fps", "t_r"):
-            _check_number(name, getattr(self, name), positive=True)
+            check_number(name, getattr(self, name), 0, low_open=True)
         for name in ("cx", "cy", "k1", "k2"):
-            _check_number(name, getattr(self, name))
+            check_number(name, getattr(self, name))
         for name in ("t_f", "t_e", "trigger_offset", "trigger_jitter", "noise_sigma"):
-            _check_number(name, getattr(self, name), nonnegative=True)
+            check_number(name, getattr(self, name), 0)
         rotation = np.asarray(self.rotation, dtype=float)
         if not is_rotation(rotation):
             raise ValueError(f"rotation must be a 3×3 proper rotation matrix, not {self.rotation!r}")
@@ -158,7 +146,7 @@ class Camera:
             raise ValueError(f"lens must be one of {', '.join(LENS_PRESETS)}, not {lens!r}")
         k1 = LENS_PRESETS[lens][0] if k1 is None else k1
         k2 = LENS_PRESETS[lens][1] if k2 is None else k2
-        _check_number("fps", fps, positive=True)
+        check_number("fps", fps, 0, low_open=True)
         readout = 1.0 / fps - t_f - t_e
         if readout <= 0:
             raise ValueError(f"infeasible timing: t_f + t_e = {t_f + t_e:.9g} s leaves no "

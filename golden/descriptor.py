@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .checks import check_int
+from .checks import check_int, check_number
 
 __all__ = ["DescriptorParams", "MatchParams", "MatchResult", "CostPeaks", "dog2_kernel",
            "response", "describe", "strength", "hamming_costs", "transitions",
@@ -67,14 +67,8 @@ class DescriptorParams:
     strong_response: float = 12.0
 
     def __post_init__(self):
-        if not isinstance(self.sigma, (int, float)) or isinstance(self.sigma, bool):
-            raise TypeError(f"sigma must be a number, not {self.sigma!r}")
-        if not 0.5 <= self.sigma <= 8.0:
-            raise ValueError(f"sigma must be between 0.5 and 8 pixels, not {self.sigma}")
-        if (not isinstance(self.strong_response, (int, float))
-                or isinstance(self.strong_response, bool) or self.strong_response < 0):
-            raise ValueError(f"strong_response must be a number ≥ 0, not "
-                             f"{self.strong_response!r}")
+        check_number("sigma", self.sigma, 0.5, 8.0)
+        check_number("strong_response", self.strong_response, 0)
 
     replace = replace
 
@@ -113,10 +107,8 @@ class MatchParams:
     min_strong: int = 16
 
     def __post_init__(self):
-        for name in ("shift_min", "shift_max"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool):
-                raise TypeError(f"{name} must be an integer, not {value!r}")
+        check_int("shift_min", self.shift_min)
+        check_int("shift_max", self.shift_max)
         if self.shift_max - self.shift_min < 2:
             raise ValueError(f"shift window [{self.shift_min}, {self.shift_max}] must hold at "
                              f"least 3 shifts (parabola fit)")
@@ -124,8 +116,7 @@ class MatchParams:
         check_int("min_transitions", self.min_transitions, 0)
         check_int("min_strong", self.min_strong, 0)
         check_int("peak_ratio_offset", self.peak_ratio_offset, 0)
-        if not isinstance(self.peak_ratio_cap, (int, float)) or not self.peak_ratio_cap > 1:
-            raise ValueError(f"peak_ratio_cap must be a number > 1, not {self.peak_ratio_cap!r}")
+        check_number("peak_ratio_cap", self.peak_ratio_cap, 1, low_open=True)
 
     replace = replace
 

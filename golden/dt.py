@@ -22,7 +22,7 @@ shrinking schedule ``sigma_H,i = sigma_s sqrt(3) 2**(N-i) / sqrt(4**N - 1)``
 The vertical anti-causal RF pass can be limited to a window of ``L`` lines
 (``vertical_window``): row ``y`` then starts its backward recursion at row
 ``y + L - 1``, which is what a streaming implementation with ``L`` line buffers computes
-(:mod:`hdl.dt_filter`); the error against the exact pass decays like ``a**L``.
+(:mod:`hdl.dt.filter`); the error against the exact pass decays like ``a**L``.
 
 Arrays are ``(H, W)`` or ``(H, W, C)``; the guide's units are those of ``sigma_r``.
 """

@@ -40,7 +40,7 @@ __all__ = ["DtsParams", "dts", "target_confidence"]
 
 #: Per-factor rule for depth super-resolution (:meth:`DtsParams.for_factor`): spatial
 #: extent ``SIGMA_S_PER_ROOT_FACTOR * sqrt(factor)`` pixels, smoothness weight
-#: ``LAM_PER_FACTOR * factor``. Tuned on the development scene (docs/dt.md).
+#: ``LAM_PER_FACTOR * factor``. Tuned on the development scene (docs/dt/dt.md).
 SIGMA_S_PER_ROOT_FACTOR = 16.0
 LAM_PER_FACTOR = 5.0 / 3.0
 

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import check_int
 from .rotations import exp_so3
 
 __all__ = ["UNKNOWNS", "COEFFICIENTS", "ShiftCoefficients", "shift_coefficients",
@@ -125,8 +126,7 @@ def shift_coefficients(camera, px, py, cue_scale=1.0):
 def segment_columns(width, segments):
     """Pixel columns of the centres of ``segments`` equal parts of a row (one segment:
     the centre column)."""
-    if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
-        raise ValueError(f"segments must be a positive integer, not {segments!r}")
+    check_int("segments", segments, 1)
     return (np.arange(segments) + 0.5) * width / segments - 0.5
 
 

@@ -10,6 +10,7 @@ Rig frame: x right, y down, z forward (a head looking ahead).
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+from .checks import check_int, check_number
 from .camera import Camera, focal_for_vfov
 from .config_files import check_keys, read_config_file
 from .lens import LENS_PRESETS
@@ -60,11 +61,8 @@ class Rig:
         names = [c.name for c in cameras]
         if len(set(names)) != len(names):
             raise ValueError(f"cameras must have unique names, not {names}")
-        if isinstance(self.row_points, bool) or not isinstance(self.row_points, int) \
-                or self.row_points < 1:
-            raise ValueError(f"row_points must be a positive integer, not {self.row_points!r}")
-        if not (isinstance(self.nominal_depth, (int, float)) and self.nominal_depth > 0):
-            raise ValueError(f"nominal_depth must be a positive number, not {self.nominal_depth!r}")
+        check_int("row_points", self.row_points, 1)
+        check_number("nominal_depth", self.nominal_depth, 0, low_open=True)
         object.__setattr__(self, "cameras", cameras)
         verdict = analyze(cameras, self.row_points, self.nominal_depth)
         object.__setattr__(self, "observability", verdict)

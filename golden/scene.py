@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .checks import check_int, check_number
 from .config_files import check_keys, read_config_file
 from .textures import TextureAtlas, image_texture, procedural_texture
 
@@ -88,13 +89,9 @@ class SceneSpec:
                 raise ValueError(f"box {k} ({box.lo} – {box.hi}) must lie inside the room "
                                  f"({tuple(lo)} – {tuple(hi)})")
         object.__setattr__(self, "boxes", boxes)
-        if not isinstance(self.texel, (int, float)) or not self.texel > 0:
-            raise ValueError(f"texel must be a positive number of metres, not {self.texel!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"seed must be a non-negative integer, not {self.seed!r}")
-        if isinstance(self.mip_levels, bool) or not isinstance(self.mip_levels, int) \
-                or not 0 <= self.mip_levels <= 8:
-            raise ValueError(f"mip_levels must be an integer in [0, 8], not {self.mip_levels!r}")
+        check_number("texel", self.texel, 0, low_open=True)
+        check_int("seed", self.seed, 0)
+        check_int("mip_levels", self.mip_levels, 0, 8)
 
     @property
     def room_lo(self):

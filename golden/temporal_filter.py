@@ -19,6 +19,8 @@ directions much less than usual.
 
 import numpy as np
 
+from .checks import check_int, check_number
+
 __all__ = ["HUBER_K", "BIWEIGHT_CK", "huber_weight", "biweight_rho",
            "RobustScale", "HoltWinters", "information_gain"]
 
@@ -41,14 +43,6 @@ def biweight_rho(x, k=HUBER_K, ck=BIWEIGHT_CK):
     return ck * (1.0 - (1.0 - u) ** 3)
 
 
-def _check_fraction(name, value, allow_zero=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise TypeError(f"{name} must be a number, not {value!r}")
-    if not (0 <= value <= 1 if allow_zero else 0 < value <= 1):
-        raise ValueError(f"{name} must be in {'[0, 1]' if allow_zero else '(0, 1]'}, "
-                         f"not {value!r}")
-
-
 class RobustScale:
     """Per-channel robust scale of innovations and the Huber verdict on each new one.
 
@@ -66,13 +60,10 @@ class RobustScale:
     """
 
     def __init__(self, channels, *, initial, floor, smoothing=0.1, k=HUBER_K):
-        if isinstance(channels, bool) or not isinstance(channels, (int, np.integer)) \
-                or channels < 1:
-            raise ValueError(f"channels must be a positive integer, not {channels!r}")
+        check_int("channels", channels, 1)
         for name, value in (("initial", initial), ("floor", floor), ("k", k)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0:
-                raise ValueError(f"{name} must be a positive number, not {value!r}")
-        _check_fraction("smoothing", smoothing)
+            check_number(name, value, 0, low_open=True)
+        check_number("smoothing", smoothing, 0, 1, low_open=True)
         self.scale = np.full(channels, max(float(initial), float(floor)))
         self.floor, self.smoothing, self.k = float(floor), float(smoothing), float(k)
 
@@ -103,8 +94,8 @@ class HoltWinters:
     """
 
     def __init__(self, level, *, alpha, beta):
-        _check_fraction("alpha", alpha)
-        _check_fraction("beta", beta, allow_zero=True)
+        check_number("alpha", alpha, 0, 1, low_open=True)
+        check_number("beta", beta, 0, 1)
         self.level = np.array(level, dtype=float)
         self.trend = np.zeros_like(self.level)
         self.alpha, self.beta = float(alpha), float(beta)

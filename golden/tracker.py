@@ -33,6 +33,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from .checks import check_int, check_number
 from .descriptor import (DescriptorParams, MatchParams, describe, match, segment_bounds,
                          strength)
 from .depth import StereoDepth, stereo_pairs
@@ -63,16 +64,6 @@ REFERENCE_MARGIN = 2
 #: Weight of each new solved system in the running "typical information" that scales
 #: the filter gains (about the last 50 solved slots).
 TYPICAL_SMOOTHING = 0.02
-
-
-def _check(name, value, kind, low=None, high=None, low_open=False):
-    if isinstance(value, bool) or not isinstance(value, kind):
-        raise TypeError(f"{name} must be {'an integer' if kind is int else 'a number'}, "
-                        f"not {value!r}")
-    if low is not None and (value <= low if low_open else value < low):
-        raise ValueError(f"{name} must be {'>' if low_open else '≥'} {low}, not {value!r}")
-    if high is not None and value > high:
-        raise ValueError(f"{name} must be ≤ {high}, not {value!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -170,22 +161,22 @@ class TrackerParams:
         for name in ("parallax", "follow_rows", "strong_test"):
             if not isinstance(getattr(self, name), bool):
                 raise TypeError(f"{name} must be a bool, not {getattr(self, name)!r}")
-        _check("reselect_angle", self.reselect_angle, (int, float), 0, low_open=True)
-        _check("window", self.window, int, 1)
-        _check("segments", self.segments, int, 1)
-        _check("disparity_blocks", self.disparity_blocks, int, 1)
-        _check("block_rows", self.block_rows, int, 1)
-        _check("geometry_stride", self.geometry_stride, int, 1)
-        _check("min_depth_fraction", self.min_depth_fraction, (int, float), 0, 1,
+        check_number("reselect_angle", self.reselect_angle, 0, low_open=True)
+        check_int("window", self.window, 1)
+        check_int("segments", self.segments, 1)
+        check_int("disparity_blocks", self.disparity_blocks, 1)
+        check_int("block_rows", self.block_rows, 1)
+        check_int("geometry_stride", self.geometry_stride, 1)
+        check_number("min_depth_fraction", self.min_depth_fraction, 0, 1,
                low_open=True)
-        _check("alpha", self.alpha, (int, float), 0, 1, low_open=True)
-        _check("pose_alpha", self.pose_alpha, (int, float), 0, 1, low_open=True)
-        _check("beta", self.beta, (int, float), 0, 1)
+        check_number("alpha", self.alpha, 0, 1, low_open=True)
+        check_number("pose_alpha", self.pose_alpha, 0, 1, low_open=True)
+        check_number("beta", self.beta, 0, 1)
         for name in ("huber_k", "scale_initial", "scale_floor", "scale_smoothing",
                      "max_condition"):
-            _check(name, getattr(self, name), (int, float), 0, low_open=True)
-        _check("min_confidence", self.min_confidence, (int, float), 0)
-        _check("min_cameras", self.min_cameras, int, 1)
+            check_number(name, getattr(self, name), 0, low_open=True)
+        check_number("min_confidence", self.min_confidence, 0)
+        check_int("min_cameras", self.min_cameras, 1)
         DescriptorParams(sigma=self.sigma)
 
     replace = replace

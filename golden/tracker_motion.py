@@ -10,6 +10,7 @@ cameras' row times), so interpolation is part of the model, not of the plots.
 
 import numpy as np
 
+from .checks import check_int
 from .pose_lsq import body_step
 from .rotations import exp_so3
 
@@ -47,9 +48,7 @@ class PoseTrack:
         return track
 
     def __init__(self, capacity):
-        if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) \
-                or capacity < 1:
-            raise ValueError(f"capacity must be a positive integer, not {capacity!r}")
+        check_int("capacity", capacity, 1)
         self.times = np.empty(capacity)
         self.rotations = np.empty((capacity, 3, 3))
         self.positions = np.empty((capacity, 3))

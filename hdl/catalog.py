@@ -9,22 +9,22 @@ import importlib
 
 #: name -> "module:factory"
 BLOCKS = {
-    "mac": "hdl.mac:MultiplyAccumulate",
-    "dt_filter": "hdl.dt_filter:DomainTransformFilter",
-    "uart": "hdl.uart:UartTx",
-    "pose_output": "hdl.pose_packet:PoseOutput",
+    "mac": "hdl.pose.mac:MultiplyAccumulate",
+    "dt_filter": "hdl.dt.filter:DomainTransformFilter",
+    "uart": "hdl.output.uart:UartTx",
+    "pose_output": "hdl.output.packet:PoseOutput",
     "regs": "hdl.top:register_file",
     "gp0_bridge": "hdl.board.gp0:GP0ToAXI4Lite",
     "top": "hdl.top:RowtrackTop",
-    "camera_input": "hdl.camera_input:CameraInput",
-    "camera_sync": "hdl.camera_sync:CameraSync",
-    "row_aligner": "hdl.row_aligner:RowAligner",
-    "camera_front": "hdl.camera_sync:CameraFrontEnd",
+    "camera_input": "hdl.front_end.camera_input:CameraInput",
+    "camera_sync": "hdl.front_end.camera_sync:CameraSync",
+    "row_aligner": "hdl.front_end.row_aligner:RowAligner",
+    "camera_front": "hdl.front_end.camera_sync:CameraFrontEnd",
     "pose_solver": "hdl.pose_solver:PoseSolver",
     "row_descriptor": "hdl.row_descriptor:RowDescriptor",
     "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",
-    "measurement_engine": "hdl.measurement_engine:MeasurementEngine",
-    "measurement_router": "hdl.measurement_router:default_router",
+    "measurement_engine": "hdl.measurement.engine:MeasurementEngine",
+    "measurement_router": "hdl.measurement.router:default_router",
 }
 
 

@@ -9,7 +9,7 @@ with ``int_bits`` integer bits and ``frac_bits`` fraction bits. The same object 
   :func:`resize`, :func:`add`, :func:`mul`), used by the bit-accurate emulator.
 
 There is no second copy: the emulator and the HDL both call into this module, and the
-property tests in ``sim_tests/unit/test_fixed.py`` check that the two agree bit for bit.
+property tests in ``sim_tests/common/test_fixed.py`` check that the two agree bit for bit.
 
 Conventions
 -----------
@@ -30,6 +30,8 @@ import enum
 from dataclasses import dataclass
 
 import numpy as np
+
+from golden.checks import check_int
 
 __all__ = ["Rounding", "Overflow", "QFormat", "SQ", "UQ",
            "resize", "add", "mul", "hdl_resize", "hdl_add", "hdl_mul"]
@@ -84,11 +86,7 @@ class QFormat:
 
     def __post_init__(self):
         for name in ("int_bits", "frac_bits"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool):
-                raise TypeError(f"{name} must be an integer, not {value!r}")
-            if value < 0:
-                raise ValueError(f"{name} must be a non-negative integer, not {value}")
+            check_int(name, getattr(self, name), 0)
         if self.signed and self.int_bits < 1:
             raise ValueError(f"int_bits of a signed format must be at least 1 (the sign bit), "
                              f"not {self.int_bits}")

@@ -7,12 +7,12 @@ closes the row, and one pose record per row streams out. Inside:
 * the coefficient store (nine :class:`amaranth.lib.memory.Memory`, one per
   coefficient, one entry per slot and row; initial contents at build time, rewritable
   at run time through ``coef_write``);
-* :class:`hdl.pose_accumulator.PoseAccumulator`: the weighted normal equations;
-* :class:`hdl.pose_engine.PoseEngine`: Jacobi scaling, the Cholesky solve with its
+* :class:`hdl.pose.accumulator.PoseAccumulator`: the weighted normal equations;
+* :class:`hdl.pose.engine.PoseEngine`: Jacobi scaling, the Cholesky solve with its
   pivot check, and the pose integration onto the pose of the same row one frame
   earlier (a ring of one pose per row slot).
 
-The algorithm, formats and error budget are in ``docs/pose_solver.md``; the
+The algorithm, formats and error budget are in ``docs/pose/pose_solver.md``; the
 bit-accurate model is :mod:`emulator.pose_solver`.
 """
 
@@ -22,9 +22,9 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out, connect
 
-from .pose_accumulator import PAIRS, PoseAccumulator, measurement_layout
-from .pose_engine import PoseEngine, counters_layout, record_layout
-from .pose_params import PoseFlag, PoseSolverParams
+from hdl.pose.accumulator import PAIRS, PoseAccumulator, measurement_layout
+from hdl.pose.engine import PoseEngine, counters_layout, record_layout
+from hdl.pose.params import PoseFlag, PoseSolverParams
 
 __all__ = ["PoseSolver", "PoseSolverParams", "PoseFlag", "coef_write_signature",
            "measurement_layout", "record_layout", "counters_layout"]
@@ -56,7 +56,7 @@ class PoseSolver(wiring.Component):
     params : PoseSolverParams
     coefficients : ndarray (slots, rows, 9) of int, optional
         Initial raw contents of the coefficient store (see
-        :func:`hdl.pose_params.quantize_coefficients`); zeros if omitted.
+        :func:`hdl.pose.params.quantize_coefficients`); zeros if omitted.
 
     Members
     -------

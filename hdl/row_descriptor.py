@@ -7,27 +7,27 @@ A temporal lane (:class:`RowDescriptor`) chains four blocks, one pixel per clock
    shift-window centre with each row's first pixel;
 2. :class:`DescriptorFIR` convolves each row with the quantized second derivative of a
    Gaussian (``RowDescriptorParams.kernel_raw``) and keeps the sign: one bit per column;
-3. :class:`hdl.row_descriptor_store.ReferenceStore` swaps the row's bits with the bits
+3. :class:`hdl.descriptor.store.ReferenceStore` swaps the row's bits with the bits
    of the same row of the previous frame (on-chip memory);
-4. :class:`hdl.matcher.ShiftMatcher` accumulates Hamming costs for every shift of the
+4. :class:`hdl.descriptor.matcher.ShiftMatcher` accumulates Hamming costs for every shift of the
    window while the row streams and, per segment, finds the best shift, its sub-pixel
    refinement and the peak-ratio confidence.
 
 :class:`StereoRowDescriptor` matches the two cameras of a stereo pair against each
 other instead (two framers, :class:`StereoJoin`, a two-channel FIR, the matcher).
 Conventions are ``golden.descriptor``'s; the bit-accurate model is
-``emulator/row_descriptor.py``; the formats are listed in ``docs/row_descriptor.md``.
+``emulator/row_descriptor.py``; the formats are listed in ``docs/descriptor/row_descriptor.md``.
 """
 
 from amaranth.hdl import Const, Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .fixed import UQ, hdl_add, hdl_mul
-from .matcher import ShiftMatcher
-from .row_descriptor_layouts import descriptor_layout, framed_layout
-from .row_descriptor_params import STEREO_640X480, RowDescriptorParams
-from .row_descriptor_store import ReferenceStore
+from hdl.fixed import UQ, hdl_add, hdl_mul
+from hdl.descriptor.matcher import ShiftMatcher
+from hdl.descriptor.layouts import descriptor_layout, framed_layout
+from hdl.descriptor.params import STEREO_640X480, RowDescriptorParams
+from hdl.descriptor.store import ReferenceStore
 
 __all__ = ["RowFramer", "DescriptorFIR", "StereoJoin", "RowDescriptor",
            "StereoRowDescriptor"]
@@ -354,7 +354,7 @@ class RowDescriptor(wiring.Component):
         Window centre in pixels (e.g. the shift predicted from the motion), sampled
         with each row's first pixel, saturated to ``±centre_range``.
     o : Out(stream.Signature(params.measurement_layout()))
-        Measurements (formats in ``hdl.row_descriptor_params.row_measurement_layout``).
+        Measurements (formats in ``hdl.descriptor.params.row_measurement_layout``).
 
     Latency :attr:`latency` clocks from a row's last pixel to its segment-0
     measurement (segment k follows k clocks later); one pixel per clock with no

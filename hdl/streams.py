@@ -6,8 +6,8 @@ widths. Layouts are built by functions because their widths are parameters of th
 
 Camera front end
 ----------------
-The camera front end (:mod:`hdl.camera_input`, :mod:`hdl.row_aligner`,
-:mod:`hdl.camera_sync`) delivers image rows *cut-through*: one pixel per transfer, the
+The camera front end (:mod:`hdl.front_end.camera_input`, :mod:`hdl.front_end.row_aligner`,
+:mod:`hdl.front_end.camera_sync`) delivers image rows *cut-through*: one pixel per transfer, the
 first pixel of a row going downstream before the last one has reached the pins. Fields
 known when a row starts are valid on every beat of the row; fields that are only known
 when it ends (the time of the last pixel, the reason bits) are valid on the beat that
@@ -19,7 +19,7 @@ import enum
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import Out
 
-from .fixed import SQ
+from hdl.fixed import SQ
 
 __all__ = ["RowFlag", "ROW_FLAG_BITS", "dvp_signature", "camera_pixel_layout",
            "aligned_row_layout", "camera_event_layout", "skew_measurement_layout"]

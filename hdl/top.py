@@ -2,192 +2,41 @@
 
 :class:`RowtrackTop` contains no logic of its own; it connects
 
-* the camera front end (:class:`hdl.camera_sync.CameraFrontEnd`: one DVP input per
+* the camera front end (:class:`hdl.front_end.camera_sync.CameraFrontEnd`: one DVP input per
   camera in its pixel-clock domain, the trigger/sync monitor and the row aligner),
-* the measurement engine (:class:`hdl.measurement_engine.MeasurementEngine`: a temporal
+* the measurement engine (:class:`hdl.measurement.engine.MeasurementEngine`: a temporal
   row-descriptor lane per camera, a stereo lane per pair, and the router that turns
   their segment measurements into the solver's slots with their depth cues),
 * the pose solver (:class:`hdl.pose_solver.PoseSolver`: coefficient store, normal
   equations, LDLᵀ solve, pose integration),
-* the pose output (:class:`PoseLink`: decimation, framing, UART, PS FIFO), and
-* the register file (:class:`hdl.regs.RegisterFile` of :func:`hdl.regmap.rowtrack_map`)
+* the pose output (:class:`hdl.output.link.PoseLink`: decimation, framing, UART, PS
+  FIFO), and
+* the register file (:class:`hdl.bus.register_file.RegisterFile` of :func:`hdl.bus.regmap.rowtrack_map`)
   to every block's configuration, status and the solver's coefficient load.
 
 The PS7 is not in here: the top takes AXI4-Lite through a port, so a cocotb bench can
 stand in for the PS, and the board tops (:mod:`hdl.board`) add the PS7 and pins.
 """
 
-from dataclasses import dataclass, field, replace
-
 from amaranth.hdl import Module
-from amaranth.lib import stream, wiring
+from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from golden.checks import check_int
+from hdl.front_end.camera_sync import CameraFrontEnd
+from hdl.measurement.engine import MeasurementEngine
+from hdl.output.link import PoseLink
+from hdl.pose_solver import PoseSolver
+from hdl.bus.axi4lite import AXI4LiteSignature
+from hdl.bus.register_file import RegisterFile
+from hdl.streams import dvp_signature
+from hdl.top_params import TopParams
 
-from .camera_input import CameraParams
-from .camera_sync import CameraFrontEnd
-from .measurement_engine import MeasurementEngine
-from .measurement_engine_params import EngineParams
-from .pose_packet import PoseOutput, PoseOutputParams, PoseSource
-from .pose_params import PoseFlag, PoseSolverParams
-from .pose_solver import PoseSolver
-from .regmap import rowtrack_map
-from .regs import AXI4LiteSignature, RegisterFile
-from .streams import dvp_signature
-from .uart import UartParams, UartTx
-
-__all__ = ["TopParams", "PoseLink", "RowtrackTop", "register_file", "solver_source"]
-
-
-def solver_source(solver):
-    """The pose solver's record formats, as :class:`PoseOutput` takes them."""
-    return PoseSource(position_fmt=solver.position_fmt, quaternion_fmt=solver.quat_fmt,
-                      row_bits=solver.row_bits, time_bits=solver.time_bits,
-                      flag_bits=len(PoseFlag))
-
-
-#: Default camera ports (every supported board has four).
-DEFAULT_CAMERAS = 4
-#: Default temporal segments per row (the solver has one slot per camera and segment).
-DEFAULT_SEGMENTS = 4
-
-
-@dataclass(frozen=True, kw_only=True)
-class TopParams:
-    """Parameters of :class:`RowtrackTop` (no Amaranth here).
-
-    Parameters
-    ----------
-    camera : CameraParams
-    pairs : tuple of (int, int)
-        Stereo pairs ``(A, B)`` of the measurement engine, one stereo lane each; every
-        camera belongs to exactly one pair (the stereo disparity is the solver's only
-        depth cue).
-    segments : int
-        Temporal-lane segments per row (K): the solver's ``slots`` must be
-        ``camera.n_cameras × segments``.
-    solver : PoseSolverParams
-        ``rows`` must be the cameras' ``max_height``, ``time_bits`` their
-        ``timestamp_bits`` and ``slots`` ``n_cameras × segments``.
-    pose_output : PoseOutputParams
-        ``source`` must be :func:`solver_source` of ``solver``.
-    uart : UartParams
-    clk_hz : int
-        System clock (FCLK_CLK0) frequency; sets the reset values of the time-based
-        registers and the UART divisor.
-    baud : int
-        UART baud rate after reset.
-    reg_base, reg_size : int
-        Register window on the AXI bus (GP0 spans ``0x4000_0000``–``0x7FFF_FFFF``).
-
-    Members
-    -------
-    engine : EngineParams
-        The measurement engine's parameters, derived from the above.
-    """
-    camera: CameraParams = CameraParams(n_cameras=DEFAULT_CAMERAS)
-    pairs: tuple = ((0, 1), (2, 3))
-    segments: int = DEFAULT_SEGMENTS
-    solver: PoseSolverParams = PoseSolverParams(slots=DEFAULT_CAMERAS * DEFAULT_SEGMENTS)
-    pose_output: PoseOutputParams = PoseOutputParams(source=solver_source(PoseSolverParams()))
-    uart: UartParams = UartParams()
-    clk_hz: int = 100_000_000
-    baud: int = 3_000_000
-    reg_base: int = 0x4000_0000
-    reg_size: int = 0x1000
-    engine: EngineParams = field(init=False, repr=False, compare=False)
-
-    def __post_init__(self):
-        for name, cls in (("camera", CameraParams), ("solver", PoseSolverParams),
-                          ("pose_output", PoseOutputParams), ("uart", UartParams)):
-            if not isinstance(getattr(self, name), cls):
-                raise TypeError(f"{name} must be a {cls.__name__}, not {getattr(self, name)!r}")
-        if self.solver.rows != self.camera.max_height:
-            raise ValueError(f"solver.rows must be camera.max_height ({self.camera.max_height}), "
-                             f"not {self.solver.rows}")
-        if self.solver.time_bits != self.camera.timestamp_bits:
-            raise ValueError(f"solver.time_bits must be camera.timestamp_bits "
-                             f"({self.camera.timestamp_bits}), not {self.solver.time_bits}")
-        if self.pose_output.source != solver_source(self.solver):
-            raise ValueError("pose_output.source must be solver_source(solver), not "
-                             f"{self.pose_output.source!r}")
-        for name in ("clk_hz", "baud", "reg_base", "reg_size"):
-            check_int(name, getattr(self, name))
-        if not 1_000_000 <= self.clk_hz <= 500_000_000:
-            raise ValueError(f"clk_hz must be between 1 MHz and 500 MHz, not {self.clk_hz}")
-        self.uart.divisor_raw(self.clk_hz, self.baud)       # raises if the baud is unreachable
-        # The engine checks pairs (every camera in one pair), segments and solver.slots.
-        object.__setattr__(self, "engine", EngineParams.for_cameras(
-            self.camera, self.solver, self.pairs, segments=self.segments))
-
-    @classmethod
-    def for_pairs(cls, pairs, *, segments=DEFAULT_SEGMENTS, camera=CameraParams(),
-                  solver=PoseSolverParams(), pose_output=PoseOutputParams(), **changes):
-        """Parameters for ``len(pairs) · 2`` cameras: ``camera``, ``solver`` and
-        ``pose_output`` adjusted to them (camera count, solver slots, rows and time
-        bits, the output's source formats)."""
-        n = 2 * len(pairs)
-        camera = replace(camera, n_cameras=n)
-        solver = replace(solver, slots=n * segments, rows=camera.max_height,
-                         time_bits=camera.timestamp_bits)
-        pose_output = replace(pose_output, source=solver_source(solver))
-        return cls(camera=camera, pairs=tuple(tuple(p) for p in pairs), segments=segments,
-                   solver=solver, pose_output=pose_output, **changes)
-
-    replace = replace
-
-    def regmap(self):
-        return rowtrack_map(self)
+__all__ = ["RowtrackTop", "register_file"]
 
 
 def register_file(params=TopParams()):
     """The register file of the top built with ``params`` (a catalog entry of its own)."""
     return RegisterFile(params.regmap())
-
-
-class PoseLink(wiring.Component):
-    """Pose output and UART transmitter wired together.
-
-    Parameters
-    ----------
-    params : TopParams
-        Uses ``pose_output`` and ``uart``.
-
-    Members
-    -------
-    pose : In(stream.Signature(pose_output.source.layout()))
-    cfg : In(pose_output.config_layout())
-    divisor : In(uart.divisor_fmt.shape())
-    fifo : Out(stream.Signature(packet.record_layout()))
-    status : Out(pose_output.status_layout())
-    tx : Out(1)
-    """
-
-    def __init__(self, params=TopParams()):
-        if not isinstance(params, TopParams):
-            raise TypeError(f"params must be a TopParams, not {params!r}")
-        self.params = params
-        po = params.pose_output
-        super().__init__({
-            "pose": In(stream.Signature(po.source.layout())),
-            "cfg": In(po.config_layout()),
-            "divisor": In(params.uart.divisor_fmt.shape()),
-            "fifo": Out(stream.Signature(po.packet.record_layout())),
-            "status": Out(po.status_layout()),
-            "tx": Out(1, init=1),
-        })
-
-    def elaborate(self, platform):
-        m = Module()
-        m.submodules.output = output = PoseOutput(self.params.pose_output)
-        m.submodules.uart = uart = UartTx(self.params.uart)
-        wiring.connect(m, wiring.flipped(self.pose), output.pose)
-        wiring.connect(m, output.uart, uart.i)
-        wiring.connect(m, output.fifo, wiring.flipped(self.fifo))
-        m.d.comb += [output.cfg.eq(self.cfg), uart.divisor.eq(self.divisor),
-                     self.status.eq(output.status), self.tx.eq(uart.tx)]
-        return m
 
 
 class RowtrackTop(wiring.Component):
@@ -202,7 +51,7 @@ class RowtrackTop(wiring.Component):
     Members
     -------
     axi : In(AXI4LiteSignature(32))
-        Registers (:func:`hdl.regmap.rowtrack_map`), from the PS7's GP0 port.
+        Registers (:func:`hdl.bus.regmap.rowtrack_map`), from the PS7's GP0 port.
     dvp : In(dvp_signature(pixel_bits)).array(n_cameras)
         Camera ports, each in its pixel clock domain.
     trigger, expose : Out(1)
@@ -269,10 +118,10 @@ class RowtrackTop(wiring.Component):
         ]
 
         out = regs.pose_out
+        wiring.connect(m, out.fifo_pop, link.fifo_pop)
         m.d.comb += [
             link.cfg.eq(out.control), link.divisor.eq(out.uart_divisor),
-            out.status.eq(link.status), out.fifo_head.eq(link.fifo.payload),
-            link.fifo.ready.eq(out.fifo_pop.stb & out.fifo_pop.data),
+            out.status.eq(link.status), out.fifo_head.eq(link.fifo_head),
             self.uart_tx.eq(link.tx),
         ]
         return m

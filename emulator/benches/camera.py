@@ -27,7 +27,7 @@ RATE_TARGET = 1.0
 
 
 def _params():
-    from hdl.camera_input import CameraParams
+    from hdl.front_end.params import CameraParams
     return CameraParams(n_cameras=N_CAMERAS, max_width=640, max_height=480)
 
 
@@ -47,7 +47,7 @@ def _stdout_to_stderr():
 
 
 def _simulate(params):
-    from hdl.camera_sync import CameraFrontEnd
+    from hdl.front_end.camera_sync import CameraFrontEnd
     from emulator.hdl_sim.runner import run_cocotb
     with tempfile.TemporaryDirectory() as tmp, _stdout_to_stderr():
         path = Path(tmp) / "figures.json"
@@ -59,9 +59,9 @@ def _simulate(params):
 
 
 def measure():
-    from hdl.camera_input import CameraInput
-    from hdl.camera_sync import CameraFrontEnd, CameraSync
-    from hdl.row_aligner import RowAligner
+    from hdl.front_end.camera_input import CameraInput
+    from hdl.front_end.camera_sync import CameraFrontEnd, CameraSync
+    from hdl.front_end.row_aligner import RowAligner
     params = _params()
     sim = _simulate(params)
     one = synth_report(CameraInput(params, camera=0, domain="pclk"), "camera_input")
@@ -95,14 +95,14 @@ def report(figures):
     rows = "\n".join(f"| {key} | {value} |" for key, value in sorted(f.items()))
     return f"""# Camera front end: sync, DVP inputs, row aligner
 
-`hdl/camera_sync.py` `CameraFrontEnd` with {n} cameras, 640-pixel rows, default
+`hdl/front_end/camera_sync.py` `CameraFrontEnd` with {n} cameras, 640-pixel rows, default
 `CameraParams` (8-bit pixels, 1024-pixel buffer and a 4-row queue per camera, 8-entry
 clock-crossing FIFOs, glitch filter of {glitch} PCLKs).
 
 **Throughput and latency** come from the `performance` cocotb test on the generated
 Verilog (Verilator): every camera runs its PCLK at the system clock frequency, each at
 its own phase, and plays two frames of four 640-pixel rows; downstream is always ready.
-Every row set is compared with `emulator/camera_sync.py` cycle by cycle, every row with
+Every row set is compared with `emulator/front_end/camera_sync.py` cycle by cycle, every row with
 the pixels the cameras sent.
 
 * `px_per_clock`: pixels per system clock per camera lane while a row set streams

@@ -1,6 +1,6 @@
 """Benchmark of the domain-transform work (issue 9).
 
-Hardware: ``hdl.dt_filter`` at its default build (640-pixel rows, 8-bit values, window 8)
+Hardware: ``hdl.dt.filter`` at its default build (640-pixel rows, 8-bit values, window 8)
 runs in the Amaranth simulator on rows of a synthetic scene, checked pixel for pixel
 against the emulator; latency and throughput are counted from that run, resources come
 from ``synth_xilinx``. Accuracy: the emulator against the float golden filter
@@ -19,7 +19,7 @@ import time
 import cv2
 import numpy as np
 
-from emulator import dt_filter as model
+from emulator.dt import filter as model
 from emulator.synth import synth_report
 
 __all__ = ["simulate_block", "measure", "report"]
@@ -50,7 +50,7 @@ def simulate_block(params, frames, *, seed, valid_prob=1.0, ready_prob=1.0, roun
     ``outputs`` a list of ``(cycle, value, last)``.
     """
     from amaranth.sim import Simulator
-    from hdl.dt_filter import DomainTransformFilter, DomainTransformRounds
+    from hdl.dt.filter import DomainTransformFilter, DomainTransformRounds
 
     dut = DomainTransformFilter(params) if rounds is None else DomainTransformRounds(params, rounds)
     rng = random.Random(seed)
@@ -116,7 +116,7 @@ def _grey_scene(height, width, seed):
 def _hardware_figures(rounds=1):
     """Latency, throughput and tail from a simulated 640-pixel-wide frame, through one
     ``DomainTransformFilter`` or (``rounds`` > 1) a ``DomainTransformRounds``."""
-    from hdl.dt_filter import DtFilterParams
+    from hdl.dt.filter import DtFilterParams
     params = DtFilterParams()
     guide, _ = _grey_scene(4, params.width, seed=11)
     s_raw, r_raw = model.sigma_register("sigma_s", 20.0), model.sigma_register("sigma_r", 50.0)
@@ -124,7 +124,7 @@ def _hardware_figures(rounds=1):
                                           rounds=None if rounds == 1 else rounds)
     expected = model.filter_rounds(params, guide, guide, s_raw, r_raw, rounds).ravel().tolist()
     if [value for _, value, _ in outputs] != expected:
-        raise AssertionError("dt_filter simulation differs from emulator.dt_filter")
+        raise AssertionError("dt_filter simulation differs from emulator.dt.filter")
     delays = {out[0] - cycle for out, cycle in zip(outputs, inputs)}
     if delays != {dut.latency}:
         raise AssertionError(f"latency {sorted(delays)} is not the block's {dut.latency}")
@@ -142,7 +142,7 @@ def _hardware_figures(rounds=1):
 def _rounds_accuracy(params, value_bits):
     """Each of ROUNDS_HW emulated rounds against one golden round with the round's sigmas."""
     from golden.dt import recursive_filter
-    from hdl.dt_filter import SIGMA_FMT
+    from hdl.dt.filter import SIGMA_FMT
     params = params.replace(value_bits=value_bits)
     guide, scene = _grey_scene(480, params.width, seed=12)
     value = guide if value_bits == 8 else np.rint(scene.depth * 257).astype(np.int64)
@@ -265,7 +265,7 @@ def _dsr_figures():
 
 def _runtime_figures():
     """Seconds per megapixel on a 1536x1024 (1.57 MP) scene, best of two runs."""
-    from hdl.dt_filter import DtFilterParams
+    from hdl.dt.filter import DtFilterParams
     from golden.dt import normalized_convolution, recursive_filter
     from golden.dt_scenes import bicubic_target, downsample, make_scene
     from golden.dts import dts, target_confidence
@@ -294,7 +294,7 @@ def _runtime_figures():
 
 
 def measure():
-    from hdl.dt_filter import DomainTransformFilter, DomainTransformRounds
+    from hdl.dt.filter import DomainTransformFilter, DomainTransformRounds
     params, figures = _hardware_figures()
     synth = synth_report(DomainTransformFilter(params), "dt_filter")
     figures.update({key: synth[key] for key in ("lut", "ff", "bram36", "dsp48", "lut_levels")})
@@ -420,13 +420,13 @@ exact vertical pass), RMSE against the ground truth with one round
 def report(f):
     return f"""# Domain-transform filter and solver
 
-See `docs/dt.md` for the algorithm and the hardware structure.
+See `docs/dt/dt.md` for the algorithm and the hardware structure.
 
-## Streaming filter `hdl/dt_filter.py` (default build)
+## Streaming filter `hdl/dt/filter.py` (default build)
 
 {f['width_px']}-pixel rows, 8-bit guide and values, vertical window L = {f['window_lines']}.
 Simulated in the Amaranth simulator on a synthetic scene, every output checked against
-`emulator/dt_filter.py`; resources from Yosys `synth_xilinx` (xc7).
+`emulator/dt/filter.py`; resources from Yosys `synth_xilinx` (xc7).
 
 | figure | value |
 |---|---|
@@ -443,7 +443,7 @@ Simulated in the Amaranth simulator on a synthetic scene, every output checked a
 
 The same build as {ROUNDS_HW} chained stages with the registers scaled by the schedule and
 the guide carried through FIFOs; simulated the same way, every output checked against
-`emulator.dt_filter.filter_rounds`.
+`emulator.dt.filter.filter_rounds`.
 
 | figure | value |
 |---|---|

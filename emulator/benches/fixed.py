@@ -3,7 +3,7 @@ Amaranth simulator, resources from synth_xilinx."""
 
 import numpy as np
 
-from emulator.mac import mac_model
+from emulator.pose.mac import mac_model
 from emulator.synth import XC7Z020, synth_report
 
 
@@ -11,7 +11,7 @@ def _simulate_mac(params, pairs):
     """Run pairs through the MAC at full rate; returns (outputs, last-transfer cycles,
     output cycles, total cycles)."""
     from amaranth.sim import Simulator
-    from hdl.mac import MultiplyAccumulate
+    from hdl.pose.mac import MultiplyAccumulate
 
     dut = MultiplyAccumulate(params)
     record = {"last_in": [], "out": [], "values": [], "cycles": 0}
@@ -46,7 +46,8 @@ def _simulate_mac(params, pairs):
 
 
 def measure():
-    from hdl.mac import MacParams, MultiplyAccumulate
+    from hdl.pose.mac import MultiplyAccumulate
+    from hdl.pose.mac_params import MacParams
     params = MacParams()
     rng = np.random.default_rng(1)
     length, vectors = 64, 8
@@ -57,7 +58,7 @@ def measure():
     record = _simulate_mac(params, pairs)
     expected = [int(v) for v in mac_model(params, a, b, last)]
     if record["values"] != expected:
-        raise AssertionError("MAC simulation differs from emulator.mac in the benchmark run")
+        raise AssertionError("MAC simulation differs from emulator.pose.mac in the benchmark run")
     latencies = {o - i for o, i in zip(record["out"], record["last_in"])}
     if len(latencies) != 1:
         raise AssertionError(f"MAC latency is not constant at full rate: {sorted(latencies)}")
@@ -76,10 +77,10 @@ def report(figures):
     rows = "\n".join(f"| {key} | {value} |" for key, value in sorted(figures.items()))
     return f"""# Fixed-point core: multiply-accumulate block
 
-`hdl/mac.py` with its default formats (operands SQ(2, 16), accumulator SQ(12, 32), output
+`hdl/pose/mac.py` with its default formats (operands SQ(2, 16), accumulator SQ(12, 32), output
 SQ(8, 16), convergent rounding, saturation). Latency and throughput come from an Amaranth
 simulation of 8 vectors of 64 random pairs at full rate (outputs checked against
-`emulator/mac.py`); resources from Yosys `synth_xilinx -family xc7` (capacity of the
+`emulator/pose/mac.py`); resources from Yosys `synth_xilinx -family xc7` (capacity of the
 xc7z020: {XC7Z020['lut']} LUTs, {XC7Z020['dsp48']} DSP48E1).
 
 | figure | value |

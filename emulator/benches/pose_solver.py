@@ -110,7 +110,7 @@ def frame_chain_error(duration=SECOND, row_stride=8):
     ``δq = (1, θ/2)`` would lose (``|θ|³/12`` of rotation per step)."""
     from golden.rig import preset
     from golden.trajectory import make_trajectory
-    from hdl.pose_params import PoseSolverParams
+    from hdl.pose.params import PoseSolverParams
     params = PoseSolverParams()
     camera = preset("stereo20").cameras[0]
     frame = 1 / camera.fps
@@ -304,7 +304,7 @@ def report(figures):
     return f"""# Pose solver
 
 `hdl/pose_solver.py` (coefficient store, accumulator, Cholesky engine; see
-`docs/pose_solver.md`). Clocks per row and latency come from an Amaranth simulation of
+`docs/pose/pose_solver.md`). Clocks per row and latency come from an Amaranth simulation of
 the block with rows sent back to back at full rate (records checked against
 `emulator/pose_solver.py`): 8 cameras (one camera of each of eight stereo20 pairs,
 18-bit coefficient store, 480 rows), the full stereo20 rig (20 cameras) and radial4
@@ -332,7 +332,7 @@ coefficient store. "Step error" is |Y_fixed − Y_float| / |Y_float| per solved 
 ## The pose ring's chains over {SECOND:g} s
 
 Each row slot composes one step per frame: the rig's motion since the same row one
-frame earlier (`docs/pose_solver.md`, "Pose ring"). {chain['slots']} slots (every 8th
+frame earlier (`docs/pose/pose_solver.md`, "Pose ring"). {chain['slots']} slots (every 8th
 row of a 480-row, 120 fps camera) each compose {chain['steps_per_slot']} true
 one-frame steps of the papers' motion (up to {chain['step_angle_max_deg']:.3g}° each),
 quantized into the step format, in fixed point (`emulator.pose_solver.integrate_rows`)

@@ -68,7 +68,7 @@ def _lane_speed(data, batched):
     Returns ``(rows/s, {"temporal": measurements, "stereo": measurements})``."""
     from emulator.row_descriptor import FramedRow, StereoLaneModel, TemporalLaneModel
     from golden.depth import stereo_pairs
-    from hdl.row_descriptor_params import STEREO_640X480, TEMPORAL_640X480
+    from hdl.descriptor.params import STEREO_640X480, TEMPORAL_640X480
     cams, bits = range(len(data.cameras)), (len(data.cameras) - 1).bit_length()
     pairs = [(a, b) for a, b, _ in stereo_pairs(data.rig)]
     frames, height = SPEED_FRAMES, TEMPORAL_640X480.height
@@ -169,7 +169,7 @@ def _golden_agreement(params):
 
 def measure():
     from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor
-    from hdl.row_descriptor_params import STEREO_640X480, TEMPORAL_640X480
+    from hdl.descriptor.params import STEREO_640X480, TEMPORAL_640X480
     temporal = _simulate(RowDescriptor(TEMPORAL_640X480), "row_descriptor")
     stereo = _simulate(StereoRowDescriptor(STEREO_640X480), "stereo_row_descriptor")
     lane = synth_report(RowDescriptor(TEMPORAL_640X480), "row_descriptor")
@@ -201,7 +201,7 @@ def measure():
 
 
 def report(figures):
-    from hdl.row_descriptor_params import STEREO_640X480, TEMPORAL_640X480
+    from hdl.descriptor.params import STEREO_640X480, TEMPORAL_640X480
     f = figures
     t, s = TEMPORAL_640X480, STEREO_640X480
     verdict = lambda ok: "met" if ok else "**missed**"

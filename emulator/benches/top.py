@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from emulator import packets
+from emulator.output import packets
 from emulator.synth import XC7Z020, synth_report
 
 #: Packets played into the pseudo-terminal, and the fault probabilities per packet.
@@ -25,7 +25,7 @@ SEED = 2026
 def _link_clocks_per_packet(params, divisor, count=3):
     """Clocks between the start bits of back-to-back packets on the PoseLink's line."""
     from amaranth.sim import Simulator
-    from hdl.top import PoseLink
+    from hdl.output.link import PoseLink
 
     dut = PoseLink(params)
     po = params.pose_output
@@ -61,7 +61,7 @@ def _link_clocks_per_packet(params, divisor, count=3):
 def _host_on_pty(params):
     """The host tool on a pseudo-terminal fed with damaged packets."""
     import serial
-    from emulator.host import PacketDecoder, PtyLink, run_host
+    from emulator.output.host import PacketDecoder, PtyLink, run_host
 
     rng = np.random.default_rng(SEED)
     packet = params.pose_output.packet
@@ -97,7 +97,8 @@ EXTRA_PREFIXES = ("host",)
 
 
 def measure():
-    from hdl.top import RowtrackTop, TopParams
+    from hdl.top import RowtrackTop
+    from hdl.top_params import TopParams
     params = TopParams()
     figures = {}
     synth = synth_report(RowtrackTop(params), "top")
@@ -114,7 +115,7 @@ def measure():
 
 
 def report(figures):
-    from hdl.top import TopParams
+    from hdl.top_params import TopParams
     params = TopParams()
     rows = "\n".join(f"| {key} | {value} |" for key, value in sorted(figures.items()))
     return f"""# SoC integration: top-level resources, UART link, host tool
@@ -134,7 +135,7 @@ def report(figures):
 * Host: {HOST_PACKETS} packets from the emulator, each damaged with probability
   {FAULTS['flip']} (1–3 bit flips), {FAULTS['drop']} (1–3 bytes dropped) or
   {FAULTS['truncate']} (cut short), written into a pseudo-terminal and read by
-  `emulator.host.run_host` through pyserial. `host.packets_ok` must equal the intact
+  `emulator.output.host.run_host` through pyserial. `host.packets_ok` must equal the intact
   packets (checked) and `host.packets_bad` counts the damaged ones from the sequence
   numbers. `host.decoder_packets_per_s` is the decoder alone on the same bytes (this
   machine, shared with other jobs): it must exceed `link.packets_per_s` for the host to

@@ -28,7 +28,7 @@ def add_arguments(parser):
     parser.add_argument("--norm", choices=("l1", "l2"), default="l1",
                         help="norm of the guide's colour change (default: %(default)s)")
     parser.add_argument("--hardware", action="store_true",
-                        help="run the bit-accurate model of hdl.dt_filter instead: one RF "
+                        help="run the bit-accurate model of hdl.dt.filter instead: one RF "
                              "round, grey 8-bit guide, single-channel input, --window lines")
     parser.add_argument("--window", type=int, default=8,
                         help="vertical anti-causal window of --hardware (default: %(default)s)")
@@ -42,8 +42,8 @@ def _grey8(image):
 
 
 def _hardware(args, image, guide):
-    from emulator.dt_filter import filter_frame, sigma_register
-    from hdl.dt_filter import DtFilterParams
+    from emulator.dt.filter import filter_frame, sigma_register
+    from hdl.dt.filter import DtFilterParams
     if image.ndim != 2:
         raise UsageError("--hardware filters single-channel images only")
     try:

@@ -29,7 +29,7 @@ def add_arguments(parser):
 
 def run(args):
     import serial
-    from emulator.host import run_host
+    from emulator.output.host import run_host
     if args.baud <= 0:
         raise UsageError(f"--baud must be positive, not {args.baud}")
     for name in ("count", "seconds"):

@@ -27,7 +27,6 @@ DEFAULT_TRAJECTORY = "paper"
 #: stereo pairs picked for observability (the smallest stereo20 slice whose rows solve,
 #: so that the solver's arithmetic is compared too).
 DEFAULT_COSIM = {"rows": 4, "cameras": 6, "frames": 2}
-SEGMENTS = 4
 
 
 def _positive_int(text):
@@ -133,9 +132,9 @@ def _frames(args, rig, available=None):
 
 
 def _configure(rig):
-    from emulator.pipeline import configure
+    from hdl.pipeline_config import PipelineConfig
     try:
-        return configure(rig, segments=SEGMENTS)
+        return PipelineConfig.for_rig(rig)
     except ValueError as exc:
         raise UsageError(f"rig {rig.name!r} cannot run on the hardware pipeline: {exc}") \
             from None
@@ -170,11 +169,11 @@ def _cosim_slice(args, rig, config, frames):
     from emulator.cosim import slice_params
     try:
         slice_params(rig, args.cosim_cameras, args.cosim_rows,
-                     args.cosim_frames * args.cosim_rows)
+                     args.cosim_frames * args.cosim_rows, config.segments)
     except (TypeError, ValueError) as exc:
         raise UsageError(f"--cosim-cameras {args.cosim_cameras}: {exc}") from None
     return {"rows": args.cosim_rows, "cameras": args.cosim_cameras,
-            "frames": args.cosim_frames}
+            "frames": args.cosim_frames, "segments": config.segments}
 
 
 def _output(path):

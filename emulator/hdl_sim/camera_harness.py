@@ -1,12 +1,12 @@
 """The camera front end on the cocotb bench: cameras, downstream, model and truth.
 
-:class:`FrontEndRun` drives :class:`hdl.camera_sync.CameraFrontEnd`'s generated
+:class:`FrontEndRun` drives :class:`hdl.front_end.camera_sync.CameraFrontEnd`'s generated
 Verilog: one :class:`~emulator.hdl_sim.dvp.DvpPlayer` per camera with its own PCLK
 (period, phase, jitter), triggered by the block's own FSIN outputs, plays image rows;
 the downstream ``ready`` follows a seeded per-cycle pattern; every transfer on ``o``
 and every skew strobe is recorded with its system cycle. Afterwards
 :meth:`FrontEndRun.check_model` replays the recorded pins through
-:class:`emulator.camera_sync.FrontEndModel` and demands the same transfers, strobes and
+:class:`emulator.front_end.camera_sync.FrontEndModel` and demands the same transfers, strobes and
 counters, cycle for cycle, and the ``truth`` helpers compare against what the cameras
 actually sent.
 """
@@ -18,9 +18,9 @@ import numpy as np
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
 from cocotb.utils import get_sim_time
 
-from emulator.camera_input import SystemClock
-from emulator.camera_sync import FrontEndModel
-from hdl.camera_sync import front_config_layout, front_status_layout
+from emulator.front_end.camera_input import SystemClock
+from emulator.front_end.camera_sync import FrontEndModel
+from hdl.front_end.camera_sync import front_config_layout, front_status_layout
 from emulator.hdl_sim.clocking import CLOCK_PERIOD_NS, reset, start_clock
 from emulator.hdl_sim.dvp import DvpPlayer, DvpTiming, drive_cocotb
 from emulator.hdl_sim.payload import pack, unpack
@@ -284,7 +284,7 @@ ORDER_MARGIN = 2
 def pairable_rows(pk, pm, run_k, run_m, offset, height):
     """Camera ``k``'s rows of one frame that the sync must pair with the master's and
     those it may pair. It pairs row y when neither camera has started row y + 1 before
-    the other's row y (``hdl.camera_sync``: the latest unpaired row start of each side is
+    the other's row y (``hdl.front_end.camera_sync``: the latest unpaired row start of each side is
     kept), so a skew of about a row period or more leaves a row unpaired; starts within
     ``ORDER_MARGIN`` clocks of each other may go either way."""
     def start(player, runs, y):

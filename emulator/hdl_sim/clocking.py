@@ -4,7 +4,7 @@ import cocotb
 from cocotb.clock import Clock
 from cocotb.triggers import ClockCycles, RisingEdge
 
-from .streams import CycleCounter
+from emulator.hdl_sim.streams import CycleCounter
 
 __all__ = ["start_clock", "reset"]
 

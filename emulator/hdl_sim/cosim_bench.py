@@ -17,11 +17,11 @@ import time
 import cocotb
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
 
-from .clocking import CLOCK_PERIOD_NS
-from .dvp import DvpPlayer, DvpTiming, drive_cocotb
-from .payload import unpack
-from .top_harness import engine_input, start_top
-from .uart_line import UartMonitor, wait_idle
+from emulator.hdl_sim.clocking import CLOCK_PERIOD_NS
+from emulator.hdl_sim.dvp import DvpPlayer, DvpTiming, drive_cocotb
+from emulator.hdl_sim.payload import unpack
+from emulator.hdl_sim.top_harness import engine_input, start_top
+from emulator.hdl_sim.uart_line import UartMonitor, wait_idle
 
 #: Clocks without a new pose record, once the cameras are done, that end the run.
 QUIET_CLOCKS = 3000

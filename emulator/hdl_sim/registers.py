@@ -1,5 +1,5 @@
 """Register access from cocotb benches: an AXI4-Lite master (cocotbext-axi) and the
-bit bookkeeping of a :class:`hdl.regs.RegisterMap` (which bits of a register's port a
+bit bookkeeping of a :class:`hdl.bus.register_map.RegisterMap` (which bits of a register's port a
 word shows, where)."""
 
 import itertools
@@ -7,7 +7,7 @@ import logging
 
 from cocotbext.axi import AxiLiteBus, AxiLiteMaster, AxiResp
 
-from .payload import pack
+from emulator.hdl_sim.payload import pack
 
 __all__ = ["Registers", "port_name", "element_bits", "word_bits", "piece_mask", "with_word"]
 

@@ -5,9 +5,9 @@ and, at full rate, check every measurement's clock cycle."""
 import cocotb
 import numpy as np
 
-from .clocking import reset, start_clock
-from .row_stimulus import frame_beats, inject_faults, moving_rows
-from .streams import StreamSink, StreamSource
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.row_stimulus import frame_beats, inject_faults, moving_rows
+from emulator.hdl_sim.streams import StreamSink, StreamSource
 
 __all__ = ["split_rows", "make_stimulus", "Lane"]
 

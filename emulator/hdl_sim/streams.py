@@ -9,7 +9,7 @@ after a rising edge they drive, then wait for ``ReadOnly`` and sample; a transfe
 import cocotb
 from cocotb.triggers import ReadOnly, RisingEdge
 
-from .payload import pack, unpack
+from emulator.hdl_sim.payload import pack, unpack
 
 __all__ = ["CycleCounter", "StreamSource", "StreamSink"]
 

@@ -7,9 +7,9 @@ import random
 import cocotb
 from cocotb.triggers import ReadOnly, RisingEdge
 
-from .clocking import reset, start_clock
-from .cocotb_env import load_params
-from .registers import Registers
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.cocotb_env import load_params
+from emulator.hdl_sim.registers import Registers
 
 __all__ = ["child", "ColumnMonitor", "engine_input", "start_top"]
 

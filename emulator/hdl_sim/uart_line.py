@@ -4,7 +4,7 @@ hardware's fractional divisor, and waiting for the line to go quiet."""
 import cocotb
 from cocotb.triggers import ReadOnly, RisingEdge
 
-from emulator import packets
+from emulator.output import packets
 
 __all__ = ["UartMonitor", "wait_idle"]
 
@@ -12,7 +12,7 @@ __all__ = ["UartMonitor", "wait_idle"]
 class UartMonitor:
     """Decodes 8N1 frames on the ``line`` port: a falling edge starts a frame; each
     later bit is sampled in the middle of its duration
-    (:func:`emulator.packets.uart_bit_clocks`); a frame whose stop bit is not high is a
+    (:func:`emulator.output.packets.uart_bit_clocks`); a frame whose stop bit is not high is a
     framing error."""
 
     def __init__(self, dut, uart, divisor, *, line="tx"):

@@ -37,7 +37,7 @@ def cdc_constraints(spec):
     and these groups stop Vivado from timing the FIFO memories' read paths across
     unrelated clocks.
     """
-    from .ps7 import FCLK0_NET
+    from hdl.board.ps7 import FCLK0_NET
     groups = [f"-group [get_clocks {FCLK0_NET}]"] + [
         f"-group [get_clocks camera_{k}__pclk__io]" for k in range(spec.n_cameras)]
     return ("# Clock-domain crossings (hdl.board.cdc_constraints): FCLK_CLK0 and the "
@@ -53,7 +53,7 @@ def build_board(spec, out_dir, params=None, *, name="top"):
     board's part, synthesis with the false paths Amaranth's FIFOs and synchronizers
     need, place, route, reports, bitstream) and ``build_top.sh``.
     """
-    from .zynq import ZynqTop
+    from hdl.board.zynq import ZynqTop
     platform = spec.platform()
     plan = platform.build(ZynqTop(spec, params), name=name, do_build=False,
                           add_constraints=cdc_constraints(spec))
@@ -63,7 +63,7 @@ def build_board(spec, out_dir, params=None, *, name="top"):
 
 def markdown(fclk_hz=100_000_000):
     """docs/board.md: the boards, their pins, the PS7 set-up and the build flow."""
-    from .zynq import default_params
+    from hdl.board.zynq import default_params
     sections = []
     for board_name in names():
         spec = board(board_name)

@@ -9,8 +9,8 @@ cables short at the pixel clocks in mind here (up to 48 MHz).
 
 from amaranth_boards.arty_z7 import ArtyZ720Platform
 
-from .spec import BoardSpec, CameraPins
-from .zynq import XC7Z020_CLG400_CLOCK_P
+from hdl.board.spec import BoardSpec, CameraPins
+from hdl.board.zynq import XC7Z020_CLG400_CLOCK_P
 
 __all__ = ["ARTY_Z7_20"]
 

@@ -13,7 +13,7 @@ from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from ..regs import AXI4LiteSignature, RESP_SLVERR
+from hdl.bus.axi4lite import AXI4LiteSignature, RESP_SLVERR
 
 __all__ = ["GP0Signature", "GP0ToAXI4Lite", "BURST_FIXED", "BURST_INCR", "BURST_WRAP"]
 

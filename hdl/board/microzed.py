@@ -9,8 +9,8 @@ pair (U18, N18, U14, N20). Bank 34's I/O voltage comes from the carrier card; se
 
 from amaranth_boards.microzed_z020 import MicroZedZ020Platform
 
-from .spec import BoardSpec, CameraPins
-from .zynq import XC7Z020_CLG400_CLOCK_P
+from hdl.board.spec import BoardSpec, CameraPins
+from hdl.board.zynq import XC7Z020_CLG400_CLOCK_P
 
 __all__ = ["MICROZED_7020"]
 

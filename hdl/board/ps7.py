@@ -20,7 +20,7 @@ from amaranth.hdl import ClockSignal, Instance, Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import Out
 
-from .gp0 import GP0Signature
+from hdl.board.gp0 import GP0Signature
 
 __all__ = ["PS7", "FCLK0_NET"]
 

@@ -12,11 +12,12 @@ from amaranth.hdl import ClockDomain, ClockSignal, Elaboratable, Module, ResetSi
 from amaranth.lib import io, wiring
 from amaranth.lib.cdc import ResetSynchronizer
 
-from ..camera_input import CameraParams
-from ..top import RowtrackTop, TopParams
-from .gp0 import GP0ToAXI4Lite
-from .ps7 import FCLK0_NET, PS7
-from .spec import BoardSpec
+from hdl.front_end.params import CameraParams
+from hdl.top import RowtrackTop
+from hdl.top_params import TopParams
+from hdl.board.gp0 import GP0ToAXI4Lite
+from hdl.board.ps7 import FCLK0_NET, PS7
+from hdl.board.spec import BoardSpec
 
 __all__ = ["ZynqTop", "XC7Z020_CLG400_CLOCK_P"]
 

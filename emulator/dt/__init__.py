@@ -1,0 +1,1 @@
+"""Bit-accurate model of the domain-transform filter (:mod:`hdl.dt`)."""

@@ -1,0 +1,1 @@
+"""Bit-accurate models of the front end (:mod:`hdl.front_end`)."""

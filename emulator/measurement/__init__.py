@@ -1,0 +1,1 @@
+"""Bit-accurate models of the measurement stage (:mod:`hdl.measurement`)."""

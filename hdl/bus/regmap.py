@@ -1,0 +1,185 @@
+"""rowtrack's register map, declared once as data (see :mod:`hdl.bus.register_map`).
+
+Each block's group binds the block's own ``config``/``status`` layouts, so a field added
+to a block's layout appears in the decoder, the documentation (``docs/register_map.md``,
+written by ``rowtrack build --write-docs docs``) and the register tests without another
+edit. Groups sit at fixed offsets so that one block growing never moves another's
+registers.
+"""
+
+from importlib.metadata import PackageNotFoundError, version
+
+from amaranth.hdl import signed
+from amaranth.lib import data
+
+from hdl.front_end.camera_sync import sync_config_layout, sync_status_layout
+from hdl.measurement.engine_params import engine_config_layout, engine_status_layout
+from hdl.pose_solver import counters_layout
+from hdl.bus.register_map import Access, Register, RegisterGroup, RegisterMap
+
+__all__ = ["rowtrack_map", "MAGIC", "GROUP_OFFSETS"]
+
+#: ``ident.magic``: ASCII "RWTK".
+MAGIC = 0x5257544B
+
+#: Byte offset of each block's group in the window.
+GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "camera": 0x200, "solver": 0x400,
+                 "engine": 0x500}
+
+
+def _package_version():
+    try:
+        parts = version("rowtrack").split(".")[:3]
+        return [int(p) if p.isdigit() else 0 for p in parts] + [0] * (3 - len(parts))
+    except PackageNotFoundError:
+        return [0, 0, 0]
+
+
+def _fit(name, value, bits):
+    """A default that must fit its field: an error here names the field, not a silent cut."""
+    value = int(value)
+    if not 0 <= value < (1 << bits):
+        raise ValueError(f"default {name} = {value} does not fit {bits} bits")
+    return value
+
+
+def _ident(params):
+    cam = params.camera
+    major, minor, patch = _package_version()
+    return RegisterGroup("ident", GROUP_OFFSETS["ident"], "Identification: read these "
+                         "first to check that the bitstream matches the software.", [
+        Register("magic", 32, Access.CONST, "`0x5257544B` (ASCII \"RWTK\")", value=MAGIC),
+        Register("version", data.StructLayout({"patch": 8, "minor": 8, "major": 8}),
+                 Access.CONST, "rowtrack package version the bitstream was built from",
+                 value=patch | minor << 8 | major << 16),
+        Register("map_crc", 32, Access.CONST, "CRC-32 of this register map's layout "
+                 "(`RegisterMap.layout_crc`)"),
+        Register("cameras", data.StructLayout({"n_cameras": 8, "pixel_bits": 8}),
+                 Access.CONST, "camera ports built in",
+                 value=cam.n_cameras | cam.pixel_bits << 8),
+        Register("frame_size", data.StructLayout({"max_width": 16, "max_height": 16}),
+                 Access.CONST, "largest frame the front end accepts",
+                 value=cam.max_width | cam.max_height << 16),
+        Register("clk_khz", 32, Access.CONST, "system clock (FCLK_CLK0) the build assumes, "
+                 "kHz: the unit of every time stamp and interval register",
+                 value=round(params.clk_hz / 1000)),
+    ])
+
+
+def _pose_out(params):
+    po = params.pose_output
+    packet = po.packet
+    divisor = params.uart.divisor_raw(params.clk_hz, params.baud)
+    return RegisterGroup("pose_out", GROUP_OFFSETS["pose_out"], "Pose output "
+                         "(`hdl/output/packet.py`, `hdl/output/uart.py`): decimation, UART, the PS "
+                         "FIFO of pose records and the output counters; see "
+                         "[the packet format](packet_format.md).", [
+        Register("control", po.config_layout(), Access.RW, "sinks, decimation and the "
+                 "pose-rate window (reset: both sinks on, every pose, a one-second window)",
+                 reset={"uart_enable": 1, "fifo_enable": 1, "decimation": 1,
+                        "rate_window": _fit("rate_window", params.clk_hz, po.count_bits)}),
+        Register("uart_divisor", params.uart.divisor_fmt.width, Access.RW,
+                 f"system clocks per UART bit, raw {params.uart.divisor_fmt} "
+                 f"(reset: {params.baud} baud at {params.clk_hz / 1e6:g} MHz)",
+                 reset=divisor),
+        Register("status", po.status_layout(), Access.RO, "output counters (wrap) and the "
+                 "pose rate (poses in the last complete window)"),
+        Register("fifo_head", packet.record_layout(), Access.RO, "the oldest record in the "
+                 "PS FIFO (valid while `status.fifo_level` is not zero)"),
+        Register("fifo_pop", 1, Access.WO, "write 1 to drop `fifo_head` and show the next "
+                 "record"),
+    ])
+
+
+def _camera(params):
+    cam = params.camera
+    clk = params.clk_hz
+    t = cam.timer_bits
+    period = _fit("period", round(clk / 120), t)
+    return RegisterGroup("camera", GROUP_OFFSETS["camera"], "Camera front end "
+                         "(`hdl/front_end/camera_input.py`, `hdl/front_end/camera_sync.py`, "
+                         "`hdl/front_end/row_aligner.py`). Times in system clocks.", [
+        Register("input", cam.input_config_layout(), Access.RW, "every camera input's row "
+                 "geometry and PCLK stall timeout (change only while the cameras are idle)",
+                 reset={"width": cam.max_width, "height": cam.max_height,
+                        "pclk_timeout": _fit("pclk_timeout", clk // 10_000, t)}),
+        Register("sync", sync_config_layout(cam), Access.RW, "trigger generator and sync "
+                 "monitor (reset: trigger off, 120 fps period, 10 µs pulse, 1 ms exposure)",
+                 reset={"trigger_enable": 0, "period": period,
+                        "pulse": _fit("pulse", clk // 100_000, t),
+                        "exposure": _fit("exposure", clk // 1000, t),
+                        "skew_threshold": _fit("skew_threshold", clk // 100_000,
+                                               cam.skew_bits - 1),
+                        "lost_timeout": _fit("lost_timeout", 2 * period, t)}),
+        Register("align", cam.align_config_layout(), Access.RW, "cameras taking part and "
+                 "the wait for late rows (reset: all cameras, 100 µs)",
+                 reset={"enable": (1 << cam.n_cameras) - 1,
+                        "timeout": _fit("timeout", clk // 10_000, t)}),
+        Register("time", data.StructLayout({"now": cam.timestamp_bits,
+                                            "frame": cam.frame_bits}),
+                 Access.RO, "time base and current frame number"),
+        Register("sync_status", sync_status_layout(cam), Access.RO, "desync and lost flags "
+                 "and counters, latest frame and row skews against the master camera"),
+        Register("align_status", cam.align_status_layout(), Access.RO, "rows each camera "
+                 "was missing from or sent too late"),
+        Register("inputs", cam.input_status_layout(), Access.RO, "per camera: bad, dropped "
+                 "and glitch counters and sticky reason bits", count=cam.n_cameras),
+    ])
+
+
+def _solver(params):
+    solver = params.solver
+    return RegisterGroup("solver", GROUP_OFFSETS["solver"], "Pose solver "
+                         "(`hdl/pose_solver.py`): coefficient load and row counters.", [
+        Register("geometry", data.StructLayout({"slots": 16, "rows": 16}), Access.CONST,
+                 "coefficient store size: measurement slots and rows per frame",
+                 value=solver.slots | solver.rows << 16),
+        Register("counters", counters_layout(solver), Access.RO, "rows solved and rows "
+                 "flagged per reason (`PoseFlag`)"),
+        Register("coef", data.StructLayout({
+            "addr": solver.entry_bits, "index": 4, "data": signed(solver.coef_width)}),
+                 Access.WO, "write one stored coefficient: entry `slot · rows + row`, "
+                 "coefficient 0–8 (a_T x y z, a_C x y z, a_R x y z), raw value"),
+    ])
+
+
+def _engine(params):
+    engine = params.engine
+    temporal, stereo = engine.temporal, engine.stereo
+    return RegisterGroup("engine", GROUP_OFFSETS["engine"], "Measurement engine "
+                         "(`hdl/measurement/engine.py`: a temporal row-descriptor lane per "
+                         "camera, a stereo lane per pair, the router into the solver's "
+                         "slots). The lanes have no run-time thresholds: the "
+                         "strong-response threshold "
+                         f"({temporal.descriptor.strong_response:g}), the textureless limit "
+                         f"(`min_strong` = {temporal.match.min_strong} columns per segment), "
+                         "the bit-transition limit and the peak-ratio cap and offset are "
+                         "quantized into the lanes at build time "
+                         "(`hdl/descriptor/params.py`); only the search-window centres "
+                         "move at run time.", [
+        Register("geometry", data.StructLayout({"segments": 8, "pairs": 8, "slots": 16}),
+                 Access.CONST, "temporal segments per row, stereo pairs and the solver "
+                 "slots they fill",
+                 value=params.segments | len(params.pairs) << 8
+                 | params.solver.slots << 16),
+        Register("control", engine_config_layout(engine), Access.RW, "pipeline enable "
+                 "and the search-window centres, integer pixels, saturated to "
+                 f"±{temporal.centre_range} (temporal) and ±{stereo.centre_range} (stereo) "
+                 "(reset: enabled, every centre 0: temporal shifts "
+                 f"{temporal.match.shift_min}…{temporal.match.shift_max}, disparities "
+                 f"{stereo.match.shift_min}…{stereo.match.shift_max})",
+                 reset={"enable": 1}),
+        Register("status", engine_status_layout(engine), Access.RO, "wrapping counters: "
+                 "row sets received, dropped (`enable` 0), skipped per stereo pair (a "
+                 "camera of the pair missing); the router's rows sent to the solver, rows "
+                 "without a weighted measurement, misaligned measurements and stereo lanes "
+                 "that had no measurement of their row"),
+    ])
+
+
+def rowtrack_map(params):
+    """The register map of :class:`hdl.top.RowtrackTop` built with ``params``."""
+    regmap = RegisterMap(groups=(_ident(params), _pose_out(params), _camera(params),
+                                 _solver(params), _engine(params)),
+                         base=params.reg_base, size=params.reg_size)
+    return regmap.with_value("ident", "map_crc", regmap.layout_crc())

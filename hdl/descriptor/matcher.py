@@ -1,0 +1,391 @@
+"""Shift matcher: Hamming costs over the shift window, per segment, at line rate.
+
+For every column of the compared range the current bit is compared with the reference
+bits at all ``n`` shifts of the window at once (``n`` cost counters), so the costs are
+complete when the segment's last column has streamed in. A small engine then scans
+the frozen costs ``scan_lanes`` at a time, twice (first minimum, then the second
+minimum at distance ≥ 2 and the minimum's neighbours), and divides twice in parallel
+(offset peak ratio, parabola vertex) with one-bit-per-clock restoring dividers. A row's K
+results leave together, in segment order, once its last segment is done: only then is
+the row's bad verdict known (a camera reports reason bits with the last pixel).
+"""
+
+from amaranth.hdl import Array, Cat, Const, Elaboratable, Module, Mux, Signal
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from hdl.fixed import UQ, Overflow, Rounding, hdl_resize
+from hdl.descriptor.layouts import meta_layout, pair_layout
+from hdl.descriptor.params import RowDescriptorParams
+
+__all__ = ["SerialDivider", "ShiftMatcher"]
+
+
+class SerialDivider(Elaboratable):
+    """Restoring divider: ``quotient = min(num // den, 2**quotient_bits − 1)``.
+
+    One quotient bit per clock, most significant first; ``den = 0`` gives all ones. A
+    pulse on ``start`` loads ``num``/``den``; ``quotient`` is final ``quotient_bits``
+    clocks later (``busy`` low again) and holds until the next ``start``.
+    """
+
+    def __init__(self, num_width, den_width, quotient_bits):
+        self.quotient_bits = quotient_bits
+        self.start = Signal()
+        self.num = Signal(num_width)
+        self.den = Signal(den_width)
+        self.quotient = Signal(quotient_bits)
+        self.busy = Signal()
+
+    def elaborate(self, platform):
+        m = Module()
+        qb = self.quotient_bits
+        rem = Signal.like(self.num)
+        divisor = Signal(len(self.den) + qb - 1)
+        count = Signal(range(qb + 1))
+        fits = rem >= divisor
+        m.d.comb += self.busy.eq(count != 0)
+        with m.If(self.start):
+            m.d.sync += [rem.eq(self.num), divisor.eq(self.den << (qb - 1)),
+                         self.quotient.eq(0), count.eq(qb)]
+        with m.Elif(self.busy):
+            m.d.sync += [rem.eq(Mux(fits, rem - divisor, rem)),
+                         self.quotient.eq(Cat(fits, self.quotient[:-1])),
+                         divisor.eq(divisor >> 1), count.eq(count - 1)]
+        return m
+
+
+def _first_min(items):
+    """Lowest value and its index among ``(value, index)`` in index order (ties: first)."""
+    while len(items) > 1:
+        nxt = []
+        for t in range(0, len(items) - 1, 2):
+            (va, ia), (vb, ib) = items[t], items[t + 1]
+            take_b = vb < va
+            nxt.append((Mux(take_b, vb, va), Mux(take_b, ib, ia)))
+        if len(items) % 2:
+            nxt.append(items[-1])
+        items = nxt
+    return items[0]
+
+
+class ShiftMatcher(wiring.Component):
+    """Per-segment shift, sub-pixel refinement and confidence of a streaming row.
+
+    Input columns carry the current bit and the reference bit of the same column. Two
+    delay lines (taps from the row's centre: ``params.delays``) line ``cur[x]`` up with
+    ``ref[x − centre − shift_min]``; an ``n``-bit window of later reference bits gives
+    every shift of the window. Columns outside ``params.compare_range(centre)`` are not
+    counted; the range is cut into K equal segments by a Bresenham stepper (golden's
+    ``lo + (hi − lo)·k // K`` bounds exactly). When a segment ends its costs are frozen
+    for the engine and the counters restart; if the engine is still busy with the
+    previous segment, the input stalls (never when every segment is at least
+    ``params.engine_period`` columns long, which the parameters guarantee).
+
+    Members
+    -------
+    i : In(stream.Signature(pair_layout(params)))
+    o : Out(stream.Signature(params.measurement_layout()))
+        K measurements per row, segment order, Q formats in the layout's docstring.
+
+    Latency :attr:`latency` clocks from the row's last column to its segment-0
+    measurement, then one measurement per clock. Throughput one column per clock.
+    Backpressure: ``o`` holds; the engine waits to store its next result while the
+    previous row's measurements are leaving, and input stalls behind it.
+    Reset empties the pipeline and the engine; the costs restart with each segment.
+    """
+
+    def __init__(self, params):
+        if not isinstance(params, RowDescriptorParams):
+            raise TypeError(f"params must be a RowDescriptorParams, not {params!r}")
+        self.params = params
+        super().__init__({
+            "i": In(stream.Signature(pair_layout(params))),
+            "o": Out(stream.Signature(params.measurement_layout())),
+        })
+
+    @property
+    def latency(self):
+        """Two front stages, the engine's schedule, one clock to start the output
+        sequence and one to register the first measurement."""
+        return 2 + self.params.engine_result_step + 2
+
+    def elaborate(self, platform):
+        m = Module()
+        front = self._front(m)
+        self._engine(m, front)
+        return m
+
+    # --- front: delay lines, segment stepper, cost counters ------------------------------
+
+    def _front(self, m):
+        p = self.params
+        n, k_seg, r, width = p.n_shifts, p.segments, p.radius, p.width
+        cost_shape = p.cost_fmt.shape()
+
+        engine_busy = Signal()
+        s2_valid = Signal()
+        s2 = Signal(data.StructLayout({
+            "cur": 1, "ref": 1, "strong": 1, "in_range": 1, "seg_first": 1, "seg_end": 1,
+            "seg": p.segment_bits, "meta": meta_layout(p), "no_reference": 1}))
+        stall = s2_valid & s2.in_range & s2.seg_end & engine_busy
+        advance = ~stall
+
+        # skid register: i.ready is a flip-flop, so a stall does not ripple through the
+        # store and the FIR back to the camera input within one clock
+        skid_valid = Signal()
+        skid = Signal(pair_layout(p))
+        item = Signal(pair_layout(p))
+        item_valid = skid_valid | self.i.valid
+        m.d.comb += [self.i.ready.eq(~skid_valid),
+                     item.eq(Mux(skid_valid, skid.as_value(), self.i.payload.as_value()))]
+        with m.If(skid_valid & advance):
+            m.d.sync += skid_valid.eq(0)
+        with m.Elif(~skid_valid & self.i.valid & ~advance):
+            m.d.sync += [skid_valid.eq(1), skid.eq(self.i.payload)]
+        accept = item_valid & advance
+
+        # stage 0: delay lines (bit 0 newest), the row's centre
+        dc_max, dr_max = p.max_delays
+        cur_line = Signal(dc_max + 1)
+        strong_line = Signal(dc_max + 1)
+        ref_line = Signal(dr_max + 1)
+        centre = Signal(p.centre_fmt.shape())
+        s1_valid = Signal()
+        s1 = Signal(pair_layout(p))
+        with m.If(accept):
+            m.d.sync += [cur_line.eq(Cat(item.cur, cur_line[:-1])),
+                         strong_line.eq(Cat(item.strong, strong_line[:-1])),
+                         ref_line.eq(Cat(item.ref, ref_line[:-1]))]
+            with m.If(item.first):
+                m.d.sync += centre.eq(item.meta.centre)
+        with m.If(advance):
+            m.d.sync += [s1_valid.eq(item_valid), s1.eq(item)]
+
+        # the row's geometry from its centre (registered; settles within two columns,
+        # long before the first compared column at pos ≥ 2R)
+        a = centre + p.match.shift_min
+        a_top = a + (n - 1)
+        lo = Signal(range(width + 1))
+        d_cur = Signal(max(dc_max, 1).bit_length())      # at least one bit (Verilog)
+        d_ref = Signal(max(dr_max, 1).bit_length())
+        start_pos = Signal(range(2 * width))
+        length = Signal(range(width + 1))
+        lo_value = r + Mux(a_top > 0, a_top, 0)
+        hi_value = width - r + Mux(a < 0, a, 0)
+        m.d.sync += [lo.eq(lo_value), length.eq(hi_value - lo_value),
+                     d_cur.eq(Mux(a < 0, -a, 0)), d_ref.eq(Mux(a > 0, a, 0)),
+                     start_pos.eq(lo + d_cur + r)]
+
+        # stage 1: taps, compared range, segment stepper t(p) = K(p+1) − 1 − len·s(p)
+        acc = Signal(range(width + k_seg))
+        seg = Signal(p.segment_bits)
+        prev_end = Signal()
+        in_range = s1.pos >= start_pos
+        seg_end = acc + k_seg >= length
+        seg_first = (s1.pos == start_pos) | prev_end
+        with m.If(advance & s1_valid):
+            with m.If(s1.first):
+                m.d.sync += [acc.eq(k_seg - 1), seg.eq(0), prev_end.eq(0)]
+            with m.Elif(in_range):
+                m.d.sync += [acc.eq(Mux(seg_end, acc + k_seg - length, acc + k_seg)),
+                             seg.eq(seg + seg_end), prev_end.eq(seg_end)]
+        with m.If(advance):
+            m.d.sync += [
+                s2_valid.eq(s1_valid),
+                s2.cur.eq(cur_line.bit_select(d_cur, 1)),
+                s2.strong.eq(strong_line.bit_select(d_cur, 1)),
+                s2.ref.eq(ref_line.bit_select(d_ref, 1)),
+                s2.in_range.eq(in_range), s2.seg_first.eq(seg_first),
+                s2.seg_end.eq(seg_end), s2.seg.eq(seg),
+                s2.meta.eq(s1.meta), s2.no_reference.eq(s1.no_reference),
+            ]
+
+        # stage 2: reference window, n cost counters, bit-change and strong counters
+        window = Signal(n)
+        new_window = Cat(s2.ref, window[:n - 1])
+        counters = [Signal(cost_shape, name=f"cost{k}") for k in range(n)]
+        nxt = [Mux(s2.seg_first, 0, counters[k]) + (s2.cur ^ new_window[k])
+               for k in range(n)]
+        min_t = p.match.min_transitions
+        trans = Signal(p.transition_bits)
+        prev_cur = Signal()
+        trans_sum = trans + (s2.cur ^ prev_cur)
+        trans_next = Mux(s2.seg_first, 0, Mux(trans_sum > min_t, min_t, trans_sum))
+        min_s = p.match.min_strong
+        strong = Signal(p.strong_bits)
+        strong_sum = Mux(s2.seg_first, 0, strong) + s2.strong
+        strong_next = Mux(strong_sum > min_s, min_s, strong_sum)
+        with m.If(advance & s2_valid):
+            m.d.sync += [window.eq(new_window), prev_cur.eq(s2.cur)]
+            with m.If(s2.in_range):
+                m.d.sync += [c.eq(v) for c, v in zip(counters, nxt)]
+                m.d.sync += [trans.eq(trans_next), strong.eq(strong_next)]
+
+        snapshot = advance & s2_valid & s2.in_range & s2.seg_end
+        flat = (trans_next < min_t) | (strong_next < min_s)
+        return {"busy": engine_busy, "snapshot": snapshot, "costs": nxt,
+                "textureless": flat, "s2": s2}
+
+    # --- engine: two scans, two divisions, result bank, output sequence ------------------
+
+    def _engine(self, m, front):
+        p = self.params
+        n, lanes, groups = p.n_shifts, p.scan_lanes, p.scan_groups
+        cost_fmt = p.cost_fmt
+        cost_shape = cost_fmt.shape()
+        top = (1 << cost_fmt.width) - 1
+        idx_shape = range(groups * lanes + 1)
+        quotient = max(p.ratio_quotient_bits, p.subpixel_quotient_bits)
+        load_step = 2 * groups + 5
+
+        # frozen costs and the segment's facts
+        shadow = [Signal(cost_shape, name=f"frozen{k}") for k in range(n)]
+        snap = Signal(data.StructLayout({
+            "textureless": 1, "seg": p.segment_bits,
+            "meta": meta_layout(p), "no_reference": 1}))
+        step = Signal(range(p.engine_result_step + 1))
+        m.d.comb += front["busy"].eq(step != 0)
+        with m.If(front["snapshot"]):
+            s2 = front["s2"]
+            m.d.sync += [sh.eq(v) for sh, v in zip(shadow, front["costs"])]
+            m.d.sync += [snap.textureless.eq(front["textureless"]), snap.seg.eq(s2.seg),
+                         snap.meta.eq(s2.meta), snap.no_reference.eq(s2.no_reference),
+                         step.eq(1)]
+
+        def during(first, last):
+            return (step >= first) & (step <= last)
+
+        # read: one group of costs per step into the lane registers (index ≥ n: padding
+        # above every cost); steps 1 … G (pass 1) and G + 2 … 2G + 1 (pass 2)
+        group = Signal(max(groups - 1, 1).bit_length())
+        reading = during(1, groups) | during(groups + 2, 2 * groups + 1)
+        with m.If(reading):
+            m.d.sync += group.eq(Mux(group == groups - 1, 0, group + 1))
+        lane_value = [Signal(cost_shape, name=f"lane{k}") for k in range(lanes)]
+        lane_index = [Signal(idx_shape, name=f"lane_index{k}") for k in range(lanes)]
+        for lane in range(lanes):
+            column = [shadow[g * lanes + lane] if g * lanes + lane < n else Const(top)
+                      for g in range(groups)]
+            m.d.sync += [lane_value[lane].eq(Array(column)[group]),
+                         lane_index[lane].eq(group * lanes + lane)]
+
+        # pass 1: each group's first minimum (steps 2 … G + 1), folded (3 … G + 2)
+        r1_value, r1_index = Signal(cost_shape), Signal(idx_shape)
+        c1, i1 = Signal(cost_shape), Signal(idx_shape)
+        group_min, group_idx = _first_min(list(zip(lane_value, lane_index)))
+        m.d.sync += [r1_value.eq(group_min), r1_index.eq(group_idx)]
+        with m.If((step == 3) | (during(4, groups + 2) & (r1_value < c1))):
+            m.d.sync += [c1.eq(r1_value), i1.eq(r1_index)]
+
+        # pass 2: mark each lane against the final first minimum (G + 3 … 2G + 2),
+        # reduce (G + 4 … 2G + 3), fold (G + 5 … 2G + 4): second minimum, neighbours
+        marks = Signal(data.StructLayout({
+            "far": data.ArrayLayout(cost_shape, lanes), "below": lanes, "above": lanes,
+            "value": data.ArrayLayout(cost_shape, lanes)}))
+        for lane, (value, index) in enumerate(zip(lane_value, lane_index)):
+            offset = index - i1
+            real = index < n
+            m.d.sync += [
+                marks.far[lane].eq(Mux(real & ((offset >= 2) | (offset <= -2)), value, top)),
+                marks.below[lane].eq(real & (offset == -1)),
+                marks.above[lane].eq(real & (offset == 1)),
+                marks.value[lane].eq(value),
+            ]
+        far_min = _first_min([(marks.far[k], Const(0)) for k in range(lanes)])[0]
+        r2 = Signal(data.StructLayout({"far": cost_shape, "cm_hit": 1, "cp_hit": 1,
+                                       "cm": cost_shape, "cp": cost_shape}))
+        m.d.sync += [r2.far.eq(far_min), r2.cm_hit.eq(marks.below.any()),
+                     r2.cp_hit.eq(marks.above.any()), r2.cm.eq(0), r2.cp.eq(0)]
+        for k in range(lanes):
+            with m.If(marks.below[k]):
+                m.d.sync += r2.cm.eq(marks.value[k])
+            with m.If(marks.above[k]):
+                m.d.sync += r2.cp.eq(marks.value[k])
+        c2, cm, cp = (Signal(cost_shape, name=nm) for nm in ("c2", "cm", "cp"))
+        with m.If(step == groups + 4):
+            m.d.sync += [c2.eq(top), cm.eq(0), cp.eq(0)]
+        with m.If(during(groups + 5, 2 * groups + 4)):
+            with m.If(r2.far < c2):
+                m.d.sync += c2.eq(r2.far)
+            with m.If(r2.cm_hit):
+                m.d.sync += cm.eq(r2.cm)
+            with m.If(r2.cp_hit):
+                m.d.sync += cp.eq(r2.cp)
+
+        # step 2G + 5: load both dividers; they run for the next Q steps
+        edge = (i1 == 0) | (i1 == n - 1)
+        cf, fs = p.confidence_fmt, p.subpixel_frac_bits
+        kappa = p.match.peak_ratio_offset
+        offset_width = max(cost_fmt.width, kappa.bit_length()) + 1
+        m.submodules.ratio_div = ratio_div = SerialDivider(
+            offset_width + cf.frac_bits + 1, offset_width, p.ratio_quotient_bits)
+        m.submodules.subpx_div = subpx_div = SerialDivider(
+            cost_fmt.width + fs, cost_fmt.width + 2, p.subpixel_quotient_bits)
+        load = step == load_step
+        diff = Mux(cm >= cp, cm - cp, cp - cm)
+        m.d.comb += [
+            ratio_div.start.eq(load),
+            ratio_div.num.eq((c2 + kappa) << (cf.frac_bits + 1)),
+            ratio_div.den.eq(c1 + kappa),
+            subpx_div.start.eq(load),
+            subpx_div.num.eq(Mux(edge, 0, diff << fs)),
+            subpx_div.den.eq(Mux(edge, 1, cm + cp - (c1 << 1))),
+        ]
+
+        # step 2G + 6 + Q: round half-up (magnitudes), saturate
+        ratio = Signal(cf.shape())
+        magnitude = Signal(UQ(1, fs).shape())
+        with m.If(step == load_step + quotient + 1):
+            m.d.sync += [
+                ratio.eq(hdl_resize(ratio_div.quotient, UQ(cf.int_bits, cf.frac_bits + 1),
+                                    cf, Rounding.HALF_UP, Overflow.SATURATE)),
+                magnitude.eq(hdl_resize(subpx_div.quotient, UQ(1, fs + 1), UQ(1, fs),
+                                        Rounding.HALF_UP, Overflow.SATURATE)),
+            ]
+
+        # step 2G + 7 + Q: cap, sign, flags; store in the bank
+        capped = Mux(ratio > p.cap_raw(), p.cap_raw(), ratio)
+        result_layout = data.StructLayout({
+            "shift": p.shift_fmt.shape(), "subpixel": p.subpixel_fmt.shape(),
+            "confidence": cf.shape(), "textureless": 1, "edge_hit": 1})
+        bank = Array(Signal(result_layout, name=f"result{k}") for k in range(p.segments))
+        seq_busy = Signal()
+        seq_idx = Signal(p.segment_bits)
+        seq_row = Signal(data.StructLayout({"meta": meta_layout(p), "no_reference": 1}))
+        result_step = step == p.engine_result_step
+        with m.If((step != 0) & ~result_step):
+            m.d.sync += step.eq(step + 1)
+        with m.If(result_step & ~seq_busy):
+            entry = bank[snap.seg]
+            m.d.sync += [
+                entry.shift.eq(snap.meta.centre + p.match.shift_min + i1),
+                entry.subpixel.eq(Mux(edge, 0, Mux(cm < cp, -magnitude, magnitude))),
+                entry.confidence.eq(Mux((c1 + kappa == 0) & (c2 + kappa == 0), 0, capped)),
+                entry.textureless.eq(snap.textureless),
+                entry.edge_hit.eq(edge), step.eq(0),
+            ]
+            with m.If(snap.seg == p.segments - 1):
+                m.d.sync += [seq_busy.eq(1), seq_idx.eq(0), seq_row.meta.eq(snap.meta),
+                             seq_row.no_reference.eq(snap.no_reference)]
+
+        # output sequence: the row's K results with its final verdict
+        out = self.o.payload
+        with m.If(~self.o.valid | self.o.ready):
+            m.d.sync += self.o.valid.eq(seq_busy)
+            with m.If(seq_busy):
+                entry = bank[seq_idx]
+                meta = seq_row.meta
+                zero = entry.textureless | meta.bad | seq_row.no_reference
+                m.d.sync += [
+                    out.camera.eq(meta.camera), out.frame.eq(meta.frame),
+                    out.row.eq(meta.row), out.t_first.eq(meta.t_first),
+                    out.segment.eq(seq_idx), out.shift.eq(entry.shift),
+                    out.subpixel.eq(entry.subpixel),
+                    out.confidence.eq(Mux(zero, 0, entry.confidence)),
+                    out.textureless.eq(entry.textureless), out.edge_hit.eq(entry.edge_hit),
+                    out.bad.eq(meta.bad), out.no_reference.eq(seq_row.no_reference),
+                    seq_idx.eq(seq_idx + 1),
+                ]
+                with m.If(seq_idx == p.segments - 1):
+                    m.d.sync += seq_busy.eq(0)

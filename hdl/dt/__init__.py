@@ -1,0 +1,1 @@
+"""Domain-transform filter (depth super-resolution) in hardware."""

@@ -1,0 +1,125 @@
+"""The measurement engine: aligned row sets in, the pose solver's measurements out.
+
+Between the camera front end (:class:`hdl.front_end.camera_sync.CameraFrontEnd`, whose row aligner
+delivers row ``y`` of every camera as one stream) and the pose solver
+(:class:`hdl.pose_solver.PoseSolver`) sit
+
+* :class:`hdl.measurement.row_set_fork.RowSetFork`: each camera's beats to its lanes, one ticket per
+  row set;
+* one temporal lane per camera (:class:`hdl.row_descriptor.RowDescriptor`: the row
+  against the same row of the previous frame, K segment measurements);
+* one stereo lane per rectified pair (:class:`hdl.row_descriptor.StereoRowDescriptor`:
+  camera A's row against camera B's), fed only when both cameras are in the set;
+* the measurement router (:class:`hdl.measurement.router.MeasurementRouter`): each
+  ticket's measurements to the solver's slots, with the pair's disparity as depth cue.
+
+The bit-accurate model is :mod:`emulator.measurement.engine`; ``docs/measurement/measurement_engine.md``
+has the figures.
+"""
+
+from amaranth.hdl import Module
+from amaranth.lib import stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from hdl.front_end.params import CameraParams
+from hdl.measurement.engine_params import (EngineParams, engine_config_layout,
+                                           engine_status_layout)
+from hdl.measurement.router import MeasurementRouter
+from hdl.pose.params import PoseSolverParams
+from hdl.pose_solver import measurement_layout
+from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor
+from hdl.measurement.row_set_fork import RowSetFork
+
+__all__ = ["EngineParams", "MeasurementEngine", "default_engine_params", "engine_config_layout",
+           "engine_status_layout"]
+
+
+def default_engine_params():
+    """Four 640×480 cameras in two pairs (0, 1) and (2, 3), four temporal segments."""
+    camera = CameraParams(n_cameras=4)
+    solver = PoseSolverParams(slots=16, rows=camera.max_height)
+    return EngineParams.for_cameras(camera, solver, ((0, 1), (2, 3)))
+
+
+class MeasurementEngine(wiring.Component):
+    """Row-descriptor lanes of a camera cluster with their fork and router.
+
+    Parameters
+    ----------
+    params : EngineParams
+        Default :func:`default_engine_params`.
+
+    Members
+    -------
+    rows : In(stream.Signature(params.aligned_layout()))
+        Row sets from ``CameraFrontEnd.o`` (``CameraParams.aligned_layout()``).
+    cfg : In(engine_config_layout(params))
+        ``temporal[k]``: window centre of camera ``k``'s temporal lane; ``stereo[j]``:
+        of pair ``j``'s stereo lane (integer pixels, ``centre_fmt``, sampled with each
+        row's first pixel, saturated to ``±centre_range``); ``enable``: 0 drops row
+        sets (counted), sampled with each set's first column.
+    o : Out(stream.Signature(hdl.pose_solver.measurement_layout(params.router.solver)))
+        The pose solver's input (``slot, row, time, shift, cue, conf, last``).
+    status : Out(engine_status_layout(params))
+        ``row_sets``, ``dropped``, ``stereo_skipped[j]`` (the fork's) and ``router``
+        (the router's counters); all wrap.
+
+    Latency :attr:`latency` clocks from a row set's last column to its first solver
+    transfer (64 for 640-pixel rows; checked in the cocotb bench). Throughput: one column per clock while the lanes and ``o`` keep up (the
+    router needs K · cameras + a few clocks per row, far fewer than the row width).
+    Backpressure on ``o`` fills the router's lane FIFOs, then stalls the lanes, the
+    fork and ``rows``. Reset empties the pipeline; every reference row is invalid until
+    a frame has passed.
+    """
+
+    def __init__(self, params=None):
+        params = default_engine_params() if params is None else params
+        if not isinstance(params, EngineParams):
+            raise TypeError(f"params must be an EngineParams, not {params!r}")
+        self.params = params
+        self.fork = RowSetFork(params)
+        self.temporal_lanes = [RowDescriptor(params.temporal) for _ in range(params.cameras)]
+        self.stereo_lanes = [StereoRowDescriptor(params.stereo) for _ in params.pairs]
+        self.router = MeasurementRouter(params.router)
+        super().__init__({
+            "rows": In(stream.Signature(params.aligned_layout())),
+            "cfg": In(engine_config_layout(params)),
+            "o": Out(stream.Signature(measurement_layout(params.router.solver))),
+            "status": Out(engine_status_layout(params)),
+        })
+
+    @property
+    def latency(self):
+        """Clocks from a row set's last column to its row's first solver transfer when
+        nothing stalls: the later of the lanes' last measurements (temporal segment
+        K − 1, stereo segment K_s − 1), then the router, whose count from a ticket
+        includes the clock a measurement takes into its lane FIFO."""
+        t, s = self.params.temporal, self.params.stereo
+        lanes = max(self.temporal_lanes[0].latency + t.segments - 1,
+                    self.stereo_lanes[0].latency + s.segments - 1)
+        return lanes + self.router.latency - 1
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.fork = fork = self.fork
+        m.submodules.router = router = self.router
+        wiring.connect(m, wiring.flipped(self.rows), fork.i)
+        m.d.comb += fork.enable.eq(self.cfg.enable)
+        for k, lane in enumerate(self.temporal_lanes):
+            m.submodules[f"temporal{k}"] = lane
+            wiring.connect(m, fork.temporal[k], lane.i)
+            wiring.connect(m, lane.o, router.temporal[k])
+            m.d.comb += lane.centre.eq(self.cfg.temporal[k])
+        for j, lane in enumerate(self.stereo_lanes):
+            m.submodules[f"stereo{j}"] = lane
+            wiring.connect(m, fork.stereo_a[j], lane.a)
+            wiring.connect(m, fork.stereo_b[j], lane.b)
+            wiring.connect(m, lane.o, router.stereo[j])
+            m.d.comb += lane.centre.eq(self.cfg.stereo[j])
+        wiring.connect(m, fork.tickets, router.tickets)
+        wiring.connect(m, router.o, wiring.flipped(self.o))
+        m.d.comb += [self.status.row_sets.eq(fork.status.row_sets),
+                     self.status.dropped.eq(fork.status.dropped),
+                     self.status.stereo_skipped.eq(fork.status.stereo_skipped),
+                     self.status.router.eq(router.status)]
+        return m

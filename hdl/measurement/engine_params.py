@@ -1,0 +1,182 @@
+"""Parameters and port layouts of the measurement engine (``hdl/measurement/engine.py``).
+
+No Amaranth at import time: the engine's bit-accurate model
+(``emulator/measurement/engine.py``) and the benches read the same object as the
+gateware. The engine is the row-descriptor lanes of a camera cluster plus the
+measurement router, so its parameters are the router's (lane and solver parameters,
+stereo pairing) and the width of its own counters; :meth:`EngineParams.for_cameras`
+sizes the lanes so that a camera beat of the front end *is* a lane's input beat.
+"""
+
+from dataclasses import dataclass, replace
+
+from golden.checks import check_int
+from golden.descriptor import STEREO_MATCH, MatchParams
+
+from hdl.front_end.params import CameraParams
+from hdl.measurement.router_params import RouterParams
+from hdl.pose.params import PoseSolverParams
+from hdl.descriptor.params import DEFAULT_SEGMENTS, RowDescriptorParams
+
+__all__ = ["EngineParams", "engine_config_layout", "fork_status_layout",
+           "engine_status_layout"]
+
+#: Lane parameters a camera beat fixes, by their CameraParams name.
+_BEAT_FIELDS = {"width": "max_width", "height": "max_height", "pixel_bits": "pixel_bits",
+                "camera_bits": "camera_bits", "frame_bits": "frame_bits",
+                "row_bits": "row_bits", "timestamp_bits": "timestamp_bits"}
+
+
+@dataclass(frozen=True, kw_only=True)
+class EngineParams:
+    """One temporal lane per camera, one stereo lane per pair, and the router.
+
+    Parameters
+    ----------
+    router : RouterParams
+        Cameras, stereo pairs, the temporal and stereo lanes' parameters and the pose
+        solver's. Both lane parameter sets must take the same camera beat.
+    count_bits : int
+        Width of the engine's own wrapping counters (row sets in, dropped, stereo rows
+        skipped).
+
+    Raises
+    ------
+    TypeError, ValueError
+        Naming the parameter.
+    """
+    router: RouterParams
+    count_bits: int = 16
+
+    def __post_init__(self):
+        if not isinstance(self.router, RouterParams):
+            raise TypeError(f"router must be a RouterParams, not {self.router!r}")
+        check_int("count_bits", self.count_bits, 1, 32)
+        t, s = self.router.temporal, self.router.stereo
+        for name in _BEAT_FIELDS:
+            if getattr(t, name) != getattr(s, name):
+                raise ValueError(f"router.stereo.{name} must be router.temporal.{name} "
+                                 f"({getattr(t, name)}), not {getattr(s, name)}")
+        if self.cameras > 1 << t.camera_bits:
+            raise ValueError(f"router.temporal.camera_bits {t.camera_bits} cannot number "
+                             f"{self.cameras} cameras")
+
+    replace = replace
+
+    @classmethod
+    def for_cameras(cls, camera, solver, pairs, *, segments=DEFAULT_SEGMENTS):
+        """The engine behind a camera front end with parameters ``camera``.
+
+        Lanes are ``camera.max_width × camera.max_height`` with the camera beat's widths;
+        temporal lanes have ``segments`` segments (the solver needs ``n_cameras ×
+        segments`` slots and ``max_height`` rows), stereo lanes one
+        (``golden.descriptor.STEREO_MATCH``). ``pairs``: ``(A, B)`` camera indices per
+        rectified pair, every camera in exactly one.
+
+        Raises
+        ------
+        TypeError, ValueError
+            Naming the parameter that cannot be met.
+        """
+        if not isinstance(camera, CameraParams):
+            raise TypeError(f"camera must be a CameraParams, not {camera!r}")
+        if not isinstance(solver, PoseSolverParams):
+            raise TypeError(f"solver must be a PoseSolverParams, not {solver!r}")
+        check_int("segments", segments, 1)
+        if solver.rows != camera.max_height:
+            raise ValueError(f"solver.rows must be camera.max_height ({camera.max_height}), "
+                             f"not {solver.rows}")
+        beat = {name: getattr(camera, source) for name, source in _BEAT_FIELDS.items()}
+        lanes = {}
+        for kind, match in (("temporal", MatchParams(segments=segments)),
+                            ("stereo", STEREO_MATCH)):
+            try:
+                lanes[kind] = RowDescriptorParams(**beat, match=match)
+            except ValueError as err:
+                raise ValueError(f"camera (max_width {camera.max_width}, max_height "
+                                 f"{camera.max_height}) cannot size a {kind} lane with "
+                                 f"segments={match.segments}: {err}") from err
+        try:
+            pairs = tuple(tuple(pair) for pair in pairs)
+        except TypeError as err:
+            raise TypeError(f"pairs must be a sequence of (A, B) camera pairs, not "
+                            f"{pairs!r}") from err
+        router = RouterParams(cameras=camera.n_cameras, pairs=pairs, solver=solver, **lanes)
+        return cls(router=router, count_bits=camera.count_bits)
+
+    # --- shortcuts -----------------------------------------------------------------------
+
+    @property
+    def cameras(self):
+        return self.router.cameras
+
+    @property
+    def pairs(self):
+        return self.router.pairs
+
+    @property
+    def temporal(self):
+        return self.router.temporal
+
+    @property
+    def stereo(self):
+        return self.router.stereo
+
+    # --- stream layouts (Amaranth imported only when asked for) -------------------------
+
+    def pixel_layout(self):
+        """One camera beat (``hdl.streams.camera_pixel_layout``), a lane's input."""
+        return self.temporal.input_layout()
+
+    def aligned_layout(self):
+        """A column of a row set (``hdl.streams.aligned_row_layout``), the engine's input;
+        equal to the front end's ``CameraParams.aligned_layout()`` it was sized from."""
+        from hdl.streams import aligned_row_layout
+        return aligned_row_layout(self.pixel_layout(), self.cameras)
+
+
+def engine_config_layout(params):
+    """Run-time configuration of the engine (``cfg`` port).
+
+    Fields
+    ------
+    temporal : ArrayLayout(temporal.centre_fmt, cameras)
+        Shift-window centre of each camera's temporal lane, integer pixels.
+    stereo : ArrayLayout(stereo.centre_fmt, pairs)
+        Disparity-window centre of each pair's stereo lane, integer pixels.
+    enable : 1
+        0: row sets are consumed, counted as dropped, and reach no lane. Sampled at
+        the first column of each row set.
+    """
+    from amaranth.lib import data
+    return data.StructLayout({
+        "temporal": data.ArrayLayout(params.temporal.centre_fmt.shape(), params.cameras),
+        "stereo": data.ArrayLayout(params.stereo.centre_fmt.shape(), len(params.pairs)),
+        "enable": 1,
+    })
+
+
+def fork_status_layout(params):
+    """Counters of the row-set fork (all ``count_bits`` wide, wrapping).
+
+    Fields
+    ------
+    row_sets : row sets received (dropped ones included)
+    dropped : row sets dropped because ``enable`` was 0
+    stereo_skipped : ArrayLayout(count, pairs)
+        Row sets handed to the lanes in which pair ``j`` was incomplete (a camera of
+        the pair missing), so its stereo lane got no row.
+    """
+    from amaranth.lib import data
+    count = params.count_bits
+    return data.StructLayout({"row_sets": count, "dropped": count,
+                              "stereo_skipped": data.ArrayLayout(count, len(params.pairs))})
+
+
+def engine_status_layout(params):
+    """The fork's counters (:func:`fork_status_layout`) and the router's (``router``)."""
+    from amaranth.lib import data
+
+    from hdl.measurement.router import router_status_layout
+    fields = {name: field.shape for name, field in fork_status_layout(params)}
+    return data.StructLayout({**fields, "router": router_status_layout(params.router)})

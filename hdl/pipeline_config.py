@@ -1,0 +1,135 @@
+"""The one description of a pipeline built for a rig: :class:`PipelineConfig`.
+
+Everything that must agree between the HDL top, the board tops, the bit-accurate
+pipeline, the co-simulation, ``rowtrack run`` and the benches is derived here once, from
+the rig: the cameras and their stereo pairs, the temporal segments per row (K), the row
+width and height, every lane and solver format, the coefficient store and the system
+clock. The HDL's parameters are a :class:`hdl.top_params.TopParams`; the emulator reads
+the same object (``config.router`` is ``config.top.engine.router``), so no width or K is
+typed twice.
+
+No Amaranth at import time.
+"""
+
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from golden.checks import check_int
+from golden.depth import stereo_pairs
+from golden.descriptor import segment_bounds
+from golden.pose_lsq import shift_coefficients
+
+from hdl.front_end.params import CameraParams
+from hdl.pose.params import DEFAULT_COEF_WIDTH, coefficient_formats, quantize_coefficients
+from hdl.top_params import DEFAULT_SEGMENTS, TopParams
+
+__all__ = ["PipelineConfig", "segment_centres", "coefficient_table"]
+
+#: System clock (FCLK_CLK0) the time stamps count.
+DEFAULT_CLK_HZ = 100_000_000
+
+
+def segment_centres(lane):
+    """Pixel columns of the centres of a lane's segments (run-time centre 0): where the
+    coefficient of each segment's equation is evaluated."""
+    return np.array([(lo + hi - 1) / 2 for lo, hi in
+                     segment_bounds(lane.width, lane.descriptor, lane.match)])
+
+
+def coefficient_table(rig, lane, cue_scales):
+    """Float coefficient table (cameras · K, rows, 9), camera-major, at the lane's
+    segment centres, each camera with its cue scale ``1/(f·b)``."""
+    rows = np.arange(lane.height, dtype=float)[None, :]
+    centres = segment_centres(lane)[:, None]
+    return np.concatenate([shift_coefficients(cam, centres, rows, scale).table()
+                           for cam, scale in zip(rig.cameras, cue_scales)])
+
+
+@dataclass(frozen=True, eq=False)
+class PipelineConfig:
+    """A pipeline for one rig (build it with :meth:`for_rig`).
+
+    Members
+    -------
+    top : TopParams
+        The HDL top's parameters: cameras, pairs, K, lane and solver formats, clock.
+    table : ndarray (slots, rows, 9)
+        The rig's float coefficients at the lanes' segment centres.
+    coef_raw : ndarray (slots, rows, 9)
+        The solver's coefficient store: ``table`` quantized to the solver's formats.
+    rig_name : str
+    """
+    top: TopParams
+    table: np.ndarray
+    coef_raw: np.ndarray
+    rig_name: str
+
+    @classmethod
+    def for_rig(cls, rig, *, segments=DEFAULT_SEGMENTS, coef_width=DEFAULT_COEF_WIDTH,
+                clk_hz=DEFAULT_CLK_HZ, camera=CameraParams(), **top_changes):
+        """The pipeline for ``rig``: its cameras (one image size), each in the rectified
+        stereo pair :func:`golden.depth.stereo_pairs` finds, temporal lanes of
+        ``segments`` segments, a ``coef_width``-bit coefficient store whose formats hold
+        the rig's table, time stamps in clocks of ``clk_hz``. ``camera`` gives the front
+        end's other widths (its count and size come from the rig); ``top_changes`` go to
+        :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``).
+
+        Raises
+        ------
+        ValueError
+            Naming what the rig or a parameter cannot meet: cameras of different sizes,
+            a camera without a rectified stereo partner (the hardware's only depth cue).
+        """
+        check_int("segments", segments, 1)
+        check_int("clk_hz", clk_hz)
+        sizes = {(cam.width, cam.height) for cam in rig.cameras}
+        if len(sizes) != 1:
+            raise ValueError(f"rig cameras must share one image size, not {sorted(sizes)}")
+        (width, height), = sizes
+        pairs = stereo_pairs(rig)
+        scales = np.full(len(rig.cameras), np.nan)
+        for left, right, focal_baseline in pairs:
+            scales[[left, right]] = 1.0 / focal_baseline
+        if np.isnan(scales).any():
+            missing = [n for n in range(len(rig.cameras)) if np.isnan(scales[n])]
+            raise ValueError(f"rig {rig.name!r}: cameras {missing} have no rectified stereo "
+                             f"partner, the hardware's only depth cue")
+        camera = replace(camera, n_cameras=len(rig.cameras), max_width=width,
+                         max_height=height)
+        pairs = tuple((a, b) for a, b, _ in pairs)
+        shape = TopParams.for_pairs(pairs, segments=segments, camera=camera, clk_hz=clk_hz,
+                                    **top_changes)
+        table = coefficient_table(rig, shape.engine.temporal, scales)
+        solver = replace(shape.solver, **coefficient_formats(table, coef_width))
+        top = TopParams.for_pairs(pairs, segments=segments, camera=camera, solver=solver,
+                                  clk_hz=clk_hz, **top_changes)
+        return cls(top=top, table=table, coef_raw=quantize_coefficients(solver, table),
+                   rig_name=rig.name)
+
+    def window(self, rows, **top_changes):
+        """The top of this pipeline built for cameras of ``rows`` rows (a co-simulated
+        window): the same lanes' arithmetic, router and solver formats; the memories
+        indexed by row hold ``rows`` rows."""
+        top = self.top
+        check_int("rows", rows, 1, top.camera.max_height)
+        kept = {f.name: getattr(top, f.name) for f in fields(top)
+                if f.init and f.name not in ("camera", "pairs", "segments", "solver")}
+        return TopParams.for_pairs(top.pairs, segments=top.segments,
+                                   camera=replace(top.camera, max_height=rows),
+                                   solver=top.solver, **{**kept, **top_changes})
+
+    # --- the parts each model reads ------------------------------------------------------
+
+    @property
+    def router(self):
+        """Lanes, pairs and solver of the measurement engine (the emulator's input)."""
+        return self.top.engine.router
+
+    @property
+    def segments(self):
+        return self.top.segments
+
+    @property
+    def clk_hz(self):
+        return self.top.clk_hz

@@ -1,0 +1,122 @@
+"""Parameters of the pipeline top (:class:`hdl.top.RowtrackTop`), without gateware.
+
+A top is fixed by its cameras, their stereo pairs, the temporal segments per row (K),
+the solver's formats, the pose output, the UART and the system clock; the measurement
+engine's parameters follow from those (:meth:`hdl.measurement.engine_params.EngineParams.for_cameras`).
+:class:`hdl.pipeline_config.PipelineConfig` builds one from a rig.
+"""
+
+from dataclasses import dataclass, field, replace
+
+from golden.checks import check_int
+
+from hdl.front_end.params import CameraParams
+from hdl.measurement.engine_params import EngineParams
+from hdl.output.params import PoseOutputParams, PoseSource
+from hdl.pose.params import PoseFlag, PoseSolverParams
+from hdl.descriptor.params import DEFAULT_SEGMENTS
+from hdl.output.params import UartParams
+
+__all__ = ["TopParams", "solver_source", "DEFAULT_CAMERAS", "DEFAULT_SEGMENTS"]
+
+
+def solver_source(solver):
+    """The pose solver's record formats, as :class:`PoseOutput` takes them."""
+    return PoseSource(position_fmt=solver.position_fmt, quaternion_fmt=solver.quat_fmt,
+                      row_bits=solver.row_bits, time_bits=solver.time_bits,
+                      flag_bits=len(PoseFlag))
+
+
+#: Default camera ports (every supported board has four).
+DEFAULT_CAMERAS = 4
+
+
+@dataclass(frozen=True, kw_only=True)
+class TopParams:
+    """Parameters of :class:`RowtrackTop` (no Amaranth here).
+
+    Parameters
+    ----------
+    camera : CameraParams
+    pairs : tuple of (int, int)
+        Stereo pairs ``(A, B)`` of the measurement engine, one stereo lane each; every
+        camera belongs to exactly one pair (the stereo disparity is the solver's only
+        depth cue).
+    segments : int
+        Temporal-lane segments per row (K): the solver's ``slots`` must be
+        ``camera.n_cameras × segments``.
+    solver : PoseSolverParams
+        ``rows`` must be the cameras' ``max_height``, ``time_bits`` their
+        ``timestamp_bits`` and ``slots`` ``n_cameras × segments``.
+    pose_output : PoseOutputParams
+        ``source`` must be :func:`solver_source` of ``solver``.
+    uart : UartParams
+    clk_hz : int
+        System clock (FCLK_CLK0) frequency; sets the reset values of the time-based
+        registers and the UART divisor.
+    baud : int
+        UART baud rate after reset.
+    reg_base, reg_size : int
+        Register window on the AXI bus (GP0 spans ``0x4000_0000``–``0x7FFF_FFFF``).
+
+    Members
+    -------
+    engine : EngineParams
+        The measurement engine's parameters, derived from the above.
+    """
+    camera: CameraParams = CameraParams(n_cameras=DEFAULT_CAMERAS)
+    pairs: tuple = ((0, 1), (2, 3))
+    segments: int = DEFAULT_SEGMENTS
+    solver: PoseSolverParams = PoseSolverParams(slots=DEFAULT_CAMERAS * DEFAULT_SEGMENTS)
+    pose_output: PoseOutputParams = PoseOutputParams(source=solver_source(PoseSolverParams()))
+    uart: UartParams = UartParams()
+    clk_hz: int = 100_000_000
+    baud: int = 3_000_000
+    reg_base: int = 0x4000_0000
+    reg_size: int = 0x1000
+    engine: EngineParams = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        for name, cls in (("camera", CameraParams), ("solver", PoseSolverParams),
+                          ("pose_output", PoseOutputParams), ("uart", UartParams)):
+            if not isinstance(getattr(self, name), cls):
+                raise TypeError(f"{name} must be a {cls.__name__}, not {getattr(self, name)!r}")
+        if self.solver.rows != self.camera.max_height:
+            raise ValueError(f"solver.rows must be camera.max_height ({self.camera.max_height}), "
+                             f"not {self.solver.rows}")
+        if self.solver.time_bits != self.camera.timestamp_bits:
+            raise ValueError(f"solver.time_bits must be camera.timestamp_bits "
+                             f"({self.camera.timestamp_bits}), not {self.solver.time_bits}")
+        if self.pose_output.source != solver_source(self.solver):
+            raise ValueError("pose_output.source must be solver_source(solver), not "
+                             f"{self.pose_output.source!r}")
+        for name in ("clk_hz", "baud", "reg_base", "reg_size"):
+            check_int(name, getattr(self, name))
+        if not 1_000_000 <= self.clk_hz <= 500_000_000:
+            raise ValueError(f"clk_hz must be between 1 MHz and 500 MHz, not {self.clk_hz}")
+        self.uart.divisor_raw(self.clk_hz, self.baud)       # raises if the baud is unreachable
+        # The engine checks pairs (every camera in one pair), segments and solver.slots.
+        object.__setattr__(self, "engine", EngineParams.for_cameras(
+            self.camera, self.solver, self.pairs, segments=self.segments))
+
+    @classmethod
+    def for_pairs(cls, pairs, *, segments=DEFAULT_SEGMENTS, camera=CameraParams(),
+                  solver=PoseSolverParams(), pose_output=PoseOutputParams(), **changes):
+        """Parameters for ``len(pairs) · 2`` cameras: ``camera``, ``solver`` and
+        ``pose_output`` adjusted to them (camera count, solver slots, rows, row bits
+        at least the camera's, time bits, the output's source formats)."""
+        n = 2 * len(pairs)
+        camera = replace(camera, n_cameras=n)
+        solver = replace(solver, slots=n * segments, rows=camera.max_height,
+                         row_bits=max(solver.row_bits, camera.row_bits),
+                         time_bits=camera.timestamp_bits)
+        pose_output = replace(pose_output, source=solver_source(solver))
+        return cls(camera=camera, pairs=tuple(tuple(p) for p in pairs), segments=segments,
+                   solver=solver, pose_output=pose_output, **changes)
+
+    replace = replace
+
+    def regmap(self):
+        """The register map of the top built with these parameters."""
+        from hdl.bus.regmap import rowtrack_map
+        return rowtrack_map(self)

@@ -1,0 +1,1 @@
+"""Tests of the domain-transform filter and solver; cocotb bench in ``dt_filter/``."""

@@ -1,0 +1,1 @@
+"""Tests of the front end: unit tests here, the cocotb bench in ``camera/``."""

@@ -1,0 +1,248 @@
+"""hdl.pose_solver: parameters, the engine's program and schedule, and the block against
+emulator.pose_solver in the Amaranth simulator (the cocotb bench runs the long mixes)."""
+
+import os
+import random
+
+import numpy as np
+import pytest
+from amaranth.hdl import Module, Signal
+from amaranth.sim import Simulator
+
+from emulator import pose_solver as E
+from hdl.fixed import SQ, UQ
+from hdl.pose.accumulator import leading_one
+from hdl.pose.params import PoseSolverParams, coefficient_formats, quantize_coefficients
+from hdl.pose.program import (MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, build_row_program,
+                              schedule)
+from hdl.pose_solver import PoseSolver
+from sim_tests.pose.pose_solver.stimulus import build_case, mixed_rows, random_rows
+
+SEED = int(os.environ.get("SEED", "8"))
+
+
+# --- parameters -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("changes, error, message", [
+    ({"slots": 0}, ValueError, "slots must be an integer between 1 and 4096, not 0"),
+    ({"slots": 2.5}, TypeError, "slots must be an integer, not 2.5"),
+    ({"shift_fmt": 3}, TypeError, "shift_fmt must be a QFormat, not 3"),
+    ({"cue_fmt": SQ(8, 10)}, ValueError, "cue_fmt must be unsigned"),
+    ({"a_fmt": UQ(13, 12)}, ValueError, "a_fmt must be signed"),
+    ({"coef_c_fmt": SQ(4, 20)}, ValueError, "must have one width"),
+    ({"shift_fmt": SQ(6, 14)}, ValueError, "shift_fmt SQ\\(6, 14\\) must fit a_fmt"),
+    ({"engine_width": 70}, ValueError, "engine_width must be an integer between 32 and 64, not 70"),
+    ({"pivot_log2": 40}, ValueError, "pivot_log2 must be an integer between 2 and 38, not 40"),
+    ({"min_diagonal": 0}, ValueError, "min_diagonal must be a number greater than 0, not 0"),
+    ({"min_diagonal": 1e12}, ValueError, "does not fit the normal matrix format"),
+    ({"row_bits": 4}, ValueError, "row_bits must be an integer between 9 and 16, not 4"),
+    ({"lanes": 0}, ValueError, "lanes must be an integer between 1 and 27, not 0"),
+])
+def test_params_are_checked(changes, error, message):
+    with pytest.raises(error, match=message):
+        PoseSolverParams(**changes)
+
+
+def test_coefficient_formats_follow_the_table():
+    table = np.zeros((2, 3, 9))
+    table[..., 0:3], table[..., 3:6], table[..., 6:9] = 100.0, 0.3, -900.0
+    formats = coefficient_formats(table, 18)
+    assert formats == {"coef_t_fmt": SQ(8, 10), "coef_c_fmt": SQ(1, 17),
+                       "coef_r_fmt": SQ(11, 7)}
+    with pytest.raises(ValueError, match="needs more than width 6 bits"):
+        coefficient_formats(table, 6)
+    with pytest.raises(ValueError, match="9 coefficients on its last axis"):
+        coefficient_formats(np.zeros((2, 8)), 18)
+
+
+def test_coefficients_are_checked():
+    params = PoseSolverParams(slots=2, rows=4, row_bits=2)
+    with pytest.raises(ValueError, match="table must have shape \\(2, 4, 9\\)"):
+        quantize_coefficients(params, np.zeros((2, 3, 9)))
+    with pytest.raises(OverflowError, match="does not fit"):
+        quantize_coefficients(params, np.full((2, 4, 9), 1e6))
+    with pytest.raises(ValueError, match="coefficients must have shape \\(2, 4, 9\\)"):
+        PoseSolver(params, np.zeros((2, 3, 9), dtype=np.int64))
+    with pytest.raises(TypeError, match="params must be a PoseSolverParams"):
+        PoseSolver("default")
+
+
+# --- building blocks ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("width", [1, 5, 41, 63])
+def test_leading_one_finds_the_highest_set_bit(width):
+    rng = random.Random(SEED + width)
+    values = [0, 1, (1 << width) - 1] + [rng.getrandbits(rng.randint(1, width)) for _ in range(200)]
+    m = Module()
+    value, index = Signal(width), Signal(8)
+    m.d.comb += index.eq(leading_one(value, width))
+    got = []
+
+    async def bench(ctx):
+        for v in values:
+            ctx.set(value, v)
+            got.append(ctx.get(index))
+
+    sim = Simulator(m)
+    sim.add_testbench(bench)
+    sim.run()
+    assert got == [max(v.bit_length() - 1, 0) for v in values]
+
+
+# --- program and schedule -------------------------------------------------------------------
+
+def test_schedule_respects_every_dependency():
+    params = PoseSolverParams()
+    program = build_row_program(params)
+    plan = schedule(program)
+    ops = program.ops
+    written = {("input", name): k + NORMALIZER_LATENCY for k, name in enumerate(program.inputs)}
+    written.update({("work", name): 0 for name in program.constants})
+    for k, op in enumerate(ops):
+        if not op.commit:
+            written[(op.dst.bank, op.dst.name)] = plan.writeback[k]
+    issue_cycles, write_cycles = [], []
+    for k, op in enumerate(ops):
+        latency = SEED_LATENCY if op.kind == "seed" else MAC_LATENCY
+        assert plan.writeback[k] == plan.issue[k] + op.slots - 1 + latency
+        issue_cycles += range(plan.issue[k], plan.issue[k] + op.slots)
+        write_cycles.append(plan.writeback[k])
+        for source in op.sources:
+            if source.bank != "state":
+                assert written[(source.bank, source.name)] <= plan.issue[k], (op.dst.name, source.name)
+    assert len(set(issue_cycles)) == len(issue_cycles), "two terms issued in one clock"
+    assert len(set(write_cycles)) == len(write_cycles), "two write-backs in one clock"
+    last_check = max(plan.writeback[k] for k, op in enumerate(ops) if op.checked)
+    for k, op in enumerate(ops):
+        if op.commit:
+            assert plan.writeback[k] > last_check
+            for r, reader in enumerate(ops):
+                if r != k and op.dst in reader.sources:
+                    assert plan.issue[r] + reader.slots - 1 <= plan.writeback[k]
+
+
+def test_program_mirrors_the_model_value_names():
+    """The program's values carry the model's trace names (the trace test relies on it)."""
+    params, coefficients, _ = build_case("random")
+    rows = mixed_rows("random", params, None, np.random.default_rng(SEED), 2)
+    trace = E.solve_trace(params, coefficients, rows)
+    program = build_row_program(params)
+    solve = {name for name in program.work if name not in program.constants
+             and not name.startswith(("R", "theta2", "cubic", "q1", "gain",
+                                      "px", "py", "pz"))}
+    # term-less ops of an operand into its own format are that operand (no register)
+    aliases = {"D0", "c0"} | {f"W{i}0" for i in range(1, 6)}
+    assert solve == set(trace) - aliases - set(program.inputs)
+    for name in solve:
+        assert program.work[name].fmt == trace[name].fmt, name
+
+
+# --- the block against the model ------------------------------------------------------------
+
+def _simulate(dut, transfers, count, ready=lambda cycle: True, limit=20000, probe=None,
+              start=0):
+    """Drive ``transfers`` at full rate from cycle ``start`` on; returns [(cycle,
+    record)], the cycles of the ``last`` transfers, and what ``probe(ctx)`` returned at
+    the first record."""
+    out, ends, probed = [], [], []
+
+    async def bench(ctx):
+        queue = list(transfers)
+        cycle = 0
+        while len(out) < count and cycle < limit:
+            ctx.set(dut.i.valid, int(bool(queue) and cycle >= start))
+            if queue:
+                ctx.set(dut.i.payload, queue[0])
+            ctx.set(dut.o.ready, int(ready(cycle)))
+            taken = ctx.get(dut.i.valid) and ctx.get(dut.i.ready)
+            if ctx.get(dut.o.valid) and ctx.get(dut.o.ready):
+                out.append((cycle, ctx.get(dut.o.payload)))
+                if probe is not None and not probed:
+                    probed.append(probe(ctx))
+            await ctx.tick()
+            if taken:
+                ends.extend([cycle] if queue.pop(0)["last"] else [])
+            cycle += 1
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    return out, ends, probed[0] if probed else None
+
+
+def _as_lists(record):
+    return {"row": record.row, "time": record.time, "flags": record.flags,
+            "q": [record.q[k] for k in range(4)], "p": [record.p[k] for k in range(3)],
+            "step": [record.step[k] for k in range(6)]}
+
+
+@pytest.mark.parametrize("case, count", [("random", 10), ("stereo8", 3), ("radial4", 3)])
+def test_records_match_the_model(case, count):
+    params, coefficients, rig = build_case(case)
+    rows = mixed_rows(case, params, rig, np.random.default_rng(SEED), count)
+    model = E.pose_solver_model(params, coefficients, rows)
+    dut = PoseSolver(params, coefficients)
+    out, ends, _ = _simulate(dut, rows.transfers(), count, start=dut.clear_clocks)
+    _assert_records(out, model)
+    assert out[0][0] - ends[0] == dut.latency
+
+
+def _assert_records(out, model):
+    assert len(out) == len(model["row"])
+    for k, (_, record) in enumerate(out):
+        expected = {"row": model["row"][k], "time": model["time"][k], "flags": model["flags"][k],
+                    "q": list(model["q"][k]), "p": list(model["p"][k]),
+                    "step": list(model["step"][k])}
+        assert _as_lists(record) == expected, k
+
+
+def test_row_slots_carry_poses_across_frames():
+    """Two frames of 64 rows in frame order (three run in the cocotb bench), then rows of one slot back to back (the
+    slot written in the clock before the next row starts). The first row has one
+    measurement and is sent at once after reset: it waits for the ring to be cleared
+    (uncleared slots read zero, not the reset pose). Every record as the model's."""
+    params, coefficients, _ = build_case("random")
+    rng = np.random.default_rng(SEED)
+    frames = random_rows(params, rng, 2 * params.rows, framed=True)[0]
+    repeats = random_rows(params, rng, 6)[0]
+    joined = {name: np.concatenate([getattr(frames, name), getattr(repeats, name)])
+              for name in ("slot", "shift", "cue", "conf", "present", "time")}
+    joined["present"][0, 1:] = False
+    rows = E.PoseRows(**joined, row=np.concatenate([frames.row, np.full(6, frames.row[-1])]))
+    model = E.pose_solver_model(params, coefficients, rows)
+    assert np.sum(model["flags"][-6:] == 0) >= 2
+    dut = PoseSolver(params, coefficients)
+    out, ends, _ = _simulate(dut, rows.transfers(), len(rows), limit=100000)
+    _assert_records(out, model)
+    # the row was done before the clear ended, and started in the clock after it
+    assert ends[0] + dut._accumulator.tail < dut.clear_clocks
+    assert out[0][0] == dut.clear_clocks + dut._engine.length + 1
+
+
+def test_engine_registers_match_the_model_trace():
+    """Every solve intermediate of a row, read out of the engine's register bank."""
+    params, coefficients, _ = build_case("random")
+    rows = mixed_rows("random", params, None, np.random.default_rng(SEED), 1)
+    trace = E.solve_trace(params, coefficients, rows)
+    dut = PoseSolver(params, coefficients)
+    engine = dut._engine
+    names = [n for n in trace if n in engine.program.work]
+
+    def probe(ctx):
+        work = engine._banks[1]
+        return {name: ctx.get(work.data[engine.program.work[name].index]) for name in names}
+
+    _, _, registers = _simulate(dut, rows.transfers(), 1, probe=probe)
+    expected = {name: int(np.asarray(trace[name].raw, dtype=object)[0]) for name in names}
+    assert registers == expected
+
+
+def test_backpressure_holds_the_record_and_the_next_row():
+    params, coefficients, _ = build_case("random")
+    rows = mixed_rows("random", params, None, np.random.default_rng(SEED), 3)
+    model = E.pose_solver_model(params, coefficients, rows)
+    dut = PoseSolver(params, coefficients)
+    out, _, _ = _simulate(dut, rows.transfers(), 3, ready=lambda cycle: cycle % 300 == 299)
+    assert [_as_lists(r)["step"] for _, r in out] == [list(s) for s in model["step"]]
+    assert [_as_lists(r)["q"] for _, r in out] == [list(q) for q in model["q"]]
