@@ -38,6 +38,9 @@ def add_arguments(parser):
     parser.add_argument("--depth-sigma", type=float, default=d.depth_sigma,
                         help="the target is a guide channel too: a change of this fraction of "
                              "its range weighs like --sigma-r (default: %(default)s)")
+    parser.add_argument("--depth-smoothing", type=float, default=d.depth_smoothing,
+                        help="range std (target units) of the bilateral filter that smooths the "
+                             "target channel; 0 uses the raw target (default: %(default)s)")
     parser.add_argument("--disparity-power", type=float, default=d.disparity_power,
                         help="data weight x (target / its median) ** P: inverse noise variance "
                              "of a disparity map; 0 for other targets (default: %(default)s)")
@@ -51,7 +54,8 @@ def add_arguments(parser):
 
 #: Parameter names in the models' messages -> the options that set them.
 OPTIONS = {"factor": "--factor", "sigma_s": "--sigma-s", "sigma_r": "--sigma-r", "lam": "--lam",
-           "depth_sigma": "--depth-sigma", "disparity_power": "--disparity-power",
+           "depth_sigma": "--depth-sigma", "depth_smoothing": "--depth-smoothing",
+           "disparity_power": "--disparity-power",
            "iterations": "--iterations", "robust": "--robust", "hard_threshold": "--hard",
            "window": "--window"}
 
@@ -72,6 +76,7 @@ def _inputs(args):
             args.factor, **{k: v for k, v in given.items() if v is not None},
             sigma_r=args.sigma_r, iterations=args.iterations, norm=args.norm,
             depth_sigma=None if args.colour_only else args.depth_sigma,
+            depth_smoothing=args.depth_smoothing or None,
             disparity_power=args.disparity_power,
             robust=args.robust, hard_threshold=args.hard)
         check_writable(args.out, "--out")

@@ -49,7 +49,8 @@ def test_dts_reads_a_confidence_map_and_options(files):
     assert main(["dts", "--guide", str(paths["guide"]), "--target", str(paths["t8"]),
                  "--confidence", str(paths["conf"]), "-o", str(out_path), "--sigma-s", "10",
                  "--sigma-r", "0.1", "--lam", "0.9", "--iterations", "3", "--robust", "5",
-                 "--hard", "1", "--norm", "l2", "--factor", "8", "--depth-sigma", "0.2"]) == 0
+                 "--hard", "1", "--norm", "l2", "--factor", "8", "--depth-sigma", "0.2",
+                 "--depth-smoothing", "0"]) == 0
     assert cv2.imread(str(out_path), cv2.IMREAD_UNCHANGED).dtype == np.uint8
 
 
@@ -71,6 +72,8 @@ def test_dts_factor_and_colour_only_are_the_golden_settings(files):
     (["--hard", "2"], r"--hard must be in \(0, 1\], not 2.0"),
     (["--factor", "0"], "--factor must be a positive finite number, not 0.0"),
     (["--depth-sigma", "-1"], "--depth-sigma must be a positive finite number, not -1.0"),
+    (["--depth-smoothing", "-2"],
+     "--depth-smoothing must be a positive finite number, not -2.0"),
     (["--confidence", "missing.png"], "--confidence 'missing.png' does not exist"),
 ])
 def test_dts_bad_input_is_a_clear_error(files, capsys, args, message):

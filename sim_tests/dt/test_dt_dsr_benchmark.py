@@ -75,11 +75,11 @@ def test_missing_data_names_the_directory_and_variable(tmp_path, monkeypatch):
 
 
 #: DTS on the top-left quarter (336x272) of the dev scene, against the bicubic target:
-#: measured when this was written DTS 3.36 / 2.83 / 3.00 / 3.85 against bicubic 6.43 /
+#: measured when this was written DTS 1.78 / 2.21 / 2.80 / 3.81 against bicubic 6.43 /
 #: 6.57 / 6.78 / 7.05 at 2x / 4x / 8x / 16x (the benchmark's FBS files give 1.47 / 2.06 /
 #: 2.64 / 3.49 here: FBS wins on this far, noisy, textured corner; DTS wins on the whole
 #: image, docs/results/dt.md). DTS must cut the bicubic error by MIN_CROP_GAIN or more.
-MIN_CROP_GAIN = 1.5
+MIN_CROP_GAIN = 1.75
 
 
 @pytest.mark.skipif(not (dsr.data_dir() / "art_big").is_dir(),

@@ -10,8 +10,8 @@ from golden.dts import DtsParams, dts, target_confidence
 SEED = 9
 
 #: DTS must cut the RMSE of the bicubic target at least this much at 8x on synthetic
-#: scenes under the real benchmark's degradation (measured 1.32-1.97x on seeds 0-2 at
-#: 192x256 when this was written; the real dev scene gives 7.286 / 4.961 = 1.47x).
+#: scenes under the real benchmark's degradation (measured 1.33-2.02x on seeds 0-2 at
+#: 192x256 when this was written; the real dev scene gives 7.286 / 4.929 = 1.48x).
 MIN_GAIN_8X = 1.25
 
 
@@ -114,6 +114,8 @@ def test_bad_parameters_are_named():
         dts(np.zeros((3, 4)), np.zeros((3, 4)), np.ones((4, 3)))
     with pytest.raises(ValueError, match="depth_sigma must be a positive finite number, not 0"):
         DtsParams(depth_sigma=0)
+    with pytest.raises(ValueError, match="depth_smoothing must be a positive finite number, not 0"):
+        DtsParams(depth_smoothing=0)
     with pytest.raises(ValueError, match="disparity_power must be a finite number >= 0, not -1"):
         DtsParams(disparity_power=-1)
     with pytest.raises(ValueError, match="disparity_power 2.0 needs a target with a positive"):
