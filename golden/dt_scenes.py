@@ -60,8 +60,12 @@ def _texture(yy, xx, rng, strength):
     return strength * (stripes > 0.6)[..., None] * rng.uniform(-1, 1, size=3)
 
 
-def make_scene(height, width, seed, *, objects=5, slanted=True, textured=True):
-    """One seeded scene; ``slanted=False`` gives piecewise-constant depth."""
+def make_scene(height, width, seed, *, objects=5, slanted=True, textured=True, contrast=1.0):
+    """One seeded scene; ``slanted=False`` gives piecewise-constant depth.
+
+    ``contrast`` < 1 mixes each object's colour with what lies behind it (a depth edge
+    with a weak colour edge, as in real scenes); the random draws are the same.
+    """
     rng = np.random.default_rng(seed)
     yy, xx = _grid(height, width)
     tilt = rng.uniform(-40, 40, size=2) if slanted else np.zeros(2)
@@ -78,7 +82,7 @@ def make_scene(height, width, seed, *, objects=5, slanted=True, textured=True):
         fill = rng.uniform(20, 235, size=3)
         if textured and rng.random() < 0.6:
             fill = fill + _texture(yy, xx, rng, 30.0)
-        colour = np.where(mask[..., None], fill, colour)
+        colour = np.where(mask[..., None], contrast * fill + (1 - contrast) * colour, colour)
     if textured:  # painted patches: colour edges on a smooth surface
         for _ in range(2):
             patch = _object_mask("rect", yy, xx, rng)

@@ -22,18 +22,30 @@ def add_arguments(parser):
                         help="confidence map (8- or 16-bit, scaled to [0, 1]); default: trust "
                              "the target less where it has steep gradients")
     parser.add_argument("-o", "--out", type=Path, required=True, help="output image")
-    parser.add_argument("--sigma-s", type=float, default=d.sigma_s,
-                        help="spatial extent in pixels (default: %(default)s)")
+    parser.add_argument("--factor", type=float, default=4.0,
+                        help="upsampling factor of the target; sets --sigma-s and --lam by the "
+                             "per-factor rule (default: %(default)s)")
+    parser.add_argument("--sigma-s", type=float,
+                        help="spatial extent in pixels (default: from --factor)")
     parser.add_argument("--sigma-r", type=float, default=d.sigma_r,
                         help="edge scale of the guide, guide in [0, 1] (default: %(default)s)")
-    parser.add_argument("--lam", type=float, default=d.lam,
-                        help="smoothness weight lambda (default: %(default)s)")
-    parser.add_argument("--alpha", type=float, default=d.alpha,
-                        help="gradient step (default: %(default)s)")
+    parser.add_argument("--lam", type=float,
+                        help="smoothness weight lambda (default: from --factor)")
     parser.add_argument("--iterations", type=int, default=d.iterations,
                         help="x/y iterations (default: %(default)s)")
     parser.add_argument("--norm", choices=("l1", "l2"), default=d.norm,
                         help="norm of the guide's colour change (default: %(default)s)")
+    parser.add_argument("--depth-sigma", type=float, default=d.depth_sigma,
+                        help="the target is a guide channel too: a change of this fraction of "
+                             "its range weighs like --sigma-r (default: %(default)s)")
+    parser.add_argument("--depth-smoothing", type=float, default=d.depth_smoothing,
+                        help="range std (target units) of the bilateral filter that smooths the "
+                             "target channel; 0 uses the raw target (default: %(default)s)")
+    parser.add_argument("--disparity-power", type=float, default=d.disparity_power,
+                        help="data weight x (target / its median) ** P: inverse noise variance "
+                             "of a disparity map; 0 for other targets (default: %(default)s)")
+    parser.add_argument("--colour-only", action="store_true",
+                        help="edges from the guide only (no target channel)")
     parser.add_argument("--robust", type=float, metavar="EPS",
                         help="Charbonnier data term with scale EPS in target units (default: L2)")
     parser.add_argument("--hard", type=float, metavar="THRESHOLD",
@@ -41,7 +53,9 @@ def add_arguments(parser):
 
 
 #: Parameter names in the models' messages -> the options that set them.
-OPTIONS = {"sigma_s": "--sigma-s", "sigma_r": "--sigma-r", "lam": "--lam", "alpha": "--alpha",
+OPTIONS = {"factor": "--factor", "sigma_s": "--sigma-s", "sigma_r": "--sigma-r", "lam": "--lam",
+           "depth_sigma": "--depth-sigma", "depth_smoothing": "--depth-smoothing",
+           "disparity_power": "--disparity-power",
            "iterations": "--iterations", "robust": "--robust", "hard_threshold": "--hard",
            "window": "--window"}
 
@@ -57,9 +71,14 @@ def _inputs(args):
     from golden.dt_io import check_writable, read_image, unit_scale
     from golden.dts import DtsParams
     try:
-        params = DtsParams(sigma_s=args.sigma_s, sigma_r=args.sigma_r, lam=args.lam,
-                           alpha=args.alpha, iterations=args.iterations, norm=args.norm,
-                           robust=args.robust, hard_threshold=args.hard)
+        given = {"sigma_s": args.sigma_s, "lam": args.lam}
+        params = DtsParams.for_factor(
+            args.factor, **{k: v for k, v in given.items() if v is not None},
+            sigma_r=args.sigma_r, iterations=args.iterations, norm=args.norm,
+            depth_sigma=None if args.colour_only else args.depth_sigma,
+            depth_smoothing=args.depth_smoothing or None,
+            disparity_power=args.disparity_power,
+            robust=args.robust, hard_threshold=args.hard)
         check_writable(args.out, "--out")
         guide = read_image(args.guide, "--guide")
         target = read_image(args.target, "--target")

@@ -9,12 +9,14 @@ every row's first pixel have weight 0), so a stream of frames is a list of frame
 
 import numpy as np
 
-from hdl.dt.filter import (COEF_FMT, COEF_NUMERATOR, GUIDE_BITS, SIGMA_FMT, SIGMA_MIN_RAW,
-                           TABLE_ADDR_BITS, DtFilterParams, lookup_fmt, weight_tables)
+from hdl.dt.filter import (COEF_FMT, COEF_NUMERATOR, GUIDE_BITS, SCHEDULE_FMT, SIGMA_FMT,
+                           SIGMA_MIN_RAW, TABLE_ADDR_BITS, DtFilterParams, lookup_fmt,
+                           schedule_scales, weight_tables)
 from hdl.fixed import UQ, Overflow, Rounding, add, mul, resize
 
 __all__ = ["sigma_register", "coefficient", "weights", "frame_weights", "rf_step",
-           "horizontal_pass", "vertical_pass", "output", "filter_frame"]
+           "horizontal_pass", "vertical_pass", "output", "filter_frame", "round_registers",
+           "filter_rounds"]
 
 def sigma_register(name, value):
     """A sigma in real units to its register value (raw ``SIGMA_FMT``); at least 1.0."""
@@ -136,3 +138,21 @@ def filter_frame(params, guide, value, sigma_s_raw, sigma_r_raw, *, vertical=Tru
     if vertical:
         out = vertical_pass(params, out, w_v)
     return output(params, out)
+
+
+def round_registers(sigma_raw, rounds):
+    """A sigma register scaled for each round of :class:`hdl.dt.filter.DomainTransformRounds`."""
+    out = []
+    for scale in schedule_scales(rounds):
+        product, fmt = mul(np.int64(sigma_raw), SIGMA_FMT, np.int64(scale), SCHEDULE_FMT)
+        out.append(int(resize(product, fmt, SIGMA_FMT, Rounding.HALF_UP, Overflow.ERROR)))
+    return out
+
+
+def filter_rounds(params, guide, value, sigma_s_raw, sigma_r_raw, rounds):
+    """The output of :class:`hdl.dt.filter.DomainTransformRounds` for one frame: each
+    round is :func:`filter_frame` with the round's registers, on the last round's output."""
+    for s_raw, r_raw in zip(round_registers(sigma_s_raw, rounds),
+                            round_registers(sigma_r_raw, rounds)):
+        value = filter_frame(params, guide, value, s_raw, r_raw)
+    return value

@@ -9,7 +9,7 @@ import pytest
 from emulator.cli import main
 from emulator.dt.filter import filter_frame, sigma_register
 from golden.dt_scenes import bicubic_target, downsample, make_scene, rmse
-from golden.dts import dts, target_confidence
+from golden.dts import DtsParams, dts, target_confidence
 from hdl.dt.filter import DtFilterParams
 
 
@@ -49,14 +49,31 @@ def test_dts_reads_a_confidence_map_and_options(files):
     assert main(["dts", "--guide", str(paths["guide"]), "--target", str(paths["t8"]),
                  "--confidence", str(paths["conf"]), "-o", str(out_path), "--sigma-s", "10",
                  "--sigma-r", "0.1", "--lam", "0.9", "--iterations", "3", "--robust", "5",
-                 "--hard", "1", "--norm", "l2"]) == 0
+                 "--hard", "1", "--norm", "l2", "--factor", "8", "--depth-sigma", "0.2",
+                 "--depth-smoothing", "0"]) == 0
     assert cv2.imread(str(out_path), cv2.IMREAD_UNCHANGED).dtype == np.uint8
+
+
+def test_dts_factor_and_colour_only_are_the_golden_settings(files):
+    directory, paths, _ = files
+    out_path = directory / "out_factor.png"
+    assert main(["dts", "--guide", str(paths["guide"]), "--target", str(paths["t8"]),
+                 "-o", str(out_path), "--factor", "8", "--colour-only"]) == 0
+    values = cv2.imread(str(paths["t8"]), cv2.IMREAD_UNCHANGED).astype(float)
+    solved = dts(values, cv2.imread(str(paths["guide"])) / 255.0, target_confidence(values),
+                 DtsParams.for_factor(8, depth_sigma=None))
+    np.testing.assert_array_equal(cv2.imread(str(out_path), cv2.IMREAD_UNCHANGED),
+                                  np.clip(np.rint(solved), 0, 255))
 
 
 @pytest.mark.parametrize("args, message", [
     (["--sigma-s", "0"], "--sigma-s must be a positive finite number, not 0.0"),
     (["--iterations", "0"], "--iterations must be at least 1, not 0"),
     (["--hard", "2"], r"--hard must be in \(0, 1\], not 2.0"),
+    (["--factor", "0"], "--factor must be a positive finite number, not 0.0"),
+    (["--depth-sigma", "-1"], "--depth-sigma must be a positive finite number, not -1.0"),
+    (["--depth-smoothing", "-2"],
+     "--depth-smoothing must be a positive finite number, not -2.0"),
     (["--confidence", "missing.png"], "--confidence 'missing.png' does not exist"),
 ])
 def test_dts_bad_input_is_a_clear_error(files, capsys, args, message):

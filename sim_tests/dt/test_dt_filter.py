@@ -16,10 +16,11 @@ from amaranth.sim import Simulator
 
 from emulator.dt import filter as model
 from emulator.benches.dt import simulate_block
-from golden.dt import domain_derivative, rf_anticausal, rf_causal, rf_weights
+from golden.dt import (domain_derivative, recursive_filter, rf_anticausal, rf_causal, rf_weights,
+                       sigma_schedule)
 from golden.dt_scenes import make_scene
-from hdl.dt.filter import (COEF_NUMERATOR, SIGMA_FMT, DomainTransformFilter, DtFilterParams,
-                           Reciprocal, WeightUnit)
+from hdl.dt.filter import (COEF_NUMERATOR, SIGMA_FMT, DomainTransformFilter,
+                           DomainTransformRounds, DtFilterParams, Reciprocal, WeightUnit)
 
 SEED = int(os.environ.get("SEED", "9"))
 CLOCK = 1e-8
@@ -83,6 +84,60 @@ def test_block_matches_model(case, traffic):
         first = frames[0][0].size
         cycles = outputs[first - 1][0] - outputs[0][0] + 1
         assert cycles == first
+
+
+@pytest.mark.parametrize("traffic", ["full_rate", "gaps_and_backpressure"])
+def test_rounds_match_model(traffic):
+    """Three rounds with the golden schedule: bit-exact, rounds x a stage's latency, 1 px/clk."""
+    params = DtFilterParams(width=16, window=2)
+    print(f"SEED={SEED}")
+    busy = traffic == "full_rate"
+    frames = _test_frames(params, [4, 2], SEED + 2, [(12.0, 20.0)] * 2)
+    inputs, outputs, dut = simulate_block(params, frames, seed=SEED, rounds=3,
+                                          valid_prob=1.0 if busy else 0.7,
+                                          ready_prob=1.0 if busy else 0.6)
+    expected = np.concatenate([model.filter_rounds(params, *frame, rounds=3).ravel()
+                               for frame in frames])
+    got = np.array([value for _, value, _ in outputs])
+    np.testing.assert_array_equal(got, expected, err_msg=f"SEED={SEED}")
+    assert [i for i, (_, _, last) in enumerate(outputs) if last] == [4 * 16 - 1, 6 * 16 - 1]
+    if busy:
+        assert {out[0] - cycle for out, cycle in zip(outputs, inputs)} == {dut.latency}
+        assert dut.latency == 3 * DomainTransformFilter(params).latency
+        assert outputs[4 * 16 - 1][0] - outputs[0][0] + 1 == 4 * 16
+
+
+def test_rounds_scale_the_registers_by_the_schedule():
+    assert model.round_registers(model.sigma_register("s", 20.0), 1) == [1280]
+    scaled = [r / 64 for r in model.round_registers(model.sigma_register("s", 20.0), 3)]
+    np.testing.assert_allclose(scaled, sigma_schedule(20.0, 3), atol=1 / 64)
+    with pytest.raises(ValueError, match="rounds must be an integer between 1 and 8, not 0"):
+        DomainTransformRounds(DtFilterParams(width=16), rounds=0)
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+def test_emulator_rounds_are_within_a_lsb_of_golden_per_pass(bits):
+    """Each of three rounds in the emulator against one golden RF round on the same input,
+    with the round's (quantized) sigmas and the same vertical window."""
+    params = DtFilterParams(width=96, window=8, value_bits=bits)
+    scene = make_scene(64, 96, seed=SEED)
+    guide = cv2.cvtColor(scene.guide, cv2.COLOR_BGR2GRAY).astype(np.int64)
+    value = guide if bits == 8 else np.rint(scene.depth * 257).astype(np.int64)
+    for sigma_s, sigma_r in [(5.0, 30.0), (20.0, 50.0)]:
+        registers = zip(model.round_registers(model.sigma_register("s", sigma_s), 3),
+                        model.round_registers(model.sigma_register("r", sigma_r), 3))
+        current = value
+        for n, (s_raw, r_raw) in enumerate(registers):
+            got = model.filter_frame(params, guide, current, s_raw, r_raw)
+            want = recursive_filter(current.astype(float), guide.astype(float),
+                                    sigma_s=SIGMA_FMT.to_float(s_raw),
+                                    sigma_r=SIGMA_FMT.to_float(r_raw), iterations=1,
+                                    vertical_window=params.window)
+            err = np.abs(got - want)
+            print(f"{bits} bits, sigma_s {sigma_s}, round {n + 1}: mean {err.mean():.3f}, "
+                  f"max {err.max():.3f} LSB")
+            assert err.mean() <= 1.0 and err.max() <= 2.0
+            current = got
 
 
 def test_new_sigmas_take_effect_at_the_next_frame():

@@ -1,10 +1,12 @@
-"""cocotb bench for hdl.dt.filter.DomainTransformFilter: every output against emulator.dt.filter.
+"""cocotb bench for hdl.dt.filter.DomainTransformFilter and DomainTransformRounds (``DT_ROUNDS``
+rounds, default 1): every output against emulator.dt.filter.
 
 Frames come from image files (``DT_IMAGE_PAIRS``: ``guide,value`` PNG pairs separated
 by the path separator; the guide is converted to grey, a 16-bit value image is scaled to
 the block's bits) and from the rolling-shutter simulator (``DT_DATASET``: a
 ``golden.dataset`` file whose camera images are both guide and value). Each frame is
-cropped to the block's width and ``DT_ROWS`` rows and gets its own sigma registers.
+cropped to the block's width and ``DT_ROWS`` rows and gets its own sigma registers (with
+several rounds, once the previous frame has left the block: every round latches them).
 """
 
 import os
@@ -15,7 +17,7 @@ import cv2
 import numpy as np
 from cocotb.triggers import ClockCycles
 
-from emulator.dt.filter import filter_frame, sigma_register
+from emulator.dt.filter import filter_rounds, sigma_register
 from hdl.dt.filter import DomainTransformFilter
 from emulator.hdl_sim.clocking import reset, start_clock
 from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
@@ -69,6 +71,7 @@ async def dt_filter_matches_model(dut, traffic):
     """Image-file and simulator frames, sigmas changed between frames."""
     params = load_params()
     sidecar = load_sidecar()
+    rounds = int(os.environ.get("DT_ROUNDS", "1"))
     rng = random.Random(cocotb.RANDOM_SEED)
     busy = traffic == "full_rate"
     clock = start_clock(dut)
@@ -82,12 +85,15 @@ async def dt_filter_matches_model(dut, traffic):
 
     expected = []
     for n, (guide, value) in enumerate(load_frames(params)):
+        if rounds > 1 and expected:
+            done = sum(e.size for e in expected)
+            await sink.wait_for(done, timeout_cycles=20 * done + 20 * sidecar["latency"])
         sigma_s, sigma_r = (sigma_register(name, v) for name, v in
                             zip(("sigma_s", "sigma_r"), SIGMAS[n % len(SIGMAS)]))
         dut.sigma_s.value = sigma_s
         dut.sigma_r.value = sigma_r
         await ClockCycles(dut.clk, DomainTransformFilter.coefficient_settle_clocks)
-        expected.append(filter_frame(params, guide, value, sigma_s, sigma_r))
+        expected.append(filter_rounds(params, guide, value, sigma_s, sigma_r, rounds))
         await source.send(_pixels(guide, value))
     total = sum(e.size for e in expected)
     await sink.wait_for(total, timeout_cycles=20 * total + 20 * sidecar["latency"])

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from golden.dt_scenes import make_scene
-from hdl.dt.filter import DomainTransformFilter, DtFilterParams
+from hdl.dt.filter import DomainTransformFilter, DomainTransformRounds, DtFilterParams
 from emulator.hdl_sim.runner import run_cocotb
 
 SLOW = pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="set RUN_SLOW=1")
@@ -21,7 +21,10 @@ CASES = {
     "8bit": DtFilterParams(width=64, window=4),
     "16bit": DtFilterParams(width=48, window=3, value_bits=16),
     "vga_rows": DtFilterParams(width=640, window=8),
+    "3rounds": DtFilterParams(width=48, window=3),
 }
+#: Rounds per case (the golden default schedule is three rounds); 1 unless listed.
+ROUNDS = {"3rounds": 3}
 
 
 def _scene_images(directory):
@@ -58,9 +61,12 @@ def frame_sources(tmp_path_factory):
 
 
 @pytest.mark.parametrize("sim,case", [("verilator", "8bit"), ("verilator", "16bit"),
-                                      ("icarus", "8bit"),
+                                      ("icarus", "8bit"), ("verilator", "3rounds"),
                                       pytest.param("verilator", "vga_rows", marks=SLOW)])
 def test_dt_filter_cocotb(sim, case, frame_sources):
-    env = dict(frame_sources, DT_ROWS="6" if case == "vga_rows" else "12")
-    run_cocotb(DomainTransformFilter(CASES[case]), name="dt_filter", tag=case, sim=sim,
+    rounds = ROUNDS.get(case, 1)
+    env = dict(frame_sources, DT_ROWS="6" if case == "vga_rows" else "12", DT_ROUNDS=str(rounds))
+    dut = (DomainTransformFilter(CASES[case]) if rounds == 1
+           else DomainTransformRounds(CASES[case], rounds))
+    run_cocotb(dut, name="dt_filter", tag=case, sim=sim,
                test_module="sim_tests.dt.dt_filter.dt_filter_bench", extra_env=env)
