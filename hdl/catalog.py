@@ -11,6 +11,7 @@ import importlib
 BLOCKS = {
     "mac": "hdl.pose.mac:MultiplyAccumulate",
     "dt_filter": "hdl.dt.filter:DomainTransformFilter",
+    "dt_rounds": "hdl.dt.rounds:DomainTransformRounds",
     "uart": "hdl.output.uart:UartTx",
     "pose_output": "hdl.output.packet:PoseOutput",
     "regs": "hdl.top:register_file",

@@ -50,7 +50,8 @@ def simulate_block(params, frames, *, seed, valid_prob=1.0, ready_prob=1.0, roun
     ``outputs`` a list of ``(cycle, value, last)``.
     """
     from amaranth.sim import Simulator
-    from hdl.dt.filter import DomainTransformFilter, DomainTransformRounds
+    from hdl.dt.filter import DomainTransformFilter
+    from hdl.dt.rounds import DomainTransformRounds
 
     dut = DomainTransformFilter(params) if rounds is None else DomainTransformRounds(params, rounds)
     rng = random.Random(seed)
@@ -116,7 +117,7 @@ def _grey_scene(height, width, seed):
 def _hardware_figures(rounds=1):
     """Latency, throughput and tail from a simulated 640-pixel-wide frame, through one
     ``DomainTransformFilter`` or (``rounds`` > 1) a ``DomainTransformRounds``."""
-    from hdl.dt.filter import DtFilterParams
+    from hdl.dt.params import DtFilterParams
     params = DtFilterParams()
     guide, _ = _grey_scene(4, params.width, seed=11)
     s_raw, r_raw = model.sigma_register("sigma_s", 20.0), model.sigma_register("sigma_r", 50.0)
@@ -142,7 +143,7 @@ def _hardware_figures(rounds=1):
 def _rounds_accuracy(params, value_bits):
     """Each of ROUNDS_HW emulated rounds against one golden round with the round's sigmas."""
     from golden.dt import recursive_filter
-    from hdl.dt.filter import SIGMA_FMT
+    from hdl.dt.params import SIGMA_FMT
     params = params.replace(value_bits=value_bits)
     guide, scene = _grey_scene(480, params.width, seed=12)
     value = guide if value_bits == 8 else np.rint(scene.depth * 257).astype(np.int64)
@@ -265,7 +266,7 @@ def _dsr_figures():
 
 def _runtime_figures():
     """Seconds per megapixel on a 1536x1024 (1.57 MP) scene, best of two runs."""
-    from hdl.dt.filter import DtFilterParams
+    from hdl.dt.params import DtFilterParams
     from golden.dt import normalized_convolution, recursive_filter
     from golden.dt_scenes import bicubic_target, downsample, make_scene
     from golden.dts import dts, target_confidence
@@ -294,7 +295,8 @@ def _runtime_figures():
 
 
 def measure():
-    from hdl.dt.filter import DomainTransformFilter, DomainTransformRounds
+    from hdl.dt.filter import DomainTransformFilter
+    from hdl.dt.rounds import DomainTransformRounds
     params, figures = _hardware_figures()
     synth = synth_report(DomainTransformFilter(params), "dt_filter")
     figures.update({key: synth[key] for key in ("lut", "ff", "bram36", "dsp48", "lut_levels")})

@@ -43,7 +43,7 @@ def _grey8(image):
 
 def _hardware(args, image, guide):
     from emulator.dt.filter import filter_frame, sigma_register
-    from hdl.dt.filter import DtFilterParams
+    from hdl.dt.params import DtFilterParams
     if image.ndim != 2:
         raise UsageError("--hardware filters single-channel images only")
     try:

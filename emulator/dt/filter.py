@@ -9,7 +9,7 @@ every row's first pixel have weight 0), so a stream of frames is a list of frame
 
 import numpy as np
 
-from hdl.dt.filter import (COEF_FMT, COEF_NUMERATOR, GUIDE_BITS, SCHEDULE_FMT, SIGMA_FMT,
+from hdl.dt.params import (COEF_FMT, COEF_NUMERATOR, GUIDE_BITS, SCHEDULE_FMT, SIGMA_FMT,
                            SIGMA_MIN_RAW, TABLE_ADDR_BITS, DtFilterParams, lookup_fmt,
                            schedule_scales, weight_tables)
 from hdl.fixed import UQ, Overflow, Rounding, add, mul, resize
@@ -141,7 +141,7 @@ def filter_frame(params, guide, value, sigma_s_raw, sigma_r_raw, *, vertical=Tru
 
 
 def round_registers(sigma_raw, rounds):
-    """A sigma register scaled for each round of :class:`hdl.dt.filter.DomainTransformRounds`."""
+    """A sigma register scaled for each round of :class:`hdl.dt.rounds.DomainTransformRounds`."""
     out = []
     for scale in schedule_scales(rounds):
         product, fmt = mul(np.int64(sigma_raw), SIGMA_FMT, np.int64(scale), SCHEDULE_FMT)
@@ -150,7 +150,7 @@ def round_registers(sigma_raw, rounds):
 
 
 def filter_rounds(params, guide, value, sigma_s_raw, sigma_r_raw, rounds):
-    """The output of :class:`hdl.dt.filter.DomainTransformRounds` for one frame: each
+    """The output of :class:`hdl.dt.rounds.DomainTransformRounds` for one frame: each
     round is :func:`filter_frame` with the round's registers, on the last round's output."""
     for s_raw, r_raw in zip(round_registers(sigma_s_raw, rounds),
                             round_registers(sigma_r_raw, rounds)):

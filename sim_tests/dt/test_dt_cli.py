@@ -10,7 +10,7 @@ from emulator.cli import main
 from emulator.dt.filter import filter_frame, sigma_register
 from golden.dt_scenes import bicubic_target, downsample, make_scene, rmse
 from golden.dts import DtsParams, dts, target_confidence
-from hdl.dt.filter import DtFilterParams
+from hdl.dt.params import DtFilterParams
 
 
 @pytest.fixture(scope="module")

@@ -19,8 +19,10 @@ from emulator.benches.dt import simulate_block
 from golden.dt import (domain_derivative, recursive_filter, rf_anticausal, rf_causal, rf_weights,
                        sigma_schedule)
 from golden.dt_scenes import make_scene
-from hdl.dt.filter import (COEF_NUMERATOR, SIGMA_FMT, DomainTransformFilter,
-                           DomainTransformRounds, DtFilterParams, Reciprocal, WeightUnit)
+from hdl.dt.params import COEF_NUMERATOR, SIGMA_FMT, DtFilterParams
+from hdl.dt.filter import DomainTransformFilter
+from hdl.dt.rounds import DomainTransformRounds
+from hdl.dt.units import Reciprocal, WeightUnit
 
 SEED = int(os.environ.get("SEED", "9"))
 CLOCK = 1e-8

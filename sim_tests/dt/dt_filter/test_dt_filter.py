@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from golden.dt_scenes import make_scene
-from hdl.dt.filter import DomainTransformFilter, DomainTransformRounds, DtFilterParams
+from hdl.dt.filter import DomainTransformFilter
+from hdl.dt.rounds import DomainTransformRounds
+from hdl.dt.params import DtFilterParams
 from emulator.hdl_sim.runner import run_cocotb
 
 SLOW = pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="set RUN_SLOW=1")
