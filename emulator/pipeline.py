@@ -6,7 +6,7 @@ functions and classes, not copies): :class:`emulator.row_descriptor.TemporalLane
 pair), :mod:`emulator.measurement.router` and :func:`emulator.pose_solver.pose_solver_model`.
 
 What enters where the hardware's front end would be: each row of the dataset as a
-:class:`emulator.row_descriptor.FramedRow` (what the framer hands on for a clean row:
+:class:`emulator.descriptor.framer.FramedRow` (what the framer hands on for a clean row:
 exactly ``width`` pixels, no reason bits), its time stamp the row's exposure time since
 the first row in clocks of ``clk_hz``, the matcher's run-time centre 0. Rows go
 through the lanes as row sets, all cameras' row ``y`` of frame ``i`` together, as the
@@ -29,7 +29,8 @@ import numpy as np
 
 from emulator.measurement.router import pose_rows, route_row
 from emulator.pose_solver import pose_solver_model
-from emulator.row_descriptor import FramedRow, StereoLaneModel, TemporalLaneModel
+from emulator.descriptor.framer import FramedRow
+from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel
 
 __all__ = ["PipelineResult", "run"]
 

@@ -66,7 +66,8 @@ def _lane_speed(data, batched):
     temporal lane and every rectified pair through a stereo lane (centre 0), a frame
     of a camera per call (``batched``) or a row per call, as the pipeline runs them.
     Returns ``(rows/s, {"temporal": measurements, "stereo": measurements})``."""
-    from emulator.row_descriptor import FramedRow, StereoLaneModel, TemporalLaneModel
+    from emulator.descriptor.framer import FramedRow
+    from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel
     from golden.depth import stereo_pairs
     from hdl.descriptor.params import STEREO_640X480, TEMPORAL_640X480
     cams, bits = range(len(data.cameras)), (len(data.cameras) - 1).bit_length()
@@ -123,7 +124,7 @@ def _emulator_speed(temporal_hdl, width):
 def _golden_agreement(params):
     """Sub-pixel error on textured and simulator rows, confidence order, and the
     largest confidence of textureless and periodic rows."""
-    from emulator.row_descriptor import against_golden, confidences, subpixel_errors
+    from emulator.descriptor.matcher import against_golden, confidences, subpixel_errors
     from golden.dataset import Dataset
     from emulator.hdl_sim.row_stimulus import (moving_rows, periodic_rows,
                                                           simulator_dataset)

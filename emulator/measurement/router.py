@@ -49,7 +49,7 @@ decision by decision):
   marks; their slot is ``camera · K + position``. One whose (frame, row) is not the
   ticket's is counted ``misaligned`` and gets zero confidence; its row label is the
   ticket's.
-* **Stereo lanes** may lose a row (``hdl.row_descriptor.StereoJoin`` drops a row whose
+* **Stereo lanes** may lose a row (``hdl.descriptor.framer.StereoJoin`` drops a row whose
   partner never came), so a marked stereo lane is resynchronized measurement by
   measurement: an older (frame, row) than the ticket's (frames compared modulo
   ``2**frame_bits``, as the join does) is dropped and counted ``misaligned``; the

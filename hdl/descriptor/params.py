@@ -15,7 +15,8 @@ from golden.descriptor import STEREO_MATCH, DescriptorParams, MatchParams, dog2_
 
 from hdl.fixed import SQ, UQ, QFormat, Rounding
 
-__all__ = ["RowDescriptorParams", "DEFAULT_SEGMENTS", "TEMPORAL_640X480", "STEREO_640X480"]
+__all__ = ["RowDescriptorParams", "DEFAULT_SEGMENTS", "TEMPORAL_640X480", "STEREO_640X480",
+           "check_lane_params"]
 
 #: Temporal segments per row (K) of a lane, the engine and the top unless told otherwise:
 #: the solver has one slot per camera and segment.
@@ -287,3 +288,11 @@ TEMPORAL_640X480 = RowDescriptorParams()
 
 #: A 640×480 stereo pair, disparity [10, 70] px around the centre, one segment.
 STEREO_640X480 = RowDescriptorParams(match=STEREO_MATCH)
+
+
+def check_lane_params(params):
+    """``params`` if it is a :class:`RowDescriptorParams` (every lane block takes one),
+    else ``TypeError`` naming it."""
+    if not isinstance(params, RowDescriptorParams):
+        raise TypeError(f"params must be a RowDescriptorParams, not {params!r}")
+    return params

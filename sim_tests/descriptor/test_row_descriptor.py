@@ -14,12 +14,14 @@ import pytest
 from amaranth.hdl import Fragment
 from amaranth.sim import Simulator
 
-from emulator.row_descriptor import (StereoLaneModel, TemporalLaneModel, frame_rows,
-                                     measure_segments)
+from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel
+from emulator.descriptor.framer import frame_rows
+from emulator.descriptor.matcher import measure_segments
 from golden.descriptor import STEREO_MATCH, MatchParams
 from hdl.fixed import SQ, UQ
 from hdl.descriptor.matcher import SerialDivider
-from hdl.row_descriptor import DescriptorFIR, RowDescriptor, StereoRowDescriptor
+from hdl.descriptor.fir import DescriptorFIR
+from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor
 from hdl.descriptor.params import STEREO_640X480, TEMPORAL_640X480, RowDescriptorParams
 from emulator.hdl_sim.row_stimulus import (frame_beats, inject_faults,
                                                       moving_rows, row_beats)

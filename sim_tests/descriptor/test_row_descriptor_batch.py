@@ -12,9 +12,9 @@ import os
 import numpy as np
 import pytest
 
-from emulator.row_descriptor import (FramedRow, StereoLaneModel, TemporalLaneModel,
-                                     descriptor_bits, frame_rows, hamming_costs,
-                                     measure_rows, stereo_pairs)
+from emulator.descriptor.framer import FramedRow, frame_rows
+from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel, stereo_pairs
+from emulator.descriptor.matcher import descriptor_bits, hamming_costs, measure_rows
 from golden.dataset import Dataset
 from golden.descriptor import STEREO_MATCH, MatchParams, describe, response, strength
 from golden.descriptor import hamming_costs as golden_costs

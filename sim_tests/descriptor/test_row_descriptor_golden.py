@@ -12,7 +12,7 @@ import os
 import numpy as np
 import pytest
 
-from emulator.row_descriptor import against_golden, confidences, subpixel_errors
+from emulator.descriptor.matcher import against_golden, confidences, subpixel_errors
 from golden.dataset import Dataset
 from golden.descriptor import MatchParams
 from hdl.descriptor.params import TEMPORAL_640X480

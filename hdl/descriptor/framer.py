@@ -1,0 +1,161 @@
+"""Framing of the row-descriptor lanes (:mod:`hdl.row_descriptor`): rows of exactly
+``width`` pixels out of a camera beat stream (:class:`RowFramer`), and two framed
+streams of a stereo pair joined column by column (:class:`StereoJoin`)."""
+
+from amaranth.hdl import Module, Mux, Signal
+from amaranth.lib import stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from hdl.descriptor.layouts import framed_layout
+from hdl.descriptor.params import check_lane_params
+
+__all__ = ["RowFramer", "StereoJoin"]
+
+
+class RowFramer(wiring.Component):
+    """Rows of exactly ``width`` pixels out of a camera beat stream.
+
+    A ``first`` beat opens a row; if the previous row is still incomplete its end is
+    padded first (zero pixels, while ``i`` waits). A ``last`` before column
+    ``width − 1`` makes the row short: it is padded to the width. A row whose column
+    ``width − 1`` lacks ``last`` is long: it ends there and the rest is dropped, like any
+    beat outside an open row. Such rows, rows with reason bits (``flags``) and rows
+    indexed at or beyond ``height`` are bad; ``meta.bad`` is sticky along the row, so its
+    last item carries the final verdict.
+
+    Members
+    -------
+    i : In(stream.Signature(params.input_layout()))
+        Camera beats (``hdl.streams.camera_pixel_layout``).
+    centre : In(params.centre_fmt.shape())
+        Shift-window centre, integer pixels, sampled with each row's first beat and
+        saturated to ``±centre_range``.
+    o : Out(stream.Signature(framed_layout(params, 1)))
+
+    Latency 1 (output register); one beat per clock, except one clock per pad pixel.
+    Backpressure: ``i`` waits while ``o`` holds an untaken column.
+    """
+
+    latency = 1
+
+    def __init__(self, params):
+        self.params = check_lane_params(params)
+        super().__init__({
+            "i": In(stream.Signature(params.input_layout())),
+            "centre": In(params.centre_fmt.shape()),
+            "o": Out(stream.Signature(framed_layout(params, 1))),
+        })
+
+    def elaborate(self, platform):
+        p = self.params
+        m = Module()
+        beat = self.i.payload
+        width = p.width
+
+        col = Signal(range(width + 1), init=width)   # width: no incomplete row
+        incomplete = Signal()                         # col != width, registered
+        col_last = Signal()                           # col == width − 1, registered
+        pad_mode = Signal()                           # padding a short row
+        meta = Signal.like(self.o.payload.meta)
+
+        pad_now = pad_mode | (self.i.valid & beat.first & incomplete)
+        take = ~pad_now & self.i.valid & (beat.first | incomplete)
+        opens = take & beat.first
+        pos = Mux(opens, 0, col)
+        at_end = ~opens & col_last                    # a row is wider than one pixel
+        short = take & beat.last & ~at_end
+        long_row = take & at_end & ~beat.last
+
+        cr = p.centre_range
+        centre = Mux(self.centre > cr, cr, Mux(self.centre < -cr, -cr, self.centre))
+        item = Signal.like(self.o.payload)
+        with m.If(opens):
+            m.d.comb += [
+                item.meta.camera.eq(beat.camera), item.meta.frame.eq(beat.frame),
+                item.meta.row.eq(beat.row), item.meta.t_first.eq(beat.t_first),
+                item.meta.centre.eq(centre),
+            ]
+        with m.Else():
+            m.d.comb += item.meta.eq(meta)
+        row_bad = Mux(opens, beat.row >= p.height, meta.bad)
+        m.d.comb += [
+            item.meta.bad.eq(row_bad | pad_now | (take & beat.flags.any()) | short | long_row),
+            item.pixels[0].eq(Mux(pad_now, 0, beat.data)),
+            item.pos.eq(pos), item.first.eq(opens), item.last.eq(at_end),
+        ]
+
+        # output register; beats outside a row are taken and dropped
+        advance = ~self.o.valid | self.o.ready
+        m.d.comb += self.i.ready.eq(advance & ~pad_now)
+        with m.If(advance):
+            m.d.sync += [self.o.valid.eq(pad_now | take), self.o.payload.eq(item)]
+            with m.If(pad_now | take):
+                m.d.sync += [
+                    meta.eq(item.meta),
+                    col.eq(Mux(at_end, width, pos + 1)),
+                    incomplete.eq(~at_end), col_last.eq(pos == width - 2),
+                    pad_mode.eq(~at_end & (pad_mode | short)),
+                ]
+        return m
+
+
+class StereoJoin(wiring.Component):
+    """Pair the framed rows of a stereo pair column by column.
+
+    At a row boundary the two head rows are compared: same (frame, row) → their columns
+    go out together (``pixels[0]`` from ``a``, ``pixels[1]`` from ``b``; metadata from
+    ``a``, ``bad`` from either); otherwise the older row (frame order modulo
+    ``2**frame_bits``, then row index) is dropped whole, so one lost row does not
+    misalign the pair for good.
+
+    Members
+    -------
+    a, b : In(stream.Signature(framed_layout(params, 1)))
+    o : Out(stream.Signature(framed_layout(params, 2)))
+
+    Latency 1 (output register); one column pair per clock.
+    """
+
+    latency = 1
+
+    def __init__(self, params):
+        self.params = check_lane_params(params)
+        super().__init__({
+            "a": In(stream.Signature(framed_layout(params, 1))),
+            "b": In(stream.Signature(framed_layout(params, 1))),
+            "o": Out(stream.Signature(framed_layout(params, 2))),
+        })
+
+    def elaborate(self, platform):
+        p = self.params
+        m = Module()
+        a, b = self.a.payload, self.b.payload
+        mode = Signal(2)          # 0: at a boundary, 1: pairing, 2: dropping a, 3: dropping b
+        both = self.a.valid & self.b.valid
+        same = (a.meta.frame == b.meta.frame) & (a.meta.row == b.meta.row)
+        frame_gap = (a.meta.frame - b.meta.frame)[:p.frame_bits]
+        a_older = frame_gap[-1] | ((frame_gap == 0) & (a.meta.row < b.meta.row))
+        pairing = (mode == 1) | ((mode == 0) & same)
+        drop_a = (mode == 2) | ((mode == 0) & both & ~same & a_older)
+        drop_b = (mode == 3) | ((mode == 0) & both & ~same & ~a_older)
+        advance = ~self.o.valid | self.o.ready
+        paired = both & pairing & advance
+        m.d.comb += [
+            self.a.ready.eq((pairing & self.b.valid & advance) | drop_a),
+            self.b.ready.eq((pairing & self.a.valid & advance) | drop_b),
+        ]
+        out = self.o.payload
+        with m.If(advance):
+            m.d.sync += [
+                self.o.valid.eq(both & pairing),
+                out.pixels[0].eq(a.pixels[0]), out.pixels[1].eq(b.pixels[0]),
+                out.pos.eq(a.pos), out.first.eq(a.first), out.last.eq(a.last),
+                out.meta.eq(a.meta), out.meta.bad.eq(a.meta.bad | b.meta.bad),
+            ]
+        with m.If(paired):
+            m.d.sync += mode.eq(Mux(a.last, 0, 1))
+        with m.Elif(self.a.valid & drop_a):
+            m.d.sync += mode.eq(Mux(a.last, 0, 2))
+        with m.Elif(self.b.valid & drop_b):
+            m.d.sync += mode.eq(Mux(b.last, 0, 3))
+        return m
