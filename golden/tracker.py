@@ -28,28 +28,23 @@ measurement gives, both with gains weighted by how much the slot's system tells
 (:func:`golden.temporal_filter.information_gain`). See ``docs/tracker.md``.
 """
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict
 from types import SimpleNamespace
 
 import numpy as np
 
-from .checks import check_int, check_number
-from .descriptor import (DescriptorParams, MatchParams, describe, match, segment_bounds,
-                         strength)
+from .descriptor import describe, match, segment_bounds, strength
 from .depth import StereoDepth, stereo_pairs
 from .pose_lsq import body_step, normal_equations, solve_normal
 from .reference_rows import HomographyReference, PreviousFrameReference
 from .temporal_filter import HoltWinters, RobustScale, information_gain
 from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
+from .tracker_params import DEPTHS, REFERENCES, SOLVERS, TrackerParams, TrackResult
 from .tracker_slots import RowSlots
 
 __all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "TrackerParams", "TrackResult", "Tracker",
            "track"]
-
-REFERENCES = ("homography", "previous")
-DEPTHS = ("auto", "stereo", "overlap", "oracle")
-SOLVERS = ("linear", "nonlinear")
 
 #: Gauss–Newton iterations and finite-difference probe (m or rad) of the nonlinear
 #: refinement.
@@ -64,165 +59,6 @@ REFERENCE_MARGIN = 2
 #: Weight of each new solved system in the running "typical information" that scales
 #: the filter gains (about the last 50 solved slots).
 TYPICAL_SMOOTHING = 0.02
-
-
-@dataclass(frozen=True, kw_only=True)
-class TrackerParams:
-    """Parameters of the golden tracker (defaults: ``docs/tracker.md`` gives the reasons).
-
-    Parameters
-    ----------
-    reference : str
-        ``"homography"`` (a: rotation-compensated previous frame, the papers') or
-        ``"previous"`` (b: the previous frame's stored descriptor rows).
-    reselect_angle : float
-        (a) Rotation (rad) since the reference rotation that forces a new one.
-    parallax : bool
-        (a) Also compensate the translation's parallax when reading the reference, with
-        the current depth (off: the papers' rotation-only compensation).
-    follow_rows : bool
-        (b) Read the stored row the content is predicted to come from (one row address
-        per camera and row) instead of the same row index.
-    sigma : float
-        Descriptor σ (pixels).
-    strong_test : bool
-        Also call a segment textureless when it has too few strong columns (the matcher's
-        optional flat-row test; off: bit transitions only).
-    window : int
-        Half-width of the temporal shift window (pixels), centred on the prediction.
-    segments : int
-        Segments (equations) per camera row.
-    depth : str
-        ``"stereo"`` (pair disparity), ``"overlap"`` (depth maps bootstrapped from
-        neighbouring cameras), ``"oracle"`` (the simulator's true depth — ablations
-        only) or ``"auto"`` (stereo if the rig has rectified pairs, else overlap).
-    disparity_blocks : int
-        Disparity segments per row (stereo).
-    min_depth_fraction : float
-        Share of a segment's pixels that need a depth for the segment to count.
-    alpha, beta : float
-        Holt–Winters level and trend smoothing of the per-slot motion.
-    pose_alpha : float
-        How far a typical slot's pose moves from the pose carried on from the previous
-        slot (at the forecast rate) towards the pose its measurements give.
-    huber_k : float
-        Huber threshold (robust scales).
-    scale_initial, scale_floor : float
-        Robust scale of the shift innovations at the start and its floor (pixels).
-    scale_smoothing : float
-        λ of the robust scale recursion.
-    min_confidence : float
-        A slot needs one measurement at least this confident to step.
-    min_cameras : int
-        ... and measurements from at least this many cameras (fewer cameras leave
-        directions weakly determined; such a slot carries on from the latest pose).
-    max_condition : float
-        Largest condition number of the weighted, column-scaled design matrix.
-    block_rows : int
-        Slots whose window centres and reference rows are predicted together.
-    geometry_stride : int
-        Every n-th pixel of a segment enters its averaged equation (the averages of
-        smooth per-pixel coefficients; 1 uses every pixel).
-    solver : str
-        ``"linear"`` (one weighted least-squares solve) or ``"nonlinear"`` (refined on
-        the exact projection model, for comparison).
-    """
-    reference: str = "homography"
-    reselect_angle: float = 0.06
-    parallax: bool = True
-    follow_rows: bool = True
-    sigma: float = 2.0
-    strong_test: bool = False
-    window: int = 20
-    segments: int = 8
-    depth: str = "auto"
-    disparity_blocks: int = 16
-    min_depth_fraction: float = 0.5
-    alpha: float = 0.1
-    beta: float = 0.01
-    pose_alpha: float = 0.02
-    huber_k: float = 2.0
-    scale_initial: float = 0.5
-    scale_floor: float = 0.1
-    scale_smoothing: float = 0.1
-    min_confidence: float = 1.0
-    min_cameras: int = 3
-    max_condition: float = 100.0
-    block_rows: int = 48
-    geometry_stride: int = 4
-    solver: str = "linear"
-
-    def __post_init__(self):
-        for name, options in (("reference", REFERENCES), ("depth", DEPTHS),
-                              ("solver", SOLVERS)):
-            if getattr(self, name) not in options:
-                raise ValueError(f"{name} must be one of {', '.join(options)}, "
-                                 f"not {getattr(self, name)!r}")
-        for name in ("parallax", "follow_rows", "strong_test"):
-            if not isinstance(getattr(self, name), bool):
-                raise TypeError(f"{name} must be a bool, not {getattr(self, name)!r}")
-        check_number("reselect_angle", self.reselect_angle, 0, low_open=True)
-        check_int("window", self.window, 1)
-        check_int("segments", self.segments, 1)
-        check_int("disparity_blocks", self.disparity_blocks, 1)
-        check_int("block_rows", self.block_rows, 1)
-        check_int("geometry_stride", self.geometry_stride, 1)
-        check_number("min_depth_fraction", self.min_depth_fraction, 0, 1,
-               low_open=True)
-        check_number("alpha", self.alpha, 0, 1, low_open=True)
-        check_number("pose_alpha", self.pose_alpha, 0, 1, low_open=True)
-        check_number("beta", self.beta, 0, 1)
-        for name in ("huber_k", "scale_initial", "scale_floor", "scale_smoothing",
-                     "max_condition"):
-            check_number(name, getattr(self, name), 0, low_open=True)
-        check_number("min_confidence", self.min_confidence, 0)
-        check_int("min_cameras", self.min_cameras, 1)
-        DescriptorParams(sigma=self.sigma)
-
-    replace = replace
-
-    @property
-    def descriptor(self):
-        return DescriptorParams(sigma=self.sigma)
-
-    @property
-    def matcher(self):
-        return MatchParams(shift_min=-self.window, shift_max=self.window,
-                           segments=self.segments)
-
-
-@dataclass
-class TrackResult:
-    """The tracker's output, one entry per occupied row slot.
-
-    Members
-    -------
-    times : (S,) slot times (s)
-    rotations, positions : (S, 3, 3), (S, 3) estimated world-from-rig poses
-    tracked : (S,) bool, false for the initialisation slots (poses given)
-    updated : (S,) bool, the slot made a measurement step
-    condition : (S,) condition number of the weighted, column-scaled system (NaN: none)
-    equations : (S,) measurements with non-zero confidence
-    camera_confidence : (S, N) best segment confidence of each camera (NaN: no row)
-    motion : (S, 6) the smoothed one-frame motion Y of each slot
-    linear_step, refined_step : (S, 6) with ``solver="nonlinear"``: the linear and the
-        refined δ (NaN where no step)
-    period : frame period (s) over which Y is defined
-    params : dict of the TrackerParams used, plus ``depth_source``
-    """
-    times: np.ndarray
-    rotations: np.ndarray
-    positions: np.ndarray
-    tracked: np.ndarray
-    updated: np.ndarray
-    condition: np.ndarray
-    equations: np.ndarray
-    camera_confidence: np.ndarray
-    motion: np.ndarray
-    linear_step: np.ndarray
-    refined_step: np.ndarray
-    period: float
-    params: dict
 
 
 def _row_means(values):
