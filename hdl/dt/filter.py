@@ -40,7 +40,19 @@ from hdl.dt.params import COEF_FMT, GUIDE_BITS, SIGMA_FMT, SIGMA_MIN_RAW, DtFilt
 from hdl.dt.units import Reciprocal, WeightUnit, hdl_rf_step, read_enable
 from hdl.fixed import Overflow, Rounding, hdl_resize
 
-__all__ = ["DomainTransformFilter"]
+__all__ = ["DomainTransformFilter", "filter_signature"]
+
+
+def filter_signature(params):
+    """Ports of a DT filter built with ``params`` (one round or several): pixels in and
+    out, the two sigma registers, and the clamp flags."""
+    return wiring.Signature({
+        "i": In(stream.Signature(params.input_layout())),
+        "o": Out(stream.Signature(params.output_layout())),
+        "sigma_s": In(SIGMA_FMT.shape()),
+        "sigma_r": In(SIGMA_FMT.shape()),
+        "clamped": Out(2),
+    })
 
 def _abs_diff(a, b):
     return Mux(a > b, a - b, b - a)[:GUIDE_BITS]
@@ -106,13 +118,7 @@ class DomainTransformFilter(wiring.Component):
         if not isinstance(params, DtFilterParams):
             raise TypeError(f"params must be a DtFilterParams, not {params!r}")
         self.params = params
-        super().__init__({
-            "i": In(stream.Signature(params.input_layout())),
-            "o": Out(stream.Signature(params.output_layout())),
-            "sigma_s": In(SIGMA_FMT.shape()),
-            "sigma_r": In(SIGMA_FMT.shape()),
-            "clamped": Out(2),
-        })
+        super().__init__(filter_signature(params))
 
 
     @classmethod

@@ -3,9 +3,8 @@
 import functools
 
 from amaranth.hdl import Module
-from amaranth.lib import stream, wiring
+from amaranth.lib import wiring
 from amaranth.lib.fifo import SyncFIFOBuffered
-from amaranth.lib.wiring import In, Out
 
 from golden.checks import check_int
 
@@ -13,7 +12,7 @@ from hdl.dt.params import GUIDE_BITS, SCHEDULE_FMT, SIGMA_FMT, DtFilterParams, s
 from hdl.fixed import Overflow, Rounding, hdl_mul, hdl_resize
 
 
-from hdl.dt.filter import DomainTransformFilter
+from hdl.dt.filter import DomainTransformFilter, filter_signature
 
 __all__ = ["DomainTransformRounds"]
 
@@ -53,13 +52,7 @@ class DomainTransformRounds(wiring.Component):
             raise TypeError(f"params must be a DtFilterParams, not {params!r}")
         check_int("rounds", rounds, 1, 8)
         self.params, self.rounds = params, rounds
-        super().__init__({
-            "i": In(stream.Signature(params.input_layout())),
-            "o": Out(stream.Signature(params.output_layout())),
-            "sigma_s": In(SIGMA_FMT.shape()),
-            "sigma_r": In(SIGMA_FMT.shape()),
-            "clamped": Out(2),
-        })
+        super().__init__(filter_signature(params))
 
     @property
     def latency(self):
