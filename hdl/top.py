@@ -47,6 +47,9 @@ class RowtrackTop(wiring.Component):
     params : TopParams
     domains : sequence of str, optional
         Camera ``k``'s pixel clock domain (default ``pclk0``, ``pclk1``, ...).
+    coefficients : ndarray (slots, rows, 9), optional
+        Initial contents of the solver's coefficient store (raw; default zeros, loaded
+        through the registers), e.g. a rig's ``PipelineConfig.coef_raw``.
 
     Members
     -------
@@ -61,10 +64,11 @@ class RowtrackTop(wiring.Component):
         Pose packets.
     """
 
-    def __init__(self, params=TopParams(), *, domains=None):
+    def __init__(self, params=TopParams(), *, domains=None, coefficients=None):
         if not isinstance(params, TopParams):
             raise TypeError(f"params must be a TopParams, not {params!r}")
         self.params = params
+        self.coefficients = coefficients
         n = params.camera.n_cameras
         self.domains = tuple(domains) if domains is not None else \
             tuple(f"pclk{k}" for k in range(n))
@@ -84,7 +88,7 @@ class RowtrackTop(wiring.Component):
         m.submodules.regs = regs = RegisterFile(p.regmap())
         m.submodules.front = front = CameraFrontEnd(p.camera, domains=self.domains)
         m.submodules.engine = engine = MeasurementEngine(p.engine)
-        m.submodules.solver = solver = PoseSolver(p.solver)
+        m.submodules.solver = solver = PoseSolver(p.solver, self.coefficients)
         m.submodules.pose_link = link = PoseLink(p)
         wiring.connect(m, wiring.flipped(self.axi), regs.axi)
         wiring.connect(m, front.o, engine.rows)
