@@ -339,12 +339,13 @@ def _stack(values, operands):
 
 
 def _execute(params, program, batches, values, n):
-    """Run the :func:`_batches` of ops of ``program`` on ``values`` ((bank, name) -> Value over ``n`` rows,
-    updated in place with every result) as the engine does: a multiply-accumulate op is
-    one rounding of its exact sum (:func:`_dot`), a seed op is :func:`rsqrt_seed` of its
-    source with the pivot check. Commit ops do not overwrite the state they replace: the
-    engine's reads of the state see the row's starting pose, so their results are
-    returned apart. Returns (committed: state name -> Value, ILL mask, saturated mask)."""
+    """Run the :func:`_batches` of ops of ``program`` on ``values`` ((bank, name) ->
+    Value over ``n`` rows, updated in place with every result) as the engine does: a
+    multiply-accumulate op is one rounding of its exact sum (:func:`_dot`), a seed op is
+    :func:`rsqrt_seed` of its source with the pivot check. Commit ops do not overwrite
+    the state they replace: the engine's reads of the state see the row's starting pose,
+    so their results are returned apart. Returns (committed: state name -> Value, ILL
+    mask, saturated mask)."""
     values.update({("work", name): _constant(value, operand.fmt, n)
                    for name, (operand, value) in program.constants.items()})
     threshold = int(params.unit_fmt.quantize(2.0 ** -params.pivot_log2))
@@ -359,7 +360,8 @@ def _execute(params, program, batches, values, n):
             seed = rsqrt_seed(params, Value(raw.ravel(), source.fmt))
             result = Value(np.reshape(seed.raw, raw.shape), seed.fmt)
         else:
-            init = _stack(values, [op.init for op in batch]) if first.init is not None else None
+            init = (_stack(values, [op.init for op in batch]) if first.init is not None
+                    else None)
             terms = [(np.array([op.terms[t][0] for op in batch])[:, None],
                       _stack(values, [op.terms[t][1] for op in batch]),
                       _stack(values, [op.terms[t][2] for op in batch]))

@@ -18,8 +18,8 @@ from hdl.fixed import SQ, UQ, QFormat, Overflow, Rounding
 from hdl.output.params import PoseSource
 
 __all__ = ["PoseFlag", "PoseSolverParams", "solver_source", "coefficient_formats",
-           "quantize_coefficients", "COEF_GROUPS", "DEFAULT_COEF_WIDTH", "SEED_TABLE_FMT", "SLOPE_FMT", "DELTA_BITS",
-           "seed_tables"]
+           "quantize_coefficients", "COEF_GROUPS", "DEFAULT_COEF_WIDTH", "SEED_TABLE_FMT",
+           "SLOPE_FMT", "DELTA_BITS", "seed_tables"]
 
 #: The three coefficient groups of a table row (see golden.pose_lsq): a_T, a_C, a_R.
 COEF_GROUPS = ("t", "c", "r")
