@@ -17,6 +17,13 @@ step, is in ``docs/pose/pose_solver.md``:
    slot): ``q ← q ⊗ (1 − |θ|²/12, θ/2)`` renormalized by one Newton step,
    ``p ← p + R(q) T`` (R from the quaternion before the step), committed only if the
    row was solved.
+
+Steps 1 and 2 are the accumulator's and the normalizer's. Steps 3 to 5 are not written
+out here: the model executes the engine's program
+(:func:`hdl.pose.program.build_row_program`), the op list the engine's ROM is built
+from, so the two cannot drift apart. The solve runs on every row at once; the
+integration in waves of rows of distinct slots (a slot's next row needs its pose), each
+op batched with the independent ops of the same shape (:func:`_batches`).
 """
 
 from dataclasses import dataclass
@@ -27,14 +34,12 @@ from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, mul, resize
 from golden import pose_lsq
 from hdl.pose.params import (DEFAULT_COEF_WIDTH, DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT,
                              PoseFlag, seed_tables)
+from hdl.pose.program import STATE_NAMES, UPPER, build_row_program
 
 __all__ = ["PoseRows", "Value", "StepResult", "accumulate", "scale_system",
            "rsqrt_seed", "solve_rows", "integrate_rows",
            "pose_solver_model", "identity_pose", "initial_poses", "flags_from_checks",
            "rows_from_float", "rig_solver", "solve_trace"]
-
-#: The 21 (i, j), i ≤ j, entries of the symmetric normal matrix, in accumulator order.
-UPPER = tuple((i, j) for i in range(6) for j in range(i, 6))
 
 
 @dataclass(frozen=True)
@@ -265,7 +270,7 @@ def rsqrt_seed(params, pivot):
                  params.seed_fmt)
 
 
-# --- 3/4. solve ----------------------------------------------------------------------------
+# --- 3-5. the engine's program -------------------------------------------------------
 
 @dataclass(frozen=True)
 class StepResult:
@@ -290,67 +295,113 @@ def flags_from_checks(overrun, empty, ill, saturated):
                       int(PoseFlag.SATURATED)], 0).astype(np.int64)
 
 
-def _cholesky_solve(params, scaled, rhs, scales, trace=None):
-    """Cholesky ``N̂ = G Gᵀ`` with the forward substitution carried along, the back
-    substitution with ``L = G·ρ``, then ``Y = S x``. Returns (six step Values, ILL mask,
-    saturated mask). ``trace``, a dict, receives every intermediate under the names of
-    :func:`hdl.pose.program.build_row_program`."""
-    n = len(np.asarray(scales[0].raw))
-    entry = {pair: v for pair, v in zip(UPPER, scaled)}
-    unit, lower, sol = params.unit_fmt, params.lower_fmt, params.solution_fmt
-    three_halves = _constant(1.5, unit, n)
-    threshold = int(unit.quantize(2.0 ** -params.pivot_log2))
-    ill = np.zeros(n, dtype=bool)
-    saturated = np.zeros(n, dtype=bool)
+def _key(operand):
+    return operand.bank, operand.name
 
-    def op(name, dst, init=None, terms=(), scale_log2=0):
-        nonlocal saturated
-        value, sat = _dot(dst, init, terms, scale_log2)
-        saturated |= sat
-        if trace is not None:
-            trace[name] = value
-        return value
 
-    g, low, rho, z = {}, {}, [], []
-    for j in range(6):
-        pivot = op(f"D{j}", unit, entry[(j, j)], [(-1, g[(j, k)], g[(j, k)]) for k in range(j)])
-        ill |= np.asarray(pivot.raw, dtype=object) < threshold
-        seed = rsqrt_seed(params, pivot)
-        if trace is not None:
-            trace[f"seed{j}"] = seed
-        # one Newton step of D^-1/2 from the seed: ρ = seed·(3/2 − D·seed²/2)
-        root = op(f"h{j}", unit, terms=[(1, pivot, seed)])
-        newton = op(f"e{j}", unit, three_halves, [(-1, root, seed)], -1)
-        rho.append(op(f"rho{j}", lower, terms=[(1, seed, newton)]))
-        for i in range(j + 1, 6):
-            schur = op(f"W{i}{j}", unit, entry[(j, i)],
-                       [(-1, g[(i, k)], g[(j, k)]) for k in range(j)])
-            product = op(f"P{i}{j}", unit, terms=[(1, schur, seed)])
-            g[(i, j)] = op(f"G{i}{j}", unit, terms=[(1, product, newton)])
-            low[(i, j)] = op(f"L{i}{j}", lower, terms=[(1, g[(i, j)], rho[j])])
-        forward = op(f"c{j}", sol, rhs[j], [(-1, g[(j, k)], z[k]) for k in range(j)])
-        z.append(op(f"z{j}", sol, terms=[(1, forward, rho[j])]))
-    # back substitution, right-looking: once x_k is known, every x_j (j < k) loses its
-    # L_kj·x_k term, so each unknown is one single-term op after the previous one
-    partial = [op(f"w{j}", sol, terms=[(1, z[j], rho[j])]) for j in range(6)]
-    x = [None] * 6
-    for k in reversed(range(6)):
-        x[k] = partial[k]
-        for j in reversed(range(k)):
-            partial[j] = op(f"u{j}_{k}", sol, partial[j], [(-1, low[(k, j)], x[k])])
-    step = [op(f"Y{j}", params.step_fmt, terms=[(1, x[j], scales[j])]) for j in range(6)]
-    return step, ill, saturated
+def _split_program(program):
+    """The program's ops in two parts, each in program order: the solve (every op the
+    step depends on, the same for every row) and the integration (the ops that read the
+    slot's pose or the step, directly or through another integration op). No
+    integration op is checked, so a row's flags are known after the solve."""
+    later = {_key(v) for v in (*program.state.values(), *program.step)}
+    solve, integration = [], []
+    for op in program.ops:
+        if any(_key(s) in later for s in op.sources):
+            integration.append(op)
+            later.add(_key(op.dst))
+        else:
+            solve.append(op)
+    return solve, integration
+
+
+def _batches(ops):
+    """``ops`` in batches that one vectorised :func:`_dot` can run: ops of one level
+    (every source written at an earlier level; a commit writes the state, which the
+    program reads as it was at the row's start, so it raises no level) with the same
+    kind, destination format, scale and operand formats. Running a batch at once is
+    what keeps the integration fast when each wave is a single row."""
+    level, batches = {}, {}
+    for op in ops:
+        depth = 1 + max((level.get(_key(s), 0) for s in op.sources), default=0)
+        if not op.commit:
+            level[_key(op.dst)] = depth
+        signature = (depth, op.kind, op.dst.fmt, op.scale_log2,
+                     op.init.fmt if op.init is not None else None,
+                     tuple((a.fmt, b.fmt) for _, a, b in op.terms))
+        batches.setdefault(signature, []).append(op)
+    return [batches[s] for s in sorted(batches, key=lambda s: s[0])]
+
+
+def _stack(values, operands):
+    return Value(np.stack([np.asarray(values[_key(v)].raw) for v in operands]),
+                 operands[0].fmt)
+
+
+def _execute(params, program, batches, values, n):
+    """Run the :func:`_batches` of ops of ``program`` on ``values`` ((bank, name) ->
+    Value over ``n`` rows, updated in place with every result) as the engine does: a
+    multiply-accumulate op is one rounding of its exact sum (:func:`_dot`), a seed op is
+    :func:`rsqrt_seed` of its source with the pivot check. Commit ops do not overwrite
+    the state they replace: the engine's reads of the state see the row's starting pose,
+    so their results are returned apart. Returns (committed: state name -> Value, ILL
+    mask, saturated mask)."""
+    values.update({("work", name): _constant(value, operand.fmt, n)
+                   for name, (operand, value) in program.constants.items()})
+    threshold = int(params.unit_fmt.quantize(2.0 ** -params.pivot_log2))
+    ill, saturated = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    committed = {}
+    for batch in batches:
+        first = batch[0]
+        if first.kind == "seed":
+            source = _stack(values, [op.source for op in batch])
+            raw = np.asarray(source.raw, dtype=object)
+            ill |= np.any(raw < threshold, axis=0)
+            seed = rsqrt_seed(params, Value(raw.ravel(), source.fmt))
+            result = Value(np.reshape(seed.raw, raw.shape), seed.fmt)
+        else:
+            init = (_stack(values, [op.init for op in batch]) if first.init is not None
+                    else None)
+            terms = [(np.array([op.terms[t][0] for op in batch])[:, None],
+                      _stack(values, [op.terms[t][1] for op in batch]),
+                      _stack(values, [op.terms[t][2] for op in batch]))
+                     for t in range(len(first.terms))]
+            result, sat = _dot(first.dst.fmt, init, terms, first.scale_log2)
+        for k, op in enumerate(batch):
+            value = Value(np.asarray(result.raw)[k], result.fmt)
+            if op.checked and first.kind == "mac":
+                saturated |= sat[k]
+            if op.commit:
+                committed[op.dst.name] = value
+            else:
+                values[_key(op.dst)] = value
+    return committed, ill, saturated
+
+
+def _solve(params, scaled, rhs, scales):
+    """The solve part of the engine's program (Cholesky with the forward substitution,
+    back substitution, ``Y = S x``) on every row at once. Returns (values: (bank, name)
+    -> Value of the inputs and every result, the program, ILL mask, saturated mask)."""
+    program = build_row_program(params)
+    values = {("input", f"N{i}{j}"): v for (i, j), v in zip(UPPER, scaled)}
+    values.update({("input", f"b{i}"): v for i, v in enumerate(rhs)})
+    values.update({("input", f"s{i}"): v for i, v in enumerate(scales)})
+    _, ill, saturated = _execute(params, program, _batches(_split_program(program)[0]),
+                                 values, len(np.asarray(scales[0].raw)))
+    return values, program, ill, saturated
 
 
 def solve_trace(params, coef_raw, rows):
-    """Every intermediate of the solve of every row: dict name -> Value (the names of
-    :func:`hdl.pose.program.build_row_program`; ``N``/``b``/``s`` for the scaled inputs)."""
+    """Every intermediate of the solve of every row: dict name -> Value under the names
+    of :func:`hdl.pose.program.build_row_program` (``N``/``b``/``s`` for the scaled
+    inputs; an alias names the value it stands for), for comparison with the engine's
+    registers and for the value ranges of the benchmark."""
     normal, rhs = accumulate(params, coef_raw, rows)
     scaled, scaled_rhs, scales, _, _ = scale_system(params, normal, rhs)
-    trace = {f"N{i}{j}": v for (i, j), v in zip(UPPER, scaled)}
-    trace.update({f"b{i}": v for i, v in enumerate(scaled_rhs)})
-    trace.update({f"s{i}": v for i, v in enumerate(scales)})
-    _cholesky_solve(params, scaled, scaled_rhs, scales, trace)
+    values, program, _, _ = _solve(params, scaled, scaled_rhs, scales)
+    trace = {name: value for (bank, name), value in values.items()
+             if bank == "input" or name not in program.constants}
+    trace.update({name: values[_key(v)] for name, v in program.aliases.items()})
     return trace
 
 
@@ -358,9 +409,10 @@ def solve_rows(params, coef_raw, rows):
     """Steps and flags of every row (no integration): a :class:`StepResult`."""
     normal, rhs = accumulate(params, coef_raw, rows)
     scaled, scaled_rhs, scales, empty, sat_scale = scale_system(params, normal, rhs)
-    step, ill, sat_solve = _cholesky_solve(params, scaled, scaled_rhs, scales)
+    values, program, ill, sat_solve = _solve(params, scaled, scaled_rhs, scales)
     flags = flags_from_checks(rows.counts > params.slots, empty, ill, sat_scale | sat_solve)
-    raw = np.stack([np.asarray(v.raw, dtype=object) for v in step], axis=1)
+    raw = np.stack([np.asarray(values[_key(v)].raw, dtype=object) for v in program.step],
+                   axis=1)
     raw = np.where((flags == 0)[:, None], raw, 0).astype(np.int64)
     return StepResult(step=raw, flags=flags)
 
@@ -371,54 +423,6 @@ def identity_pose(params):
     """The reset pose of every slot: raw quaternion (1, 0, 0, 0) and position 0."""
     q = np.array([int(params.quat_fmt.quantize(1.0)), 0, 0, 0], dtype=np.int64)
     return q, np.zeros(3, dtype=np.int64)
-
-
-def _integrate_one(params, q, p, step):
-    """One committed step: raw (q, p) → raw (q, p); the hardware's op sequence, several
-    components at a time."""
-    qf, sf, pf = params.quat_fmt, params.step_fmt, params.position_fmt
-    w, x, y, z = q
-    tx, ty, tz, ax, ay, az = step
-
-    def quat(*raw):
-        return Value(np.array(raw, dtype=object), qf)
-
-    def steps(*raw):
-        return Value(np.array(raw, dtype=object), sf)
-
-    # R(q) of the pose before the step, row by row: diagonal 1 − 2(..), the rest 2(..)
-    one = _constant(1.0, qf, 9)
-    diagonal = np.array([1, 0, 0, 0, 1, 0, 0, 0, 1])
-    rotation, _ = _dot(qf, Value(np.where(diagonal == 1, one.raw, 0), qf),
-                       [((-1, 1, 1, 1, -1, 1, 1, 1, -1), quat(y, x, x, x, x, y, x, y, x),
-                         quat(y, y, z, y, x, z, z, z, x)),
-                        ((-1, -1, 1, 1, -1, -1, -1, 1, -1), quat(z, w, w, w, z, w, w, w, y),
-                         quat(z, z, y, z, z, x, y, x, y))], scale_log2=1)
-    # q ⊗ (1 − |θ|²/12, θ/2): normalized, the increment turns by
-    # 2·atan((|θ|/2)/(1 − |θ|²/12)) = |θ| + O(|θ|⁵), where (1, θ/2) loses |θ|³/12 per
-    # step. First q ⊗ (1, θ/2) (w' = w − v·θ/2, v' = v + (w θ + v × θ)/2), then
-    # − q·|θ|²/12.
-    q0 = quat(w, x, y, z)
-    first, _ = _dot(qf, q0, [((-1, 1, 1, 1), quat(x, w, w, w), steps(ax, ax, ay, az)),
-                             ((-1, 1, 1, 1), quat(y, y, z, x), steps(ay, az, ax, ay)),
-                             ((-1, -1, -1, -1), quat(z, z, x, y), steps(az, ay, az, ax))],
-                    scale_log2=-1)
-    square, _ = _dot(qf, terms=[(1, steps(a), steps(a)) for a in (ax, ay, az)],
-                     scale_log2=-2)                                   # |θ|²/4 < 3/4
-    cubic, _ = _dot(qf, terms=[(1, square, _constant(1 / 3, qf, 1))])  # |θ|²/12
-    q1, _ = _dot(qf, first, [(-1, q0, Value(np.repeat(cubic.raw, 4), qf))])
-    # one Newton step of 1/sqrt(|q'|²) from 1: g = 3/2 − |q'|²/2
-    g, _ = _dot(qf, _constant(1.5, qf, 1), [(-1, Value(q1.raw[k:k + 1], qf),
-                                            Value(q1.raw[k:k + 1], qf)) for k in range(4)],
-                scale_log2=-1)
-    q2, _ = _dot(qf, terms=[(1, q1, Value(np.repeat(g.raw, 4), qf))])
-    # p + R T in two roundings: the T_y, T_z terms, then T_x (last out of the solve)
-    r = rotation.raw
-    early, _ = _dot(pf, Value(np.array(p, dtype=object), pf),
-                    [(1, quat(r[1], r[4], r[7]), steps(ty, ty, ty)),
-                     (1, quat(r[2], r[5], r[8]), steps(tz, tz, tz))])
-    p2, _ = _dot(pf, early, [(1, quat(r[0], r[3], r[6]), steps(tx, tx, tx))])
-    return (np.array(q2.raw.tolist(), dtype=np.int64), np.array(p2.raw.tolist(), dtype=np.int64))
 
 
 def initial_poses(params, pose=None):
@@ -435,25 +439,46 @@ def initial_poses(params, pose=None):
             np.array(np.broadcast_to(p, (params.rows, 3))))
 
 
+def _waves(row):
+    """Wave of every row: how many rows of the same slot come before it. A row's pose
+    depends on the previous row of its slot only, so the rows of one wave are
+    integrated together."""
+    wave, seen = np.empty(len(row), dtype=np.int64), {}
+    for k, y in enumerate(np.asarray(row).tolist()):
+        wave[k] = seen[y] = seen.get(y, -1) + 1
+    return wave
+
+
 def integrate_rows(params, result, row, pose=None):
     """Poses after every row: raw quaternions (n, 4) and positions (n, 3).
 
     The solver keeps one pose per row slot (a ring of ``params.rows`` poses, see
     :func:`initial_poses` for ``pose``): row ``row[k]``'s step is the rig's motion since
-    the same row of the previous frame, so it is composed onto that slot's pose, and the
-    result is written back and emitted. A flagged row leaves its slot and emits it."""
+    the same row of the previous frame, so it is composed onto that slot's pose — the
+    integration ops of the engine's program — and the result is written back and
+    emitted. A flagged row leaves its slot and emits it."""
     row = np.asarray(row)
     if row.shape != (len(result.flags),) or np.any((row < 0) | (row >= params.rows)):
         raise ValueError(f"row must be {len(result.flags)} slot indices in "
                          f"[0, {params.rows})")
-    ring_q, ring_p = initial_poses(params, pose)
-    quats = np.empty((len(result.flags), 4), dtype=np.int64)
-    positions = np.empty((len(result.flags), 3), dtype=np.int64)
-    for k, (y, step, flag) in enumerate(zip(row, result.step, result.flags)):
-        if flag == 0:
-            ring_q[y], ring_p[y] = _integrate_one(params, ring_q[y], ring_p[y], step)
-        quats[k], positions[k] = ring_q[y], ring_p[y]
-    return quats, positions
+    ring = np.concatenate(initial_poses(params, pose), axis=1)  # STATE_NAMES order
+    program = build_row_program(params)
+    batches = _batches(_split_program(program)[1])
+    wave = _waves(row)
+    poses = np.empty((len(row), len(STATE_NAMES)), dtype=np.int64)
+    for w in range(wave.max(initial=-1) + 1):
+        rows = np.flatnonzero(wave == w)
+        solved = rows[result.flags[rows] == 0]
+        if len(solved):
+            values = {_key(v): Value(ring[row[solved], k], v.fmt)
+                      for k, v in enumerate(program.state[name] for name in STATE_NAMES)}
+            values.update({_key(v): Value(result.step[solved, k], v.fmt)
+                           for k, v in enumerate(program.step)})
+            committed, _, _ = _execute(params, program, batches, values, len(solved))
+            ring[row[solved]] = np.stack([np.asarray(committed[name].raw, dtype=object)
+                                          for name in STATE_NAMES], axis=1).astype(np.int64)
+        poses[rows] = ring[row[rows]]
+    return poses[:, :4], poses[:, 4:]
 
 
 def pose_solver_model(params, coef_raw, rows, pose=None):

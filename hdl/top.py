@@ -108,14 +108,9 @@ class RowtrackTop(wiring.Component):
             self.fsin.eq(front.fsin),
         ]
 
-        pose, record = link.pose, solver.o
+        wiring.connect(m, solver.o, link.pose)
         coef = regs.solver.coef
         m.d.comb += [
-            pose.valid.eq(record.valid), record.ready.eq(pose.ready),
-            pose.payload.t_row.eq(record.payload.time), pose.payload.row.eq(record.payload.row),
-            pose.payload.position.eq(record.payload.p),
-            pose.payload.quaternion.eq(record.payload.q),
-            pose.payload.flags.eq(record.payload.flags),
             solver.coef_write.addr.eq(coef.data.addr), solver.coef_write.index.eq(coef.data.index),
             solver.coef_write.data.eq(coef.data.data), solver.coef_write.en.eq(coef.stb),
             regs.solver.counters.eq(solver.counters),

@@ -29,7 +29,7 @@ from amaranth.lib.wiring import In, Out
 from hdl.fixed import SQ, UQ, Overflow, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
 from hdl.pose.accumulator import PAIRS, exponent_bits, leading_one
 from hdl.pose.params import (DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag, PoseSolverParams,
-                             seed_tables)
+                             seed_tables, solver_source)
 from hdl.pose.program import (MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, STATE_NAMES,
                               build_row_program, schedule)
 
@@ -39,28 +39,9 @@ _BANKS = {"input": 0, "work": 1, "state": 2}
 
 
 def record_layout(params):
-    """A pose record, one per row.
-
-    Fields
-    ------
-    row : unsigned(row_bits)
-    time : unsigned(time_bits)
-        Of the row's last measurement.
-    flags : unsigned(4)
-        :class:`hdl.pose.params.PoseFlag` (one reason; zero when the row was solved).
-    q : ArrayLayout(quat_fmt, 4)
-        World-from-body orientation (w, x, y, z) after the row.
-    p : ArrayLayout(position_fmt, 3)
-        World position of the body (m) after the row.
-    step : ArrayLayout(step_fmt, 6)
-        The row's step [Tx Ty Tz θx θy θz] (m, rad), zero when flagged.
-    """
-    return data.StructLayout({
-        "row": params.row_bits, "time": params.time_bits, "flags": len(PoseFlag),
-        "q": data.ArrayLayout(params.quat_fmt.shape(), 4),
-        "p": data.ArrayLayout(params.position_fmt.shape(), 3),
-        "step": data.ArrayLayout(params.step_fmt.shape(), 6),
-    })
+    """A pose record, one per row: ``row``, ``time``, ``flags``, ``q`` (4), ``p`` (3),
+    ``step`` (6) in the solver's formats (:func:`hdl.pose.params.solver_source`)."""
+    return solver_source(params).layout()
 
 
 def counters_layout(params):

@@ -215,7 +215,9 @@ def test_largest_steps_integrate_without_overflow():
         raw_q = qf.quantize(start)
         for theta in (sf.max_raw, sf.min_raw):
             step = np.array([0, 0, 0, theta, theta, -theta], dtype=np.int64)
-            quat, _ = E._integrate_one(params, raw_q, np.zeros(3, dtype=np.int64), step)
+            result = E.StepResult(step=step[None], flags=np.zeros(1, dtype=np.int64))
+            (quat,), _ = E.integrate_rows(params, result, np.zeros(1, dtype=np.int64),
+                                          (raw_q, np.zeros(3, dtype=np.int64)))
             a = sf.to_float(step[3:])
             q0 = qf.to_float(raw_q)
             first = G.quat_multiply(q0, np.r_[1.0, a / 2])
