@@ -23,21 +23,24 @@ out here: the model executes the engine's program
 (:func:`hdl.pose.program.build_row_program`), the op list the engine's ROM is built
 from, so the two cannot drift apart. The solve runs on every row at once; the
 integration in waves of rows of distinct slots (a slot's next row needs its pose), each
-op batched with the independent ops of the same shape (:func:`_batches`).
+op batched with the independent ops of the same shape
+(:func:`emulator.pose.program.batches`).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, mul, resize
+from hdl.fixed import Overflow, QFormat, Rounding, mul
 from golden import pose_lsq
-from hdl.pose.params import (DEFAULT_COEF_WIDTH, DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT,
-                             PoseFlag, seed_tables)
+from hdl.pose.params import DEFAULT_COEF_WIDTH, PoseFlag
 from hdl.pose.program import STATE_NAMES, UPPER, build_row_program
 
-__all__ = ["PoseRows", "Value", "StepResult", "accumulate", "scale_system",
-           "rsqrt_seed", "solve_rows", "integrate_rows",
+from emulator.pose.program import (Value, batches, bit_length, dot, execute, exact_sum,
+                                   operand_key, round_half_even, split_program)
+
+__all__ = ["PoseRows", "StepResult", "accumulate", "scale_system", "solve_rows",
+           "integrate_rows",
            "pose_solver_model", "identity_pose", "initial_poses", "flags_from_checks",
            "rows_from_float", "rig_solver", "solve_trace"]
 
@@ -97,59 +100,6 @@ class PoseRows:
         return out
 
 
-@dataclass(frozen=True)
-class Value:
-    """Raw integers of one quantity over all rows, with their format."""
-    raw: np.ndarray
-    fmt: QFormat
-
-
-def _exact_sum(raw, fmt, axis, out_fmt):
-    """Exact sum along ``axis`` of int64 raw values, wrapped into ``out_fmt`` (the
-    accumulator wraps; guard bits make that impossible for at most ``slots`` terms)."""
-    raw = np.asarray(raw)
-    if raw.dtype == object:
-        total = np.sum(raw, axis=axis)
-    else:  # split so that int64 partial sums cannot overflow
-        high, low = raw >> 32, raw & 0xFFFFFFFF
-        total = (np.sum(high, axis=axis).astype(object) * (1 << 32)
-                 + np.sum(low, axis=axis).astype(object))
-    wide = QFormat(True, fmt.int_bits + 64, fmt.frac_bits)
-    return Value(resize(np.asarray(total, dtype=object), wide, out_fmt, Rounding.FLOOR,
-                        Overflow.WRAP), out_fmt)
-
-
-def _round(raw, fmt, dst):
-    """Half-even into ``dst``, saturating; returns (Value, saturated mask)."""
-    wide_fmt = SQ(max(fmt.int_bits, dst.int_bits) + 2, dst.frac_bits)
-    wide = resize(raw, fmt, wide_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
-    saturated = np.asarray((wide < dst.min_raw) | (wide > dst.max_raw), dtype=bool)
-    return Value(resize(wide, wide_fmt, dst, Rounding.FLOOR, Overflow.SATURATE), dst), saturated
-
-
-#: Elementwise int(): object arrays of Python ints (numpy integers would overflow).
-_ints = np.frompyfunc(int, 1, 1)
-
-
-def _dot(dst, init=None, terms=(), scale_log2=0):
-    """``round(init + 2**scale_log2 · Σ ±a·b)`` into ``dst``: one rounding of the exact
-    value (the hardware's multiply-accumulate op). Signs may be arrays. Returns
-    (Value, saturated mask)."""
-    parts = [(_ints(sign) * _ints(a.raw) * _ints(b.raw),
-              a.fmt.frac_bits + b.fmt.frac_bits - scale_log2,
-              a.fmt.int_bits + b.fmt.int_bits + scale_log2) for sign, a, b in terms]
-    if init is not None:
-        parts.append((_ints(init.raw), init.fmt.frac_bits, init.fmt.int_bits))
-    frac = max(f for _, f, _ in parts)
-    int_bits = max(i for _, _, i in parts) + len(parts).bit_length() + 1
-    total = sum(raw * (1 << (frac - f)) for raw, f, _ in parts)
-    return _round(total, QFormat(True, int_bits, frac), dst)
-
-
-def _constant(value, fmt, shape):
-    return Value(np.full(shape, int(fmt.quantize(value)), dtype=fmt.dtype()), fmt)
-
-
 # --- 1. accumulation ---------------------------------------------------------------------
 
 def design_row(params, coef_raw, rows):
@@ -166,11 +116,11 @@ def design_row(params, coef_raw, rows):
     out = []
     for k in range(3):
         t = Value(coef[..., k], params.coef_t_fmt)
-        out.append(_dot(params.a_fmt, terms=[(1, t, cue)])[0])
+        out.append(dot(params.a_fmt, terms=[(1, t, cue)])[0])
     for k in range(3):
         c = Value(coef[..., 3 + k], params.coef_c_fmt)
         r = Value(coef[..., 6 + k], params.coef_r_fmt)
-        out.append(_dot(params.a_fmt, init=r, terms=[(1, c, cue)])[0])
+        out.append(dot(params.a_fmt, init=r, terms=[(1, c, cue)])[0])
     return out
 
 
@@ -184,19 +134,15 @@ def accumulate(params, coef_raw, rows):
     normal = []
     for i, j in UPPER:
         raw, fmt = mul(weighted[i][0], weighted[i][1], a[j].raw, params.a_fmt)
-        normal.append(_exact_sum(raw, fmt, 1, params.normal_fmt))
+        normal.append(exact_sum(raw, fmt, 1, params.normal_fmt))
     rhs = []
     for i in range(6):
         raw, fmt = mul(weighted[i][0], weighted[i][1], shift, params.shift_fmt)
-        rhs.append(_exact_sum(raw, fmt, 1, params.normal_fmt))
+        rhs.append(exact_sum(raw, fmt, 1, params.normal_fmt))
     return normal, rhs
 
 
 # --- 2. scaling --------------------------------------------------------------------------
-
-def _bit_length(raw):
-    return np.array([int(v).bit_length() for v in np.asarray(raw).tolist()], dtype=np.int64)
-
 
 def _shift_scaled(value, shift, shift_range, dst):
     """``value · 2**-shift`` rounded into ``dst`` for per-row ``shift`` within
@@ -206,7 +152,7 @@ def _shift_scaled(value, shift, shift_range, dst):
     src = value.fmt
     wide = QFormat(True, max(1, src.int_bits + (high - low) - high) + 1, src.frac_bits + high)
     raw = np.asarray(value.raw, dtype=object) << (high - np.asarray(shift)).astype(object)
-    return _round(raw, wide, dst)
+    return round_half_even(raw, wide, dst)
 
 
 def scale_system(params, normal, rhs):
@@ -216,7 +162,7 @@ def scale_system(params, normal, rhs):
     diag = np.stack([np.asarray(normal[index[(i, i)]].raw, dtype=object) for i in range(6)])
     empty = np.any(diag < params.min_diagonal_raw, axis=0)
     low, high = params.exponent_range
-    exponents = np.clip(params.exponent(_bit_length(diag.ravel())).reshape(diag.shape),
+    exponents = np.clip(params.exponent(bit_length(diag.ravel())).reshape(diag.shape),
                         low, high)
     saturated = np.zeros(diag.shape[1], dtype=bool)
     scaled = []
@@ -234,40 +180,6 @@ def scale_system(params, normal, rhs):
     scales = [Value(np.array([1 << (fmt.frac_bits - int(e)) for e in exponents[i]],
                              dtype=fmt.dtype()), fmt) for i in range(6)]
     return scaled, scaled_rhs, scales, empty, saturated
-
-
-# --- 3. inverse square root seed -----------------------------------------------------------
-
-def rsqrt_seed(params, pivot):
-    """Seeds ``≈ D^-1/2`` in ``seed_fmt`` for pivots ``D`` (a Value in ``unit_fmt``).
-
-    ``m = D·2**(2k) ∈ [1/4, 1)`` from the pivot's bit length (an even shift, so exact);
-    the top ``seed_bits`` fraction bits of ``m`` index the tables, the next
-    ``DELTA_BITS`` (truncated) interpolate; the seed is ``y0·2**k`` (exact). Pivots at
-    or below zero give the seed of the smallest positive pivot (the row is flagged ILL).
-    """
-    unit = params.unit_fmt
-    raw = np.maximum(np.asarray(pivot.raw, dtype=object), 1)
-    excess = unit.frac_bits - _bit_length(raw)                   # D·2**excess ∈ [1/2, 1)
-    k = excess // 2                                              # m = D·2**(2k) ∈ [1/4, 1)
-    mantissa = np.array([int(r) << int(2 * e + 2) for r, e in zip(raw.tolist(), k)],
-                        dtype=object)                            # mantissa_bits fraction bits
-    low = params.mantissa_bits - params.seed_bits
-    index = np.array([int(v) >> low for v in mantissa])
-    delta = np.array([(int(v) >> (low - DELTA_BITS)) & ((1 << DELTA_BITS) - 1)
-                      for v in mantissa], dtype=np.int64)
-    values, slopes = seed_tables(params.seed_bits)
-    t0 = Value(np.array([values[i] for i in index], dtype=np.int64), SEED_TABLE_FMT)
-    t1 = Value(np.array([slopes[i] for i in index], dtype=np.int64), SLOPE_FMT)
-    delta_fmt = UQ(0, params.seed_bits + DELTA_BITS)
-    y0, _ = _dot(SEED_TABLE_FMT, init=t0, terms=[(-1, t1, Value(delta, delta_fmt))])
-    shift = params.seed_fmt.frac_bits - SEED_TABLE_FMT.frac_bits   # y0·2**k, exact
-    seed_raw = np.array([int(v) << int(e + shift) for v, e in
-                         zip(np.asarray(y0.raw).tolist(), k)], dtype=object)
-    # wraps only for pivots below 2**-pivot_log2 (flagged ILL), as the hardware does
-    wide = QFormat(True, params.seed_fmt.int_bits + params.mantissa_bits, params.seed_fmt.frac_bits)
-    return Value(resize(seed_raw, wide, params.seed_fmt, Rounding.FLOOR, Overflow.WRAP),
-                 params.seed_fmt)
 
 
 # --- 3-5. the engine's program -------------------------------------------------------
@@ -295,89 +207,6 @@ def flags_from_checks(overrun, empty, ill, saturated):
                       int(PoseFlag.SATURATED)], 0).astype(np.int64)
 
 
-def _key(operand):
-    return operand.bank, operand.name
-
-
-def _split_program(program):
-    """The program's ops in two parts, each in program order: the solve (every op the
-    step depends on, the same for every row) and the integration (the ops that read the
-    slot's pose or the step, directly or through another integration op). No
-    integration op is checked, so a row's flags are known after the solve."""
-    later = {_key(v) for v in (*program.state.values(), *program.step)}
-    solve, integration = [], []
-    for op in program.ops:
-        if any(_key(s) in later for s in op.sources):
-            integration.append(op)
-            later.add(_key(op.dst))
-        else:
-            solve.append(op)
-    return solve, integration
-
-
-def _batches(ops):
-    """``ops`` in batches that one vectorised :func:`_dot` can run: ops of one level
-    (every source written at an earlier level; a commit writes the state, which the
-    program reads as it was at the row's start, so it raises no level) with the same
-    kind, destination format, scale and operand formats. Running a batch at once is
-    what keeps the integration fast when each wave is a single row."""
-    level, batches = {}, {}
-    for op in ops:
-        depth = 1 + max((level.get(_key(s), 0) for s in op.sources), default=0)
-        if not op.commit:
-            level[_key(op.dst)] = depth
-        signature = (depth, op.kind, op.dst.fmt, op.scale_log2,
-                     op.init.fmt if op.init is not None else None,
-                     tuple((a.fmt, b.fmt) for _, a, b in op.terms))
-        batches.setdefault(signature, []).append(op)
-    return [batches[s] for s in sorted(batches, key=lambda s: s[0])]
-
-
-def _stack(values, operands):
-    return Value(np.stack([np.asarray(values[_key(v)].raw) for v in operands]),
-                 operands[0].fmt)
-
-
-def _execute(params, program, batches, values, n):
-    """Run the :func:`_batches` of ops of ``program`` on ``values`` ((bank, name) ->
-    Value over ``n`` rows, updated in place with every result) as the engine does: a
-    multiply-accumulate op is one rounding of its exact sum (:func:`_dot`), a seed op is
-    :func:`rsqrt_seed` of its source with the pivot check. Commit ops do not overwrite
-    the state they replace: the engine's reads of the state see the row's starting pose,
-    so their results are returned apart. Returns (committed: state name -> Value, ILL
-    mask, saturated mask)."""
-    values.update({("work", name): _constant(value, operand.fmt, n)
-                   for name, (operand, value) in program.constants.items()})
-    threshold = int(params.unit_fmt.quantize(2.0 ** -params.pivot_log2))
-    ill, saturated = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
-    committed = {}
-    for batch in batches:
-        first = batch[0]
-        if first.kind == "seed":
-            source = _stack(values, [op.source for op in batch])
-            raw = np.asarray(source.raw, dtype=object)
-            ill |= np.any(raw < threshold, axis=0)
-            seed = rsqrt_seed(params, Value(raw.ravel(), source.fmt))
-            result = Value(np.reshape(seed.raw, raw.shape), seed.fmt)
-        else:
-            init = (_stack(values, [op.init for op in batch]) if first.init is not None
-                    else None)
-            terms = [(np.array([op.terms[t][0] for op in batch])[:, None],
-                      _stack(values, [op.terms[t][1] for op in batch]),
-                      _stack(values, [op.terms[t][2] for op in batch]))
-                     for t in range(len(first.terms))]
-            result, sat = _dot(first.dst.fmt, init, terms, first.scale_log2)
-        for k, op in enumerate(batch):
-            value = Value(np.asarray(result.raw)[k], result.fmt)
-            if op.checked and first.kind == "mac":
-                saturated |= sat[k]
-            if op.commit:
-                committed[op.dst.name] = value
-            else:
-                values[_key(op.dst)] = value
-    return committed, ill, saturated
-
-
 def _solve(params, scaled, rhs, scales):
     """The solve part of the engine's program (Cholesky with the forward substitution,
     back substitution, ``Y = S x``) on every row at once. Returns (values: (bank, name)
@@ -386,7 +215,7 @@ def _solve(params, scaled, rhs, scales):
     values = {("input", f"N{i}{j}"): v for (i, j), v in zip(UPPER, scaled)}
     values.update({("input", f"b{i}"): v for i, v in enumerate(rhs)})
     values.update({("input", f"s{i}"): v for i, v in enumerate(scales)})
-    _, ill, saturated = _execute(params, program, _batches(_split_program(program)[0]),
+    _, ill, saturated = execute(params, program, batches(split_program(program)[0]),
                                  values, len(np.asarray(scales[0].raw)))
     return values, program, ill, saturated
 
@@ -401,7 +230,7 @@ def solve_trace(params, coef_raw, rows):
     values, program, _, _ = _solve(params, scaled, scaled_rhs, scales)
     trace = {name: value for (bank, name), value in values.items()
              if bank == "input" or name not in program.constants}
-    trace.update({name: values[_key(v)] for name, v in program.aliases.items()})
+    trace.update({name: values[operand_key(v)] for name, v in program.aliases.items()})
     return trace
 
 
@@ -411,7 +240,7 @@ def solve_rows(params, coef_raw, rows):
     scaled, scaled_rhs, scales, empty, sat_scale = scale_system(params, normal, rhs)
     values, program, ill, sat_solve = _solve(params, scaled, scaled_rhs, scales)
     flags = flags_from_checks(rows.counts > params.slots, empty, ill, sat_scale | sat_solve)
-    raw = np.stack([np.asarray(values[_key(v)].raw, dtype=object) for v in program.step],
+    raw = np.stack([np.asarray(values[operand_key(v)].raw, dtype=object) for v in program.step],
                    axis=1)
     raw = np.where((flags == 0)[:, None], raw, 0).astype(np.int64)
     return StepResult(step=raw, flags=flags)
@@ -463,18 +292,18 @@ def integrate_rows(params, result, row, pose=None):
                          f"[0, {params.rows})")
     ring = np.concatenate(initial_poses(params, pose), axis=1)  # STATE_NAMES order
     program = build_row_program(params)
-    batches = _batches(_split_program(program)[1])
+    integration = batches(split_program(program)[1])
     wave = _waves(row)
     poses = np.empty((len(row), len(STATE_NAMES)), dtype=np.int64)
     for w in range(wave.max(initial=-1) + 1):
         rows = np.flatnonzero(wave == w)
         solved = rows[result.flags[rows] == 0]
         if len(solved):
-            values = {_key(v): Value(ring[row[solved], k], v.fmt)
+            values = {operand_key(v): Value(ring[row[solved], k], v.fmt)
                       for k, v in enumerate(program.state[name] for name in STATE_NAMES)}
-            values.update({_key(v): Value(result.step[solved, k], v.fmt)
+            values.update({operand_key(v): Value(result.step[solved, k], v.fmt)
                            for k, v in enumerate(program.step)})
-            committed, _, _ = _execute(params, program, batches, values, len(solved))
+            committed, _, _ = execute(params, program, integration, values, len(solved))
             ring[row[solved]] = np.stack([np.asarray(committed[name].raw, dtype=object)
                                           for name in STATE_NAMES], axis=1).astype(np.int64)
         poses[rows] = ring[row[rows]]

@@ -10,6 +10,7 @@ from amaranth.hdl import Module, Signal
 from amaranth.sim import Simulator
 
 from emulator import pose_solver as E
+from emulator.pose.program import split_program
 from hdl.fixed import SQ, UQ
 from hdl.pose.accumulator import leading_one
 from hdl.pose.params import PoseSolverParams, coefficient_formats, quantize_coefficients
@@ -146,7 +147,7 @@ def test_integration_sets_no_flag():
     rows: no op of the integration (after the step, or reading the slot's pose) may be
     checked or a seed."""
     params, _, _ = build_case("random")
-    solve, integration = E._split_program(build_row_program(params))
+    solve, integration = split_program(build_row_program(params))
     assert {op.dst.name for op in integration} >= {"R00", "theta2", "gain"}
     assert not any(op.checked or op.kind == "seed" for op in integration)
     assert all(not op.commit for op in solve)
