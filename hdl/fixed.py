@@ -33,7 +33,7 @@ import numpy as np
 
 from golden.checks import check_int
 
-__all__ = ["Rounding", "Overflow", "QFormat", "SQ", "UQ",
+__all__ = ["Rounding", "Overflow", "QFormat", "SQ", "UQ", "check_format",
            "resize", "add", "mul", "hdl_resize", "hdl_add", "hdl_mul"]
 
 _INT64_SAFE_WIDTH = 62
@@ -182,6 +182,16 @@ def SQ(int_bits, frac_bits):
 def UQ(int_bits, frac_bits):
     """Unsigned format with ``int_bits`` integer and ``frac_bits`` fraction bits."""
     return QFormat(False, int_bits, frac_bits)
+
+
+def check_format(name, value, *, signed=None):
+    """Raise ``TypeError`` unless ``value`` is a :class:`QFormat`, and ``ValueError``
+    unless it is signed (``signed=True``) or unsigned (``signed=False``) as asked; the
+    message names the parameter, as :mod:`golden.checks` does for numbers."""
+    if not isinstance(value, QFormat):
+        raise TypeError(f"{name} must be a QFormat, not {value!r}")
+    if signed is not None and value.signed != signed:
+        raise ValueError(f"{name} must be {'signed' if signed else 'unsigned'}, not {value}")
 
 
 # --- exact operations -------------------------------------------------------------------

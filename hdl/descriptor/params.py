@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 from golden.checks import check_int
 from golden.descriptor import STEREO_MATCH, DescriptorParams, MatchParams, dog2_kernel
 
-from hdl.fixed import SQ, UQ, QFormat, Rounding
+from hdl.fixed import SQ, UQ, QFormat, Rounding, check_format
 
 __all__ = ["RowDescriptorParams", "DEFAULT_SEGMENTS", "TEMPORAL_640X480", "STEREO_640X480",
            "check_lane_params"]
@@ -89,9 +89,7 @@ class RowDescriptorParams:
             raise TypeError(f"match must be a MatchParams, not {self.match!r}")
         check_int("coeff_frac_bits", self.coeff_frac_bits, 2, 20)
         check_int("subpixel_frac_bits", self.subpixel_frac_bits, 1, 12)
-        if not isinstance(self.confidence_fmt, QFormat) or self.confidence_fmt.signed:
-            raise TypeError(f"confidence_fmt must be an unsigned QFormat, not "
-                            f"{self.confidence_fmt!r}")
+        check_format("confidence_fmt", self.confidence_fmt, signed=False)
         if self.match.peak_ratio_cap > self.confidence_fmt.max_value:
             raise ValueError(f"confidence_fmt {self.confidence_fmt} cannot hold "
                              f"peak_ratio_cap {self.match.peak_ratio_cap}")

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 from golden.checks import check_int
 
-from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding
+from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, check_format
 
 __all__ = ["PacketField", "PacketParams", "PoseSource", "PoseOutputParams", "UartParams",
            "CRC16_POLY", "CRC16_INIT", "FRAME_BITS"]
@@ -81,12 +81,8 @@ class PacketParams:
         for name in ("timestamp_bits", "row_bits", "seq_bits", "skipped_bits", "flag_bits"):
             _check_bits(name, getattr(self, name))
         for name in ("position_fmt", "quaternion_fmt"):
-            fmt = getattr(self, name)
-            if not isinstance(fmt, QFormat):
-                raise TypeError(f"{name} must be a QFormat, not {fmt!r}")
-            if not fmt.signed:
-                raise ValueError(f"{name} must be signed, not {fmt}")
-            _check_bits(f"{name} width", fmt.width, high=32)
+            check_format(name, getattr(self, name), signed=True)
+            _check_bits(f"{name} width", getattr(self, name).width, high=32)
 
     replace = replace
 
@@ -163,11 +159,7 @@ class PoseSource:
 
     def __post_init__(self):
         for name in ("position_fmt", "quaternion_fmt", "step_fmt"):
-            fmt = getattr(self, name)
-            if not isinstance(fmt, QFormat):
-                raise TypeError(f"{name} must be a QFormat, not {fmt!r}")
-            if not fmt.signed:
-                raise ValueError(f"{name} must be signed, not {fmt}")
+            check_format(name, getattr(self, name), signed=True)
         for name in ("row_bits", "time_bits", "flag_bits"):
             _check_bits(name, getattr(self, name), multiple_of=1)
 
@@ -279,11 +271,10 @@ class UartParams:
     divisor_fmt: QFormat = UQ(16, 4)
 
     def __post_init__(self):
-        if not isinstance(self.divisor_fmt, QFormat):
-            raise TypeError(f"divisor_fmt must be a QFormat, not {self.divisor_fmt!r}")
-        if self.divisor_fmt.signed or self.divisor_fmt.int_bits < 1:
-            raise ValueError(f"divisor_fmt must be unsigned with at least one integer bit, "
-                             f"not {self.divisor_fmt}")
+        check_format("divisor_fmt", self.divisor_fmt, signed=False)
+        if self.divisor_fmt.int_bits < 1:
+            raise ValueError(f"divisor_fmt must have at least one integer bit, not "
+                             f"{self.divisor_fmt}")
 
     replace = replace
 

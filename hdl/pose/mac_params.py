@@ -3,7 +3,7 @@ its model (:mod:`emulator.pose.mac`) reads the same object."""
 
 from dataclasses import dataclass, replace
 
-from hdl.fixed import SQ, Overflow, QFormat, Rounding, mul_format
+from hdl.fixed import SQ, Overflow, QFormat, Rounding, check_format, mul_format
 
 __all__ = ["MacParams"]
 
@@ -36,8 +36,7 @@ class MacParams:
 
     def __post_init__(self):
         for name in ("a_fmt", "b_fmt", "acc_fmt", "out_fmt"):
-            if not isinstance(getattr(self, name), QFormat):
-                raise TypeError(f"{name} must be a QFormat, not {getattr(self, name)!r}")
+            check_format(name, getattr(self, name))
         if not isinstance(self.rounding, Rounding):
             raise TypeError(f"rounding must be a Rounding, not {self.rounding!r}")
         if not isinstance(self.overflow, Overflow):

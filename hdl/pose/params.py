@@ -14,7 +14,7 @@ import numpy as np
 
 from golden.checks import check_int, check_number
 
-from hdl.fixed import SQ, UQ, QFormat, Overflow, Rounding
+from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, check_format
 from hdl.output.params import PoseSource
 
 __all__ = ["PoseFlag", "PoseSolverParams", "solver_source", "coefficient_formats",
@@ -43,11 +43,6 @@ class PoseFlag(enum.IntFlag):
     #: The row had more than ``slots`` measurements (the accumulator has guard bits for
     #: ``slots`` only).
     OVERRUN = 1 << 3
-
-
-def _check_format(name, value):
-    if not isinstance(value, QFormat):
-        raise TypeError(f"{name} must be a QFormat, not {value!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -109,7 +104,7 @@ class PoseSolverParams:
         check_int("rows", self.rows, 1, 1 << 16)
         for name in ("shift_fmt", "cue_fmt", "conf_fmt", "coef_t_fmt", "coef_c_fmt",
                      "coef_r_fmt", "a_fmt"):
-            _check_format(name, getattr(self, name))
+            check_format(name, getattr(self, name))
         for name in ("shift_fmt", "coef_t_fmt", "coef_c_fmt", "coef_r_fmt", "a_fmt"):
             if not getattr(self, name).signed:
                 raise ValueError(f"{name} must be signed, not {getattr(self, name)}")

@@ -182,6 +182,9 @@ def test_uart_params_checks():
         UartParams(divisor_fmt=20)
     with pytest.raises(ValueError, match="divisor_fmt must be unsigned"):
         UartParams(divisor_fmt=SQ(16, 4))
+    with pytest.raises(ValueError, match=r"divisor_fmt must have at least one integer bit, "
+                                         r"not UQ\(0, 8\)"):
+        UartParams(divisor_fmt=UQ(0, 8))
 
 
 def test_damaged_stream_marks_intact_packets():
