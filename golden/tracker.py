@@ -37,7 +37,7 @@ from .descriptor import describe, match, segment_bounds, strength
 from .depth import StereoDepth, stereo_pairs
 from .pose_lsq import body_step, normal_equations, solve_normal
 from .reference_rows import HomographyReference, PreviousFrameReference
-from .temporal_filter import HoltWinters, RobustScale, information_gain
+from .temporal_filter import DelayedForecast, HoltWinters, RobustScale, information_gain
 from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
 from .tracker_params import DEPTHS, REFERENCES, SOLVERS, TrackerParams, TrackResult
@@ -115,6 +115,7 @@ class Tracker:
         motion = body_step(rotations[0], positions[0], rotations[-1], positions[-1])
         motion *= slots.period / span
         self.motion = HoltWinters(motion, alpha=self.params.alpha, beta=self.params.beta)
+        self.forecasts = DelayedForecast(self.motion, self.params.loop_delay_rows)
         self.typical = None
         self.track.set_extrapolation(motion / slots.period)
 
@@ -291,8 +292,10 @@ class Tracker:
     def _run_block(self, first, stop, out):
         slots, k = self.slots, self.params.segments
         occupied = np.flatnonzero(slots.occupied[first:stop]) + first
-        # one Holt–Winters step per occupied slot (a blanking interval is not extrapolated)
-        block_forecasts = {s: self.motion.forecast(k + 1) for k, s in enumerate(occupied)}
+        # one Holt–Winters step per occupied slot (a blanking interval is not extrapolated);
+        # a slot within the loop delay of the block's start gets an older forecast
+        block_forecasts = {s: self.forecasts.forecast(s, k + 1, latest=first - 1)
+                           for k, s in enumerate(occupied)}
         entries = []
         for n in range(len(self.rig.cameras)):
             frames, rows, slot_ids = slots.members(n, first, stop)
@@ -324,7 +327,7 @@ class Tracker:
     def _step(self, s, linearised_at, table, mine, previous, out):
         """Robust weighted solve of slot ``s`` from the block's measurements ``mine``."""
         p = self.params
-        forecast = self.motion.forecast()
+        forecast = self.forecasts.forecast(s)       # what the loop knows when s starts
         step, gain, condition, used = None, None, np.nan, 0
         if len(mine):
             design, ratio = table.design[mine], table.ratio[mine]
@@ -356,14 +359,15 @@ class Tracker:
                     self.typical = normal if self.typical is None else \
                         (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
                     gain = information_gain(normal, self.typical, p.alpha)
-        level = self.motion.update(None if step is None else forecast + step, gain)
+        current = self.motion.forecast()            # the filter's own state is up to date
+        level = self.forecasts.update(s, None if step is None else forecast + step, gain)
         # the pose carried on from the latest one at the current rate (Y is the motion
         # over the last frame, i.e. the rate half a frame ago: the trend brings it up to
         # date) ...
         last = self.track.count - 1
         dt = self.slots.times[s] - self.track.times[last]
         half_frame = 0.5 * self.slots.period / self.slots.t_r
-        rate = (forecast + half_frame * self.motion.trend) / self.slots.period
+        rate = (current + half_frame * self.motion.trend) / self.slots.period
         rotation, position = compose(self.track.rotations[last], self.track.positions[last],
                                      rate * dt)
         if step is not None:  # ... pulled towards the measured one, weighted by information

@@ -50,6 +50,11 @@ class TrackerParams:
         Share of a segment's pixels that need a depth for the segment to count.
     alpha, beta : float
         Holt–Winters level and trend smoothing of the per-slot motion.
+    loop_delay_rows : int
+        Loop delay (row periods): a slot's forecast (window centres, followed rows, the
+        linearisation and the outlier test) only includes the steps of slots solved at
+        least this long before the slot starts, as with a hardware solver whose step
+        arrives after later rows have started (0: every earlier slot's step).
     pose_alpha : float
         How far a typical slot's pose moves from the pose carried on from the previous
         slot (at the forecast rate) towards the pose its measurements give.
@@ -88,6 +93,7 @@ class TrackerParams:
     min_depth_fraction: float = 0.5
     alpha: float = 0.1
     beta: float = 0.01
+    loop_delay_rows: int = 0
     pose_alpha: float = 0.02
     huber_k: float = 2.0
     scale_initial: float = 0.5
@@ -114,6 +120,7 @@ class TrackerParams:
         check_int("segments", self.segments, 1)
         check_int("disparity_blocks", self.disparity_blocks, 1)
         check_int("block_rows", self.block_rows, 1)
+        check_int("loop_delay_rows", self.loop_delay_rows, 0)
         check_int("geometry_stride", self.geometry_stride, 1)
         check_number("min_depth_fraction", self.min_depth_fraction, 0, 1,
                low_open=True)

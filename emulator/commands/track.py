@@ -26,6 +26,9 @@ def add_arguments(parser):
                         help="per-row solve; 'nonlinear' refines every row on the exact "
                              "model (slow; default: %(default)s)")
     parser.add_argument("--segments", type=int, help="segments per camera row (default: 8)")
+    parser.add_argument("--loop-delay-rows", type=int, default=0,
+                        help="row periods between a slot's solve and the first slot whose "
+                             "forecast includes it, as in hardware (default: %(default)s)")
     parser.add_argument("-o", "--out", type=Path,
                         help="trajectory file (default: DATA with suffix .track.npz)")
     parser.add_argument("--plot", type=Path,
@@ -38,7 +41,7 @@ def add_arguments(parser):
 def _params(args):
     from golden.tracker import TrackerParams
     changes = {"reference": args.reference, "depth": args.depth, "solver": args.solver,
-               "parallax": not args.no_parallax}
+               "parallax": not args.no_parallax, "loop_delay_rows": args.loop_delay_rows}
     if args.segments is not None:
         changes["segments"] = args.segments
     try:
