@@ -40,10 +40,11 @@ from .reference_rows import HomographyReference, PreviousFrameReference
 from .temporal_filter import DelayedForecast, HoltWinters, RobustScale, information_gain
 from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
-from .tracker_params import DEPTHS, REFERENCES, SOLVERS, TrackerParams, TrackResult
+from .tracker_params import (DEPTHS, MOTION_GAINS, REFERENCES, SOLVERS, TrackerParams,
+                             TrackResult)
 from .tracker_slots import RowSlots
 
-__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "TrackerParams", "TrackResult", "Tracker",
+__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "TrackerParams", "TrackResult", "Tracker",
            "track"]
 
 #: Gauss–Newton iterations and finite-difference probe (m or rad) of the nonlinear
@@ -271,7 +272,8 @@ class Tracker:
             "updated": np.zeros(size, dtype=bool), "condition": np.full(size, np.nan),
             "equations": np.zeros(size, dtype=int),
             "camera_confidence": np.full((size, n_cams), np.nan),
-            "motion": np.full((size, 6), np.nan), "linear_step": np.full((size, 6), np.nan),
+            "motion": np.full((size, 6), np.nan), "forecast": np.full((size, 6), np.nan),
+            "measured": np.full((size, 6), np.nan), "linear_step": np.full((size, 6), np.nan),
             "refined_step": np.full((size, 6), np.nan)}
         starts = range(slots.first_tracked, size, p.block_rows)
         if progress:
@@ -358,9 +360,11 @@ class Tracker:
                         out["refined_step"][s] = step
                     self.typical = normal if self.typical is None else \
                         (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
-                    gain = information_gain(normal, self.typical, p.alpha)
+                    if p.motion_gain == "information":
+                        gain = information_gain(normal, self.typical, p.alpha)
         current = self.motion.forecast()            # the filter's own state is up to date
-        level = self.forecasts.update(s, None if step is None else forecast + step, gain)
+        measured = None if step is None else forecast + step
+        level = self.forecasts.update(s, measured, gain)
         # the pose carried on from the latest one at the current rate (Y is the motion
         # over the last frame, i.e. the rate half a frame ago: the trend brings it up to
         # date) ...
@@ -371,14 +375,17 @@ class Tracker:
         rotation, position = compose(self.track.rotations[last], self.track.positions[last],
                                      rate * dt)
         if step is not None:  # ... pulled towards the measured one, weighted by information
-            measured = compose(*previous, forecast + step)
+            target = compose(*previous, measured)
             pull = information_gain(normal, self.typical, p.pose_alpha)
             rotation, position = compose(rotation, position,
-                                         pull @ body_step(rotation, position, *measured))
+                                         pull @ body_step(rotation, position, *target))
         self.track.append(self.slots.times[s], rotation, position)
         self.track.set_extrapolation(level / self.slots.period)
         out["updated"][s], out["condition"][s] = step is not None, condition
         out["equations"][s], out["motion"][s] = used, level
+        out["forecast"][s] = forecast
+        if measured is not None:
+            out["measured"][s] = measured
 
     def _exact_shifts(self, parts, motions):
         """Segment shifts (M, equations) predicted by the full projection model for one-
