@@ -100,10 +100,10 @@ class ForecastModel:
         was flagged): the filter's update."""
         return self.loop.update(slot, step)
 
-    def motion(self, slot, ahead=1):
+    def motion(self, slot):
         """Forecast ``Ŷ`` (raw ``motion_fmt``) for row slot ``slot``, whose step will be the
-        ``ahead``-th the filter takes from now."""
-        return self.params.motion_fmt.raw(self.loop.forecast(slot, ahead))
+        next the filter takes."""
+        return self.params.motion_fmt.raw(self.loop.forecast(slot))
 
     def _displacements(self, store, coef_raw, row, cue, motion):
         slots = self.params.solver.slots
@@ -126,7 +126,7 @@ class ForecastModel:
         unit = p.segments << p.displacement_fmt.frac_bits
         return (2 * total + unit) // (2 * unit)
 
-    def predict(self, slot, row, cue, ahead=1):
+    def predict(self, slot, row, cue):
         """The forecast for camera row ``row`` read in row slot ``slot``, with the depth
         cue of every segment ``cue`` (raw ``solver.cue_fmt``, (slots,)).
 
@@ -136,7 +136,7 @@ class ForecastModel:
         ``centre_saturated``/``row_saturated``.
         """
         p = self.params
-        motion = self.motion(slot, ahead)
+        motion = self.motion(slot)
         shift, shift_sat = self._displacements(p.solver, self.coef_raw, row, cue, motion)
         across, across_sat = self._displacements(p.row_store, self.row_coef_raw, row, cue,
                                                  motion)
