@@ -21,8 +21,10 @@ from hdl.descriptor.params import DEFAULT_SEGMENTS
 __all__ = ["RECORD_FIELDS", "CosimResult", "compare_records", "slice_rig", "slice_params",
            "NoSolvingWindow", "solving_window", "cosim_slice"]
 
-#: Pose-record fields compared, element by element (``q`` and ``p`` are arrays).
-RECORD_FIELDS = ("row", "time", "flags", "q", "p")
+#: Fields of the PS FIFO's records compared, element by element (``quaternion`` and
+#: ``position`` are arrays): what a record says of its pose (``seq`` counts records and
+#: ``skipped`` depends on the sinks' timing).
+RECORD_FIELDS = ("row", "t_row", "flags", "quaternion", "position")
 #: UART divisor of the slice (raw ``UartParams.divisor_fmt``: one clock per bit), so a
 #: packet leaves before the next row's record and the UART carries every record.
 DIVISOR = 16
@@ -40,8 +42,9 @@ class CosimResult:
     -------
     records : dict
         The HDL's pose records as read from the PS FIFO registers, raw integer arrays in
-        the packet formats (``emulator.output.packets``): ``row``, ``time``, ``flags``, ``q``
-        (n, 4), ``p`` (n, 3).
+        the packet formats (``emulator.output.packets``), one entry per field of
+        :data:`RECORD_FIELDS`: ``row``, ``t_row``, ``flags``, ``quaternion`` (n, 4),
+        ``position`` (n, 3).
     expected : dict
         The emulator's records for the same row sets, narrowed the same way.
     mismatches : int
@@ -111,7 +114,8 @@ def _record_values(records, k):
 def compare_records(records, expected, frames=None):
     """Count the record fields in which the HDL's ``records`` differ from ``expected``.
 
-    Records are compared in order, element by element (``q`` and ``p`` per component);
+    Records are compared in order, element by element (``quaternion`` and ``position``
+    per component);
     a record present on one side only counts all of its elements. ``frames`` (optional,
     one per expected record) names the frame in the message.
 
@@ -119,7 +123,7 @@ def compare_records(records, expected, frames=None):
     -------
     mismatches : int
     first : str or None
-        e.g. ``"record 5 (frame 1, row 3): q[2] HDL 12 ≠ emulator 13"``.
+        e.g. ``"record 5 (frame 1, row 3): quaternion[2] HDL 12 ≠ emulator 13"``.
     """
     counts = []
     for name, side in (("records", records), ("expected", expected)):
@@ -266,23 +270,21 @@ def expected_records(params, coef_raw, row_sets):
               "enable": 1}
     transfers = run_engine(engine, row_sets, [config] * len(row_sets)).transfers
     model = pose_solver_model(params.solver, coef_raw, pose_rows(engine.router, transfers))
-    poses = [{"t_row": int(model["time"][k]), "row": int(model["row"][k]),
-              "flags": int(model["flags"][k]), "position": [int(v) for v in model["p"][k]],
-              "quaternion": [int(v) for v in model["q"][k]]} for k in range(len(model["row"]))]
+    poses = [{name: value[k] for name, value in model.items()}
+             for k in range(len(model["row"]))]
     kept = [record for _, record in packets.keep_poses(params.pose_output, poses, 1)]
-    uart = b"".join(packets.encode_packet(params.pose_output.packet, r) for r in kept)
-    return record_arrays(kept), uart
+    packet = params.pose_output.packet
+    uart = b"".join(packets.encode_packet(packet, r) for r in kept)
+    return record_arrays(packet, kept), uart
 
 
-def record_arrays(records):
-    """PS FIFO records (dicts of the packet record layout) as arrays of
-    :data:`RECORD_FIELDS`."""
-    def column(name, shape):
-        return np.array([r[name] for r in records], dtype=np.int64).reshape(shape)
-    n = len(records)
-    return {"row": column("row", (n,)), "time": column("t_row", (n,)),
-            "flags": column("flags", (n,)), "q": column("quaternion", (n, 4)),
-            "p": column("position", (n, 3))}
+def record_arrays(packet, records):
+    """PS FIFO records (dicts of ``packet``'s record layout) as arrays of
+    :data:`RECORD_FIELDS`: (n,) for a field of one element, (n, count) otherwise."""
+    counts = {field.name: field.count for field in packet.fields()}
+    return {name: np.array([r[name] for r in records], dtype=np.int64).reshape(
+        (len(records),) + ((counts[name],) if counts[name] > 1 else ()))
+        for name in RECORD_FIELDS}
 
 
 def _latency(out, sets, frames_of_sets, fifo_clocks):
@@ -381,7 +383,7 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, segments=DEFAULT_SEGMEN
     frames_of_sets = [order.setdefault(next(iter(s.values()))[0]["frame"], len(order))
                       for s in sets]
     expected, uart = expected_records(params, coef_raw, sets)
-    records = record_arrays(out["fifo_records"])
+    records = record_arrays(params.pose_output.packet, out["fifo_records"])
     mismatches, first = compare_records(records, expected, frames_of_sets)
     latency = _latency(out, sets, frames_of_sets, out["fifo_clocks"]) \
         if len(sets) == len(out["fifo_clocks"]) else -1

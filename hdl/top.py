@@ -47,6 +47,9 @@ class RowtrackTop(wiring.Component):
     params : TopParams
     domains : sequence of str, optional
         Camera ``k``'s pixel clock domain (default ``pclk0``, ``pclk1``, ...).
+    coefficients : ndarray (slots, rows, 9), optional
+        Initial contents of the solver's coefficient store (raw; default zeros, loaded
+        through the registers), e.g. a rig's ``PipelineConfig.coef_raw``.
 
     Members
     -------
@@ -61,10 +64,11 @@ class RowtrackTop(wiring.Component):
         Pose packets.
     """
 
-    def __init__(self, params=TopParams(), *, domains=None):
+    def __init__(self, params=TopParams(), *, domains=None, coefficients=None):
         if not isinstance(params, TopParams):
             raise TypeError(f"params must be a TopParams, not {params!r}")
         self.params = params
+        self.coefficients = coefficients
         n = params.camera.n_cameras
         self.domains = tuple(domains) if domains is not None else \
             tuple(f"pclk{k}" for k in range(n))
@@ -84,7 +88,7 @@ class RowtrackTop(wiring.Component):
         m.submodules.regs = regs = RegisterFile(p.regmap())
         m.submodules.front = front = CameraFrontEnd(p.camera, domains=self.domains)
         m.submodules.engine = engine = MeasurementEngine(p.engine)
-        m.submodules.solver = solver = PoseSolver(p.solver)
+        m.submodules.solver = solver = PoseSolver(p.solver, self.coefficients)
         m.submodules.pose_link = link = PoseLink(p)
         wiring.connect(m, wiring.flipped(self.axi), regs.axi)
         wiring.connect(m, front.o, engine.rows)
@@ -104,14 +108,9 @@ class RowtrackTop(wiring.Component):
             self.fsin.eq(front.fsin),
         ]
 
-        pose, record = link.pose, solver.o
+        wiring.connect(m, solver.o, link.pose)
         coef = regs.solver.coef
         m.d.comb += [
-            pose.valid.eq(record.valid), record.ready.eq(pose.ready),
-            pose.payload.t_row.eq(record.payload.time), pose.payload.row.eq(record.payload.row),
-            pose.payload.position.eq(record.payload.p),
-            pose.payload.quaternion.eq(record.payload.q),
-            pose.payload.flags.eq(record.payload.flags),
             solver.coef_write.addr.eq(coef.data.addr), solver.coef_write.index.eq(coef.data.index),
             solver.coef_write.data.eq(coef.data.data), solver.coef_write.en.eq(coef.stb),
             regs.solver.counters.eq(solver.counters),

@@ -12,19 +12,12 @@ from golden.checks import check_int
 
 from hdl.front_end.params import CameraParams
 from hdl.measurement.engine_params import EngineParams
-from hdl.output.params import PoseOutputParams, PoseSource
-from hdl.pose.params import PoseFlag, PoseSolverParams
+from hdl.output.params import PoseOutputParams
+from hdl.pose.params import PoseSolverParams, solver_source
 from hdl.descriptor.params import DEFAULT_SEGMENTS
 from hdl.output.params import UartParams
 
 __all__ = ["TopParams", "solver_source", "DEFAULT_CAMERAS", "DEFAULT_SEGMENTS"]
-
-
-def solver_source(solver):
-    """The pose solver's record formats, as :class:`PoseOutput` takes them."""
-    return PoseSource(position_fmt=solver.position_fmt, quaternion_fmt=solver.quat_fmt,
-                      row_bits=solver.row_bits, time_bits=solver.time_bits,
-                      flag_bits=len(PoseFlag))
 
 
 #: Default camera ports (every supported board has four).

@@ -1,7 +1,9 @@
 """``rowtrack bench``: run the registered benchmarks and report measured figures."""
 
 import json
+import os
 import sys
+from contextlib import contextmanager, redirect_stdout
 from pathlib import Path
 
 from emulator.cli import UsageError
@@ -37,9 +39,10 @@ def run(args):
     if args.render_docs:
         return _render_docs(bench, args.render_docs, selected)
     figures = {}
-    for name in selected:
-        print(f"[bench] {name} ...", file=sys.stderr, flush=True)
-        figures.update(bench.measure(name))
+    with _stdout_to_stderr():
+        for name in selected:
+            print(f"[bench] {name} ...", file=sys.stderr, flush=True)
+            figures.update(bench.measure(name))
     if args.write_docs:
         args.write_docs.mkdir(parents=True, exist_ok=True)
         for name in selected:
@@ -60,6 +63,23 @@ def run(args):
         for key, value in sorted(figures.items()):
             print(f"{key:<{width}}  {value}")
     return 0
+
+
+@contextmanager
+def _stdout_to_stderr():
+    """While the benchmarks run, everything written to standard output — by Python or by
+    the simulators and compilers they start — goes to standard error, so that standard
+    output carries the figures alone (``--json`` can be piped into a parser)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _render_docs(bench, out, selected):

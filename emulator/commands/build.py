@@ -20,19 +20,42 @@ def add_arguments(parser):
                         help="FCLK_CLK0 frequency the PS is set to (default: %(default)s)")
     parser.add_argument("--baud", type=int, default=3_000_000,
                         help="pose UART baud rate after reset (default: %(default)s)")
+    parser.add_argument("--rig", metavar="RIG",
+                        help="build the pipeline of this rig (a preset or a .yaml/.toml "
+                             "file; one camera per camera port, in stereo pairs), with its "
+                             "coefficient table in the solver's store; default: the board's "
+                             "ports paired (0, 1), (2, 3), ... and an empty store")
     parser.add_argument("--write-docs", type=Path, metavar="DIR",
                         help="write DIR/register_map.md, DIR/packet_format.md, DIR/board.md")
 
 
 def _params(spec, args):
+    """The top's parameters and the solver's initial coefficients (None: empty store)."""
     from hdl.board.zynq import default_params
     fclk_hz = round(args.fclk_mhz * 1e6)
     if not 10e6 <= fclk_hz <= 250e6:
         raise UsageError(f"--fclk-mhz must be between 10 and 250, not {args.fclk_mhz:g}")
+    if args.rig is not None:
+        return _rig_params(spec, args.rig, fclk_hz, args.baud)
     try:
-        return default_params(spec, fclk_hz).replace(baud=args.baud)
+        return default_params(spec, fclk_hz).replace(baud=args.baud), None
     except ValueError as exc:
         raise UsageError(f"--baud: {exc}") from None
+
+
+def _rig_params(spec, rig_name, fclk_hz, baud):
+    """The board top built through the one configuration door for ``rig_name``."""
+    from golden.rig import load_rig
+    from hdl.pipeline_config import PipelineConfig
+    try:
+        rig = load_rig(rig_name)
+        if len(rig.cameras) != spec.n_cameras:
+            raise ValueError(f"{len(rig.cameras)} cameras, but {spec.name} has "
+                             f"{spec.n_cameras} camera ports")
+        config = PipelineConfig.for_rig(rig, clk_hz=fclk_hz, baud=baud)
+    except (OSError, TypeError, ValueError) as exc:
+        raise UsageError(f"--rig {rig_name}: {exc}") from None
+    return config.top, config.coef_raw
 
 
 def write_docs(out_dir, params):
@@ -62,18 +85,18 @@ def run(args):
     if args.board is not None and args.board not in board.BOARDS:
         raise UsageError(f"unknown board {args.board!r}; boards are: {', '.join(board.names())}")
     spec = board.board(args.board or "arty-z7-20")
-    params = _params(spec, args)
+    params, coefficients = _params(spec, args)
     if args.write_docs is not None:
         for path in write_docs(args.write_docs, params):
             print(f"wrote {path}")
     if args.board is None:
         return 0
     out = args.out or Path("build") / args.board
-    files = board.build_board(spec, out, params)
+    files = board.build_board(spec, out, params, coefficients=coefficients)
     regmap = params.regmap()
     info = {"board": spec.name, "part": spec.platform_class.device + spec.platform_class.package
             + "-" + spec.platform_class.speed, "fclk_hz": params.clk_hz, "baud": params.baud,
-            "n_cameras": spec.n_cameras, "reg_base": regmap.base, "reg_size": regmap.size,
+            "n_cameras": spec.n_cameras, "rig": args.rig, "reg_base": regmap.base, "reg_size": regmap.size,
             "map_crc": regmap.layout_crc(), "files": files}
     (out / "build_info.json").write_text(json.dumps(info, indent=2) + "\n")
     for name in files:

@@ -5,8 +5,11 @@ objects: the cocotb benches compare the UART line byte for byte with
 :func:`encode_packet`, and the host tool decodes with :func:`decode_payload`.
 
 A record is a dict of raw integers: ``seq``, ``skipped``, ``t_row``, ``row``,
-``position`` (3), ``quaternion`` (4), ``flags``. A pose is the same without ``seq`` and
-``skipped``.
+``position`` (3), ``quaternion`` (4), ``flags`` (:func:`quantize_pose` gives all but
+``seq`` and ``skipped``). A tracker pose, what :func:`narrow_pose` and :func:`keep_poses`
+take, is the tracker's pose record: the fields of
+:meth:`hdl.output.params.PoseSource.layout` (``row``, ``time``, ``flags``, ``q`` (4),
+``p`` (3), ``step`` (6)), as :func:`emulator.pose_solver.pose_solver_model` names them.
 """
 
 import binascii
@@ -83,11 +86,12 @@ def narrow_pose(params, pose):
     :class:`hdl.output.packet.PoseOutput` narrows it: position and quaternion rounded
     half-even and saturated, the time stamp cut to its low bits."""
     src, packet = params.source, params.packet
-    narrowed = {"t_row": int(pose["t_row"]) & ((1 << packet.timestamp_bits) - 1),
+    narrowed = {"t_row": int(pose["time"]) & ((1 << packet.timestamp_bits) - 1),
                 "row": int(pose["row"]), "flags": int(pose["flags"])}
-    for name, src_fmt, dst_fmt in (("position", src.position_fmt, packet.position_fmt),
-                                   ("quaternion", src.quaternion_fmt, packet.quaternion_fmt)):
-        raw = np.array([int(v) for v in pose[name]], dtype=src_fmt.dtype())
+    for name, value, src_fmt, dst_fmt in (
+            ("position", pose["p"], src.position_fmt, packet.position_fmt),
+            ("quaternion", pose["q"], src.quaternion_fmt, packet.quaternion_fmt)):
+        raw = np.array([int(v) for v in value], dtype=src_fmt.dtype())
         narrowed[name] = [int(v) for v in resize(raw, src_fmt, dst_fmt, Rounding.HALF_EVEN,
                                                  Overflow.SATURATE)]
     return narrowed

@@ -45,17 +45,18 @@ def cdc_constraints(spec):
             f"set_clock_groups -asynchronous {' '.join(groups)}")
 
 
-def build_board(spec, out_dir, params=None, *, name="top"):
+def build_board(spec, out_dir, params=None, *, coefficients=None, name="top"):
     """Write the Vivado inputs for ``spec`` to ``out_dir``; returns the file names.
 
     ``out_dir`` receives ``top.v``, ``top.xdc`` (pins, I/O standards, clocks, the
     asynchronous clock groups of :func:`cdc_constraints`), ``top.tcl`` (project for the
     board's part, synthesis with the false paths Amaranth's FIFOs and synchronizers
-    need, place, route, reports, bitstream) and ``build_top.sh``.
+    need, place, route, reports, bitstream) and ``build_top.sh``. ``params`` and
+    ``coefficients`` (the solver's initial coefficient store) are :class:`ZynqTop`'s.
     """
     from hdl.board.zynq import ZynqTop
     platform = spec.platform()
-    plan = platform.build(ZynqTop(spec, params), name=name, do_build=False,
+    plan = platform.build(ZynqTop(spec, params, coefficients), name=name, do_build=False,
                           add_constraints=cdc_constraints(spec))
     plan.extract(out_dir)
     return sorted(plan.files)

@@ -56,9 +56,12 @@ class ZynqTop(Elaboratable):
     params : TopParams, optional
         Default: :func:`default_params`. ``camera.n_cameras`` must equal the board's
         camera ports; ``clk_hz`` is the FCLK_CLK0 frequency the PS is configured for.
+        For a rig: ``PipelineConfig.for_rig(rig, clk_hz=...).top``.
+    coefficients : ndarray, optional
+        The solver's initial coefficient store (a rig's ``PipelineConfig.coef_raw``).
     """
 
-    def __init__(self, board, params=None):
+    def __init__(self, board, params=None, coefficients=None):
         if not isinstance(board, BoardSpec):
             raise TypeError(f"board must be a BoardSpec, not {board!r}")
         params = default_params(board) if params is None else params
@@ -69,6 +72,7 @@ class ZynqTop(Elaboratable):
                              f"ports of {board.name}), not {params.camera.n_cameras}")
         self.board = board
         self.params = params
+        self.coefficients = coefficients
 
     def elaborate(self, platform):
         m = Module()
@@ -77,7 +81,7 @@ class ZynqTop(Elaboratable):
         m.d.comb += ClockSignal("sync").eq(getattr(ps7, FCLK0_NET))
         m.submodules.reset_sync = ResetSynchronizer(ps7.reset, domain="sync")
         m.submodules.gp0 = bridge = GP0ToAXI4Lite()
-        m.submodules.tracker = tracker = RowtrackTop(self.params)
+        m.submodules.tracker = tracker = RowtrackTop(self.params, coefficients=self.coefficients)
         wiring.connect(m, ps7.gp0, bridge.gp0)
         wiring.connect(m, bridge.lite, tracker.axi)
 

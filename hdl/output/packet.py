@@ -216,15 +216,14 @@ class PoseOutput(wiring.Component):
     def _narrow(self, record, pose):
         """Assignments of ``pose`` (source formats) to ``record`` (packet formats)."""
         src, packet = self.params.source, self.params.packet
-        out = [record.t_row.eq(pose.t_row[:packet.timestamp_bits]), record.row.eq(pose.row),
+        out = [record.t_row.eq(pose.time[:packet.timestamp_bits]), record.row.eq(pose.row),
                record.flags.eq(pose.flags)]
-        for name, src_fmt, dst_fmt, count in (
-                ("position", src.position_fmt, packet.position_fmt, 3),
-                ("quaternion", src.quaternion_fmt, packet.quaternion_fmt, 4)):
+        for name, value, src_fmt, dst_fmt, count in (
+                ("position", pose.p, src.position_fmt, packet.position_fmt, 3),
+                ("quaternion", pose.q, src.quaternion_fmt, packet.quaternion_fmt, 4)):
             for k in range(count):
                 out.append(getattr(record, name)[k].eq(hdl_resize(
-                    getattr(pose, name)[k], src_fmt, dst_fmt, Rounding.HALF_EVEN,
-                    Overflow.SATURATE)))
+                    value[k], src_fmt, dst_fmt, Rounding.HALF_EVEN, Overflow.SATURATE)))
         return out
 
     def _sink(self, m, kept, *, enable, room, dropped):

@@ -139,25 +139,30 @@ def _packet_fields(params):
 class PoseSource:
     """The pose record as the tracker hands it over, in its own formats.
 
-    :class:`hdl.output.packet.PoseOutput` narrows it into the packet formats: position and quaternion
-    rounded half-even and saturated (:func:`hdl.fixed.hdl_resize`), the time stamp cut
-    to its low ``timestamp_bits`` (it wraps anyway); row and flags must fit.
+    The pose solver emits this record (:func:`hdl.pose.params.solver_source`), so the top
+    connects it to :class:`hdl.output.packet.PoseOutput` as it is.
+    :class:`~hdl.output.packet.PoseOutput` narrows it into the packet formats: position
+    and quaternion rounded half-even and saturated (:func:`hdl.fixed.hdl_resize`), the
+    time stamp cut to its low ``timestamp_bits`` (it wraps anyway); row and flags must
+    fit; the step is not sent.
 
     Parameters
     ----------
-    position_fmt, quaternion_fmt : QFormat
-        Signed formats of the position (metres) and quaternion components.
+    position_fmt, quaternion_fmt, step_fmt : QFormat
+        Signed formats of the position (metres), the quaternion components and the
+        step (metres, radians).
     row_bits, time_bits, flag_bits : int
         Widths of the row index, time stamp and flags.
     """
     position_fmt: QFormat = SQ(8, 24)
     quaternion_fmt: QFormat = SQ(2, 14)
+    step_fmt: QFormat = SQ(1, 15)
     row_bits: int = 16
     time_bits: int = 32
     flag_bits: int = 8
 
     def __post_init__(self):
-        for name in ("position_fmt", "quaternion_fmt"):
+        for name in ("position_fmt", "quaternion_fmt", "step_fmt"):
             fmt = getattr(self, name)
             if not isinstance(fmt, QFormat):
                 raise TypeError(f"{name} must be a QFormat, not {fmt!r}")
@@ -167,13 +172,28 @@ class PoseSource:
             _check_bits(name, getattr(self, name), multiple_of=1)
 
     def layout(self):
-        """Fields ``t_row``, ``row``, ``position`` (3), ``quaternion`` (4), ``flags``."""
+        """The pose record, one per image row; the one definition of its fields.
+
+        Fields
+        ------
+        row : unsigned(row_bits)
+        time : unsigned(time_bits)
+            Of the row's last measurement.
+        flags : unsigned(flag_bits)
+            :class:`hdl.pose.params.PoseFlag` (one reason; zero when the row was solved).
+        q : ArrayLayout(quaternion_fmt, 4)
+            World-from-body orientation (w, x, y, z) after the row.
+        p : ArrayLayout(position_fmt, 3)
+            World position of the body (m) after the row.
+        step : ArrayLayout(step_fmt, 6)
+            The row's step [Tx Ty Tz θx θy θz] (m, rad), zero when flagged.
+        """
         from amaranth.lib import data
         return data.StructLayout({
-            "t_row": self.time_bits, "row": self.row_bits,
-            "position": data.ArrayLayout(self.position_fmt.shape(), 3),
-            "quaternion": data.ArrayLayout(self.quaternion_fmt.shape(), 4),
-            "flags": self.flag_bits,
+            "row": self.row_bits, "time": self.time_bits, "flags": self.flag_bits,
+            "q": data.ArrayLayout(self.quaternion_fmt.shape(), 4),
+            "p": data.ArrayLayout(self.position_fmt.shape(), 3),
+            "step": data.ArrayLayout(self.step_fmt.shape(), 6),
         })
 
 

@@ -29,106 +29,24 @@ from amaranth.lib.wiring import In, Out
 from hdl.fixed import SQ, UQ, Overflow, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
 from hdl.pose.accumulator import PAIRS, exponent_bits, leading_one
 from hdl.pose.params import (DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag, PoseSolverParams,
-                             seed_tables)
-from hdl.pose.program import (MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, STATE_NAMES,
-                              build_row_program, schedule)
+                             solver_source)
+from hdl.pose.program import MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, STATE_NAMES
+from hdl.pose.rom import BANKS, ProgramRom, seed_table_contents
 
-__all__ = ["PoseEngine", "record_layout", "counters_layout", "seed_table_contents"]
+__all__ = ["PoseEngine", "record_layout", "counters_layout"]
 
-_BANKS = {"input": 0, "work": 1, "state": 2}
 
 
 def record_layout(params):
-    """A pose record, one per row.
-
-    Fields
-    ------
-    row : unsigned(row_bits)
-    time : unsigned(time_bits)
-        Of the row's last measurement.
-    flags : unsigned(4)
-        :class:`hdl.pose.params.PoseFlag` (one reason; zero when the row was solved).
-    q : ArrayLayout(quat_fmt, 4)
-        World-from-body orientation (w, x, y, z) after the row.
-    p : ArrayLayout(position_fmt, 3)
-        World position of the body (m) after the row.
-    step : ArrayLayout(step_fmt, 6)
-        The row's step [Tx Ty Tz θx θy θz] (m, rad), zero when flagged.
-    """
-    return data.StructLayout({
-        "row": params.row_bits, "time": params.time_bits, "flags": len(PoseFlag),
-        "q": data.ArrayLayout(params.quat_fmt.shape(), 4),
-        "p": data.ArrayLayout(params.position_fmt.shape(), 3),
-        "step": data.ArrayLayout(params.step_fmt.shape(), 6),
-    })
+    """A pose record, one per row: ``row``, ``time``, ``flags``, ``q`` (4), ``p`` (3),
+    ``step`` (6) in the solver's formats (:func:`hdl.pose.params.solver_source`)."""
+    return solver_source(params).layout()
 
 
 def counters_layout(params):
     """Status counters (wrap): rows solved, and rows flagged for each reason."""
     return data.StructLayout({name: params.counter_bits for name in
                               ("solved", "empty", "ill", "saturated", "overrun")})
-
-
-def seed_table_contents(params):
-    """ROM words of the seed unit: ``T1 << T0_width | T0`` for each table index."""
-    values, slopes = seed_tables(params.seed_bits)
-    width = SEED_TABLE_FMT.width
-    return [(s << width) | v for v, s in zip(values, slopes)]
-
-
-class _Words:
-    """The program as ROM words (one per clock) and the static tables the datapath needs."""
-
-    def __init__(self, params):
-        self.program = build_row_program(params)
-        self.schedule = schedule(self.program)
-        ops = self.program.ops
-        self.init_shifts = sorted({op.init_shift for op in ops if op.kind == "mac" and op.init})
-        self.out_shifts = sorted({op.out_shift for op in ops if op.kind == "mac"})
-        #: the (init, out) shift pairs that occur, as ((code, shift), (code, shift))
-        self.init_out_pairs = sorted({
-            ((self.init_shifts.index(op.init_shift), op.init_shift),
-             (self.out_shifts.index(op.out_shift), op.out_shift))
-            for op in ops if op.kind == "mac" and op.init})
-        self.max_terms = max(op.slots for op in ops)
-        self.index_bits = max(len(self.program.inputs), self.program.work_depth,
-                              len(STATE_NAMES)).bit_length()
-        step_names = {v.name: k for k, v in enumerate(self.program.step)}
-        b = self.index_bits
-        self.layout = data.StructLayout({
-            "issue": 1, "seed": 1, "first": 1, "last": 1, "negate": 1, "has_init": 1,
-            "a_bank": 2, "a": b, "b_bank": 2, "b": b, "c_bank": 2, "c": b,
-            "init_code": max(1, len(self.init_shifts).bit_length()),
-            "out_code": max(1, len(self.out_shifts).bit_length()),
-            "dst_state": 1, "dst": b, "checked": 1, "capture": 3,
-        })
-        words = [dict() for _ in range(self.schedule.length)]
-        for op, start in zip(ops, self.schedule.issue):
-            if op.kind == "seed":
-                words[start] = {"issue": 1, "seed": 1, "first": 1, "last": 1,
-                                "a_bank": _BANKS[op.source.bank], "a": op.source.index,
-                                "dst": op.dst.index}
-                continue
-            for t, (sign, a, bb) in enumerate(op.terms):
-                word = {"issue": 1, "negate": int(sign < 0), "first": int(t == 0),
-                        "last": int(t == len(op.terms) - 1),
-                        "a_bank": _BANKS[a.bank], "a": a.index,
-                        "b_bank": _BANKS[bb.bank], "b": bb.index,
-                        "out_code": self.out_shifts.index(op.out_shift),
-                        "dst_state": int(op.commit), "dst": op.dst.index,
-                        "checked": int(op.checked),
-                        "capture": step_names.get(op.dst.name, -1) + 1}
-                if t == 0 and op.init is not None:
-                    word.update(has_init=1, c_bank=_BANKS[op.init.bank], c=op.init.index,
-                                init_code=self.init_shifts.index(op.init_shift))
-                words[start + t] = word
-        self.words = [self._pack(w) for w in words]
-
-    def _pack(self, word):
-        value = 0
-        for name, field in self.layout:
-            value |= (word.get(name, 0) & ((1 << field.width) - 1)) << field.offset
-        return value
 
 
 class PoseEngine(wiring.Component):
@@ -160,7 +78,7 @@ class PoseEngine(wiring.Component):
         if not isinstance(params, PoseSolverParams):
             raise TypeError(f"params must be a PoseSolverParams, not {params!r}")
         self.params = params
-        self._words = _Words(params)
+        self._words = ProgramRom(params)
         eb = exponent_bits(params)
         super().__init__({
             "row_done": In(1),
@@ -266,8 +184,8 @@ class PoseEngine(wiring.Component):
             state_value = Signal(raw, name=f"{name}_state")
             m.d.sync += [bank.eq(bank_field), state_value.eq(Array(old)[index_field[:3]])]
             value = Signal(raw, name=name)
-            m.d.comb += value.eq(Mux(bank == _BANKS["input"], r_in.data,
-                                     Mux(bank == _BANKS["work"], r_work.data, state_value)))
+            m.d.comb += value.eq(Mux(bank == BANKS["input"], r_in.data,
+                                     Mux(bank == BANKS["work"], r_work.data, state_value)))
             return value
 
         op_a = operand(word.a_bank, word.a, "op_a")

@@ -15,10 +15,11 @@ import numpy as np
 from golden.checks import check_int, check_number
 
 from hdl.fixed import SQ, UQ, QFormat, Overflow, Rounding
+from hdl.output.params import PoseSource
 
-__all__ = ["PoseFlag", "PoseSolverParams", "coefficient_formats", "quantize_coefficients",
-           "COEF_GROUPS", "DEFAULT_COEF_WIDTH", "SEED_TABLE_FMT", "SLOPE_FMT", "DELTA_BITS",
-           "seed_tables"]
+__all__ = ["PoseFlag", "PoseSolverParams", "solver_source", "coefficient_formats",
+           "quantize_coefficients", "COEF_GROUPS", "DEFAULT_COEF_WIDTH", "SEED_TABLE_FMT",
+           "SLOPE_FMT", "DELTA_BITS", "seed_tables"]
 
 #: The three coefficient groups of a table row (see golden.pose_lsq): a_T, a_C, a_R.
 COEF_GROUPS = ("t", "c", "r")
@@ -245,6 +246,15 @@ class PoseSolverParams:
         """Fraction bits of the normalized pivot ``m ∈ [1/4, 1)`` in the seed unit
         (two more than the pivot's, so that every even normalization is exact)."""
         return self.unit_fmt.frac_bits + 2
+
+
+def solver_source(params):
+    """The pose record's formats for solver ``params``: the solver emits
+    :meth:`PoseSource.layout <hdl.output.params.PoseSource.layout>` of this, the layout
+    :class:`hdl.output.packet.PoseOutput` takes, so the two connect without renaming."""
+    return PoseSource(position_fmt=params.position_fmt, quaternion_fmt=params.quat_fmt,
+                      step_fmt=params.step_fmt, row_bits=params.row_bits,
+                      time_bits=params.time_bits, flag_bits=len(PoseFlag))
 
 
 def _mul(a, b):

@@ -7,8 +7,9 @@ values, and scheduled at build time into one instruction word per clock. The sch
 static, so the block's latency is known exactly (and read by the benches).
 
 An op is ``dst = round(init + 2**scale · Σ ±a·b)``: the sum is exact and rounded once
-(half-even, saturating) into the destination's format — the same definition the model
-(:mod:`emulator.pose_solver`) uses, so the order of the terms does not matter.
+(half-even, saturating) into the destination's format, so the order of the terms does
+not matter. The bit-accurate model (:mod:`emulator.pose_solver`) executes this same op
+list, so the engine and the model share one description of the algorithm.
 
 Operands live in
 * ``input``: the scaled system N̂ (21, upper triangle row by row), b̂ (6) and the scales
@@ -111,6 +112,9 @@ class RowProgram:
         Work registers with fixed initial contents.
     step : tuple of Operand
         The six step values (captured into the pose record).
+    aliases : dict name -> Operand
+        Values that need no op (a term-less op of an operand into its own format): the
+        operand they stand for, so that every value of the algorithm has its name.
     """
     ops: list = field(default_factory=list)
     inputs: dict = field(default_factory=dict)
@@ -118,6 +122,7 @@ class RowProgram:
     state: dict = field(default_factory=dict)
     constants: dict = field(default_factory=dict)
     step: tuple = ()
+    aliases: dict = field(default_factory=dict)
 
     def _new(self, table, bank, name, fmt):
         if name in table:
@@ -132,6 +137,7 @@ class RowProgram:
         """Append ``dst = round(init + 2**scale_log2 · Σ ±a·b)``; a term-less op of an
         operand into its own format is the operand itself (no op)."""
         if not terms and dst is None and init is not None and init.fmt == fmt:
+            self.aliases[name] = init
             return init
         dst = dst or self.work_value(name, fmt)
         op = Op("mac", dst, tuple(terms), init, scale_log2, checked)
@@ -148,8 +154,8 @@ class RowProgram:
 
 
 def build_row_program(params):
-    """The op list of one row for ``params`` (a PoseSolverParams); mirrors
-    ``emulator.pose_solver`` op for op (and uses its value names)."""
+    """The op list of one row for ``params`` (a PoseSolverParams): what the engine's ROM
+    is built from and what ``emulator.pose_solver`` executes."""
     prog = RowProgram()
     unit, lower, sol = params.unit_fmt, params.lower_fmt, params.solution_fmt
     qf, sf, pf = params.quat_fmt, params.step_fmt, params.position_fmt

@@ -77,6 +77,29 @@ def test_bench_keys_are_prefixed_except_declared_extras(monkeypatch):
     assert "host.packets_ok=7" in bench.report("top", figures) and "lut=5" in bench.report("top", figures)
 
 
+def test_bench_json_keeps_standard_output_for_the_figures(monkeypatch, capfd):
+    """What a benchmark's simulators and compilers print (at the file-descriptor level,
+    as a child process would) goes to standard error; standard output is the JSON."""
+    import json
+    import os
+    import types
+    from emulator import bench
+    from emulator.cli import main
+
+    def measure():
+        print("build chatter")
+        os.write(1, b"make: Entering directory\n")
+        return {"lut": 5}
+    fake = types.ModuleType("fake_bench")
+    fake.measure = measure
+    monkeypatch.setitem(sys.modules, "fake_bench", fake)
+    monkeypatch.setitem(bench.BENCHES, "fixed", "fake_bench")
+    assert main(["bench", "--only", "fixed", "--json"]) == 0
+    out, err = capfd.readouterr()
+    assert json.loads(out) == {"fixed.lut": 5}
+    assert "build chatter" in err and "make: Entering directory" in err
+
+
 def test_run_rejects_bad_input_in_a_real_process(tmp_path):
     """``rowtrack run`` as a process: exit 2, one message, no traceback, nothing built
     (sim_tests/top/test_run.py checks every message in-process)."""

@@ -113,8 +113,19 @@ def test_pose_output_params_checks(kwargs, error, message):
         PoseOutputParams(**kwargs)
 
 
+@pytest.mark.parametrize("kwargs, error, message", [
+    ({"step_fmt": 16}, TypeError, "step_fmt must be a QFormat, not 16"),
+    ({"step_fmt": UQ(1, 15)}, ValueError, "step_fmt must be signed, not UQ"),
+    ({"quaternion_fmt": UQ(2, 14)}, ValueError, "quaternion_fmt must be signed"),
+    ({"flag_bits": 0}, ValueError, "flag_bits must be an integer between 1 and 64, not 0"),
+])
+def test_pose_source_checks(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        PoseSource(**kwargs)
+
+
 def test_keep_poses_decimates_and_numbers():
-    poses = [{"t_row": k, "row": k, "position": [0] * 3, "quaternion": [0] * 4, "flags": 0}
+    poses = [{"time": k, "row": k, "p": [0] * 3, "q": [0] * 4, "flags": 0, "step": [0] * 6}
              for k in range(10)]
     kept = packets.keep_poses(PoseOutputParams(), poses, 3, seq=65535)
     assert [k for k, _ in kept] == [0, 3, 6, 9]
@@ -126,9 +137,9 @@ def test_narrow_pose_rounds_half_even_and_saturates():
     source = PoseSource(position_fmt=SQ(10, 26), quaternion_fmt=SQ(2, 16), row_bits=10,
                         time_bits=40, flag_bits=4)
     params = PoseOutputParams(source=source)
-    pose = {"t_row": (1 << 35) + 9, "row": 1000, "flags": 5,
-            "position": [2, 6, -(1 << 34)],          # 0.5 and 1.5 LSB of the packet format
-            "quaternion": [1 << 16, 10, 6, -(1 << 17)]}
+    pose = {"time": (1 << 35) + 9, "row": 1000, "flags": 5,
+            "p": [2, 6, -(1 << 34)],                 # 0.5 and 1.5 LSB of the packet format
+            "q": [1 << 16, 10, 6, -(1 << 17)], "step": [1, -1, 0, 0, 0, 0]}
     narrowed = packets.narrow_pose(params, pose)
     assert narrowed["t_row"] == 9 and narrowed["row"] == 1000 and narrowed["flags"] == 5
     assert narrowed["position"] == [0, 2, -(1 << 31)]          # ties to even, saturated

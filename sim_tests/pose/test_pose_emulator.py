@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 
 from emulator import pose_solver as E
+from emulator.pose import program
+from hdl.pose.program import UPPER
 from golden import pose_lsq as G
 from hdl.pose.params import PoseFlag
 from sim_tests.pose.pose_solver.stimulus import build_case, random_rows, sequence_rows
@@ -38,7 +40,7 @@ def test_scaled_diagonal_lies_in_a_quarter_to_one(random_case):
     normal, rhs = E.accumulate(params, coefficients, rows)
     scaled, _, scales, empty, _ = E.scale_system(params, normal, rhs)
     for i in range(6):
-        value = params.unit_fmt.to_float(np.asarray(scaled[E.UPPER.index((i, i))].raw,
+        value = params.unit_fmt.to_float(np.asarray(scaled[UPPER.index((i, i))].raw,
                                                      dtype=float))[~empty]
         assert np.all((value >= 0.25) & (value <= 1.0)), i
 
@@ -51,8 +53,8 @@ def test_rsqrt_seed_and_newton_step_accuracy():
                              [2.0 ** -params.pivot_log2, 0.25, 0.5, 1.0, 1.5]])
     raw = params.unit_fmt.quantize(pivots)
     value = params.unit_fmt.to_float(raw)
-    seed = params.seed_fmt.to_float(np.asarray(E.rsqrt_seed(params, E.Value(raw, params.unit_fmt)).raw,
-                                               dtype=float))
+    seed = program.rsqrt_seed(params, program.Value(raw, params.unit_fmt))
+    seed = params.seed_fmt.to_float(np.asarray(seed.raw, dtype=float))
     exact = 1 / np.sqrt(value)
     assert np.max(np.abs(seed / exact - 1)) < 2.0 ** -17
     newton = seed * (1.5 - value * seed * seed / 2)
@@ -215,7 +217,9 @@ def test_largest_steps_integrate_without_overflow():
         raw_q = qf.quantize(start)
         for theta in (sf.max_raw, sf.min_raw):
             step = np.array([0, 0, 0, theta, theta, -theta], dtype=np.int64)
-            quat, _ = E._integrate_one(params, raw_q, np.zeros(3, dtype=np.int64), step)
+            result = E.StepResult(step=step[None], flags=np.zeros(1, dtype=np.int64))
+            (quat,), _ = E.integrate_rows(params, result, np.zeros(1, dtype=np.int64),
+                                          (raw_q, np.zeros(3, dtype=np.int64)))
             a = sf.to_float(step[3:])
             q0 = qf.to_float(raw_q)
             first = G.quat_multiply(q0, np.r_[1.0, a / 2])

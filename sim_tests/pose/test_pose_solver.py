@@ -10,6 +10,7 @@ from amaranth.hdl import Module, Signal
 from amaranth.sim import Simulator
 
 from emulator import pose_solver as E
+from emulator.pose.program import split_program
 from hdl.fixed import SQ, UQ
 from hdl.pose.accumulator import leading_one
 from hdl.pose.params import PoseSolverParams, coefficient_formats, quantize_coefficients
@@ -121,8 +122,9 @@ def test_schedule_respects_every_dependency():
                     assert plan.issue[r] + reader.slots - 1 <= plan.writeback[k]
 
 
-def test_program_mirrors_the_model_value_names():
-    """The program's values carry the model's trace names (the trace test relies on it)."""
+def test_trace_names_every_solve_value_of_the_program():
+    """The model's trace holds every value of the program's solve under its name and
+    format, aliases included (the trace test and the benchmark's ranges rely on it)."""
     params, coefficients, _ = build_case("random")
     rows = mixed_rows("random", params, None, np.random.default_rng(SEED), 2)
     trace = E.solve_trace(params, coefficients, rows)
@@ -132,9 +134,23 @@ def test_program_mirrors_the_model_value_names():
                                       "px", "py", "pz"))}
     # term-less ops of an operand into its own format are that operand (no register)
     aliases = {"D0", "c0"} | {f"W{i}0" for i in range(1, 6)}
+    assert set(program.aliases) == aliases
     assert solve == set(trace) - aliases - set(program.inputs)
     for name in solve:
         assert program.work[name].fmt == trace[name].fmt, name
+    for name, operand in program.aliases.items():
+        assert trace[name] is trace[operand.name], name
+
+
+def test_integration_sets_no_flag():
+    """The model takes a row's flags from the solve alone and integrates only solved
+    rows: no op of the integration (after the step, or reading the slot's pose) may be
+    checked or a seed."""
+    params, _, _ = build_case("random")
+    solve, integration = split_program(build_row_program(params))
+    assert {op.dst.name for op in integration} >= {"R00", "theta2", "gain"}
+    assert not any(op.checked or op.kind == "seed" for op in integration)
+    assert all(not op.commit for op in solve)
 
 
 # --- the block against the model ------------------------------------------------------------

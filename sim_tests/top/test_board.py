@@ -120,6 +120,57 @@ def test_build_usage_errors(capsys):
     assert "--baud: baud must be at most one bit per clock" in capsys.readouterr().err
 
 
+def _rig_file(tmp_path, pairs):
+    """A rig of ``pairs`` rectified stereo pairs (8 cm baseline), facing around."""
+    import yaml
+    cameras = []
+    for k in range(pairs):
+        yaw = 360.0 * k / pairs
+        for side in (0, 1):
+            cameras.append({"name": f"c{k}{side}", "yaw_deg": yaw,
+                            "position": [0.08 * side, 0.0, 0.0] if k == 0 else
+                            _rotated(0.08 * side, yaw)})
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump({"name": f"pairs{pairs}", "allow_unobservable": True,
+                                    "defaults": {"width": 320, "height": 32},
+                                    "cameras": cameras}))
+    return str(path)
+
+
+def _rotated(x, yaw_deg):
+    """Body position of a camera offset ``x`` along its own x axis after ``yaw``."""
+    import numpy as np
+    from golden.rotations import orientation_ypr
+    return [float(v) for v in orientation_ypr(yaw_deg, 0.0, 0.0) @ np.array([x, 0.0, 0.0])]
+
+
+def test_build_for_a_rig_goes_through_the_configuration_door(tmp_path):
+    """``rowtrack build --rig`` builds the board top from PipelineConfig.for_rig: the same
+    TopParams the emulator and the co-simulation use, and the rig's coefficient table as
+    the store's initial contents."""
+    import argparse
+
+    import numpy as np
+    from emulator.commands import build
+    from golden.rig import load_rig
+    from hdl.pipeline_config import PipelineConfig
+    path = _rig_file(tmp_path, 2)
+    args = argparse.Namespace(rig=path, fclk_mhz=100.0, baud=3_000_000)
+    params, coefficients = build._params(board.board("arty-z7-20"), args)
+    config = PipelineConfig.for_rig(load_rig(path), clk_hz=100_000_000)
+    assert params == config.top and params.camera.max_width == 320
+    np.testing.assert_array_equal(coefficients, config.coef_raw)
+    assert coefficients.any()
+
+
+def test_build_for_a_rig_checks_it_fits_the_board(tmp_path, capsys):
+    assert main(["build", "--board", "arty-z7-20", "--rig", _rig_file(tmp_path, 3)]) == 2
+    assert "6 cameras, but arty-z7-20 has 4 camera ports" in capsys.readouterr().err
+    assert main(["build", "--board", "arty-z7-20", "--rig", "radial4"]) == 2
+    assert "--rig radial4: rig 'radial4': cameras [0, 1, 2, 3] have no rectified stereo" \
+        in capsys.readouterr().err
+
+
 def test_board_doc_is_generated():
     assert (DOCS / "board.md").read_text() == board.markdown(), \
         "docs/board.md is stale: run `rowtrack build --write-docs docs`"

@@ -8,9 +8,10 @@ from emulator.cosim import compare_records
 
 def _records(n, seed=7):
     rng = np.random.default_rng(seed)
-    return {"row": np.arange(n) % 4, "time": rng.integers(0, 2**32, n),
-            "flags": np.zeros(n, dtype=np.int64), "q": rng.integers(-2**15, 2**15, (n, 4)),
-            "p": rng.integers(-2**31, 2**31, (n, 3))}
+    return {"row": np.arange(n) % 4, "t_row": rng.integers(0, 2**32, n),
+            "flags": np.zeros(n, dtype=np.int64),
+            "quaternion": rng.integers(-2**15, 2**15, (n, 4)),
+            "position": rng.integers(-2**31, 2**31, (n, 3))}
 
 
 def _copy(records):
@@ -25,8 +26,8 @@ def test_identical_records_have_no_mismatch():
 def test_corrupted_expectation_is_counted_and_located():
     records = _records(6)
     expected = _copy(records)
-    expected["q"][5, 2] += 1
-    expected["q"][5, 3] += 1
+    expected["quaternion"][5, 2] += 1
+    expected["quaternion"][5, 3] += 1
     expected["flags"][4] = 2
     frames = np.array([0, 0, 0, 0, 1, 1])
     mismatches, first = compare_records(records, expected, frames)
@@ -49,8 +50,8 @@ def test_missing_records_count_all_their_fields():
 
 def test_a_missing_field_is_an_error():
     records = _records(2)
-    del records["p"]
-    with pytest.raises(ValueError, match=r"records lacks the fields \['p'\]"):
+    del records["position"]
+    with pytest.raises(ValueError, match=r"records lacks the fields \['position'\]"):
         compare_records(records, _records(2))
 
 

@@ -21,10 +21,11 @@ def random_pose(rng, source):
     def value(bits, signed):
         lo, hi = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
         return rng.choice([lo, hi, 0, rng.randint(lo, hi)])
-    return {"t_row": value(source.time_bits, False), "row": value(source.row_bits, False),
+    return {"time": value(source.time_bits, False), "row": value(source.row_bits, False),
             "flags": value(source.flag_bits, False),
-            "position": [value(source.position_fmt.width, True) for _ in range(3)],
-            "quaternion": [value(source.quaternion_fmt.width, True) for _ in range(4)]}
+            "p": [value(source.position_fmt.width, True) for _ in range(3)],
+            "q": [value(source.quaternion_fmt.width, True) for _ in range(4)],
+            "step": [value(source.step_fmt.width, True) for _ in range(6)]}
 
 
 def _as_payload(pose):
