@@ -26,7 +26,8 @@ import numpy as np
 
 from golden.temporal_filter import DelayedForecast
 from hdl.fixed import SQ, Overflow, Rounding, mul, resize
-from emulator.pose_solver import PoseRows, Value, _dot, design_row
+from emulator.pose.program import Value, dot
+from emulator.pose_solver import PoseRows, design_row
 
 __all__ = ["MotionFilter", "ForecastModel"]
 
@@ -114,8 +115,8 @@ class ForecastModel:
         a = design_row(store, coef_raw, rows)
         y = [Value(np.full((1, slots), int(v), dtype=np.int64), self.params.motion_fmt)
              for v in motion]
-        value, saturated = _dot(self.params.displacement_fmt,
-                                terms=[(1, a[i], y[i]) for i in range(6)])
+        value, saturated = dot(self.params.displacement_fmt,
+                               terms=[(1, a[i], y[i]) for i in range(6)])
         return np.array([int(v) for v in value.raw[0]], dtype=np.int64), saturated[0]
 
     def _camera_means(self, raw):
