@@ -19,16 +19,19 @@ the pose of that row slot one frame earlier, in its body frame (``golden.tracker
 ``Y`` with the ``"previous"`` reference). The solver's integrator, however, composes
 each row's step onto the *previous row's* pose; its integrated pose is reported as the
 hardware computes it, but it is not a trajectory estimate for this measurement (see
-``docs/e2e.md``).
+``docs/e2e.md``). With a forecast (:func:`run`'s ``forecast``) the lanes compare each
+row with the previous frame's row the forecast names, at the forecast's window centre:
+the step is still the one-frame motion, now measured around the prediction.
 """
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from emulator.measurement.router import pose_rows, route_row
-from emulator.pose_solver import pose_solver_model
+from emulator.pose.forecast import ForecastModel
+from emulator.pose_solver import pose_solver_model, solve_rows
 from emulator.descriptor.framer import FramedRow
 from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel
 
@@ -55,6 +58,11 @@ class PipelineResult:
         Wall time of the run.
     camera_rows : int
         Camera rows processed (``rows_per_s`` counts them per second of wall time).
+    loop : dict of ndarray or None
+        Closed loop only (``forecast`` given): per row set, in order, ``frame``, ``row``,
+        ``slot``, the forecast ``centre`` and ``source_row`` (n, cameras) it used and its
+        saturation flags, and ``level`` (n, 6) the filter's level after the row's step
+        (raw ``motion_fmt``).
     """
     temporal: list
     stereo: list
@@ -64,6 +72,7 @@ class PipelineResult:
     frame: np.ndarray
     seconds: float
     camera_rows: int
+    loop: dict = None
 
     @property
     def rows_per_s(self):
@@ -87,34 +96,50 @@ def _framed(dataset, camera, frame, row, config, t0):
                      padded=False)
 
 
-def run(config, dataset, frames=None, *, progress=False):
+def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_motion=None):
     """Run the dataset (first ``frames`` frames, default all) through the pipeline of
     ``config`` (:class:`hdl.pipeline_config.PipelineConfig`); ``progress`` shows a bar
     over the frames.
 
     Each lane takes a whole frame of its rows at once (the lane models' batched path,
-    equal to row by row); the router then takes the row sets in (frame, row) order."""
+    equal to row by row); the router then takes the row sets in (frame, row) order.
+
+    With ``forecast`` (:class:`hdl.pose.forecast_params.ForecastParams`) the loop is
+    closed (issue 16): row by row, the forecast model
+    (:class:`emulator.pose.forecast.ForecastModel`, started at ``initial_motion``, float
+    (6,)) sets each temporal lane's window centre and the previous frame's row it reads
+    (:class:`emulator.row_descriptor.FollowedReferenceStoreModel`), with the depth cue
+    each segment had in the same row of the previous frame, and takes each row's solved
+    step. The stereo lanes stay open loop (centre 0)."""
     from tqdm import tqdm
     router = config.router
     cams = range(router.cameras)
     frames = min(len(c.rows) for c in dataset.cameras) if frames is None else frames
     height, k, k_s = router.temporal.height, router.temporal.segments, router.stereo.segments
-    temporal_lanes = [TemporalLaneModel(router.temporal) for _ in cams]
+    follow = forecast is not None
+    temporal_lanes = [TemporalLaneModel(router.temporal, follow) for _ in cams]
     stereo_lanes = [StereoLaneModel(router.stereo) for _ in router.pairs]
     temporal, stereo, transfers, record_frames = [], [], [], []
     t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
+    loop = _Loop(config, forecast, initial_motion, dataset, t0) if follow else None
     start = time.perf_counter()
     for frame in tqdm(range(frames), desc="emulator", unit="frame", disable=not progress,
                       leave=False):
         rows = [[_framed(dataset, n, frame, row, config, t0) for row in range(height)]
                 for n in cams]
-        t = [lane.process_rows(rows[n]) for n, lane in zip(cams, temporal_lanes)]
+        t = None if follow else [lane.process_rows(rows[n])
+                                 for n, lane in zip(cams, temporal_lanes)]
         s = [lane.process_pairs(rows[a], rows[b])
              for lane, (a, b) in zip(stereo_lanes, router.pairs)]
         for row in range(height):
-            t_row = [m for per_camera in t for m in per_camera[row * k:(row + 1) * k]]
+            if follow:
+                t_row = loop.measure(temporal_lanes, [rows[n][row] for n in cams], frame)
+            else:
+                t_row = [m for per_camera in t for m in per_camera[row * k:(row + 1) * k]]
             s_row = [m for per_pair in s for m in per_pair[row * k_s:(row + 1) * k_s]]
             out = route_row(router, t_row, s_row)
+            if follow:
+                loop.close(out, frame, row)
             temporal += t_row
             stereo += s_row
             transfers += out
@@ -124,4 +149,58 @@ def run(config, dataset, frames=None, *, progress=False):
     seconds = time.perf_counter() - start
     return PipelineResult(temporal=temporal, stereo=stereo, transfers=transfers, rows=rows,
                           records=records, frame=np.array(record_frames), seconds=seconds,
-                          camera_rows=frames * height * router.cameras)
+                          camera_rows=frames * height * router.cameras,
+                          loop=loop.history() if follow else None)
+
+
+class _Loop:
+    """The closed loop of :func:`run`: forecast → lane centres and row addresses →
+    measurements → solved step → forecast."""
+
+    def __init__(self, config, params, initial_motion, dataset, t0):
+        if initial_motion is None:
+            raise ValueError("initial_motion must be given with forecast")
+        self.config, self.params = config, params
+        self.model = ForecastModel(params, config.coef_raw, config.row_coef_raw,
+                                   params.motion_fmt.quantize(initial_motion))
+        self.cues = np.zeros((params.solver.slots, params.height), dtype=np.int64)
+        self.time, self.t0 = dataset.cameras[0].time, t0
+        self.t_r = dataset.rig.cameras[0].t_r
+        self.log = []
+
+    def slot(self, frame, row):
+        return int(round((self.time[frame, row] - self.t0) / self.t_r))
+
+    def measure(self, lanes, rows, frame):
+        """The temporal measurements of one row set at the forecast centres and rows."""
+        row = rows[0].row
+        self.prediction = self.model.predict(self.slot(frame, row), row, self.cues[:, row])
+        centres, sources = self.prediction["centre"], self.prediction["source_row"]
+        return [m for lane, framed, centre, source in zip(lanes, rows, centres, sources)
+                for m in lane.process_rows([replace(framed, centre=int(centre))],
+                                           [int(source)])]
+
+    def close(self, transfers, frame, row):
+        """Keep the row's depth cues for the next frame and feed its step (if solved)
+        to the forecast."""
+        step = None
+        for t in transfers:
+            if t["cue"]:                          # 0: no stereo cue for that segment
+                self.cues[t["slot"], row] = t["cue"]
+        if transfers:
+            solver = self.config.router.solver
+            result = solve_rows(solver, self.config.coef_raw,
+                                pose_rows(self.config.router, transfers))
+            if result.flags[0] == 0:
+                step = result.step[0]
+        slot = self.slot(frame, row)
+        level = self.model.take(slot, step)
+        p = self.prediction
+        self.log.append((frame, row, slot, p["centre"], p["centre_saturated"],
+                         p["source_row"], p["row_saturated"], level))
+
+    def history(self):
+        names = ("frame", "row", "slot", "centre", "centre_saturated", "source_row",
+                 "row_saturated", "level")
+        return {name: np.array([entry[k] for entry in self.log])
+                for k, name in enumerate(names)}

@@ -30,7 +30,7 @@ import numpy as np
 from emulator.descriptor.framer import frame_rows
 from emulator.descriptor.matcher import descriptor_bits, measure_rows
 
-__all__ = ["ReferenceStoreModel", "TemporalLaneModel", "StereoLaneModel", "stereo_pairs"]
+__all__ = ["ReferenceStoreModel", "FollowedReferenceStoreModel", "TemporalLaneModel", "StereoLaneModel", "stereo_pairs"]
 
 
 def _records(rows, results):
@@ -101,14 +101,56 @@ class ReferenceStoreModel:
         return reference, no_reference
 
 
-class TemporalLaneModel:
-    """One camera: each row matched against the same row of the previous frame."""
+class FollowedReferenceStoreModel:
+    """A reference store that serves any row of the previous frame (issue 16's followed
+    rows): two banks of ``height`` descriptor rows, frame ``f`` written into bank
+    ``f mod 2`` while bank ``(f − 1) mod 2`` is read, so no row of the previous frame is
+    overwritten before the frame ends. Twice the memory of :class:`ReferenceStoreModel`;
+    whether the hardware pays that or delays the writes by the largest row displacement
+    is open.
+    """
 
     def __init__(self, params):
         self.params = params
-        self.store = ReferenceStoreModel(params)
+        self.bits = np.zeros((2, params.height, params.width), dtype=bool)
+        self.tag_valid = np.zeros((2, params.height), dtype=bool)
+        self.tag_frame = np.zeros((2, params.height), dtype=np.int64)
 
-    def process_rows(self, rows):
+    def exchange(self, rows, bits, sources):
+        """Store each row's ``bits`` at its own index and read, for each row, the
+        previous frame's row ``sources[i]``; returns ``(reference bits (N, width),
+        no_reference (N,))`` (no reference: that stored row is not of frame − 1, or bad).
+        """
+        p, n = self.params, len(rows)
+        kept = p.width - p.radius
+        reference = np.zeros((n, p.width), dtype=bool)
+        no_reference = np.ones(n, dtype=bool)
+        for i, (row, source) in enumerate(zip(rows, sources)):
+            if row.row >= p.height:
+                continue
+            bank, previous = row.frame % 2, (row.frame - 1) % 2
+            if 0 <= source < p.height:
+                reference[i] = self.bits[previous, source]
+                no_reference[i] = not (self.tag_valid[previous, source] and
+                                       self.tag_frame[previous, source]
+                                       == (row.frame - 1) % (1 << p.frame_bits))
+            self.bits[bank, row.row, :kept] = bits[i, :kept]
+            self.tag_valid[bank, row.row] = not row.bad
+            self.tag_frame[bank, row.row] = row.frame
+        return reference, no_reference
+
+
+class TemporalLaneModel:
+    """One camera: each row matched against the same row of the previous frame, or with
+    ``follow=True`` against a row of the previous frame chosen per row (the forecast's
+    row address, :class:`FollowedReferenceStoreModel`)."""
+
+    def __init__(self, params, follow=False):
+        self.params = params
+        self.store = FollowedReferenceStoreModel(params) if follow \
+            else ReferenceStoreModel(params)
+
+    def process_rows(self, rows, sources=None):
         """Measurements of framed rows (any number, e.g. a whole frame), in order.
 
         Parameters
@@ -116,6 +158,9 @@ class TemporalLaneModel:
         rows : sequence of FramedRow
             In arrival order; each row's reference is what the store holds at its row
             index when it arrives (so a row may reference an earlier row of the batch).
+        sources : sequence of int, optional
+            With ``follow=True`` (and only then): the previous frame's row each row is
+            compared with.
 
         Returns
         -------
@@ -126,8 +171,11 @@ class TemporalLaneModel:
         if not rows:
             return []
         p = self.params
+        if (sources is None) != isinstance(self.store, ReferenceStoreModel):
+            raise ValueError("sources must be given exactly when the lane follows rows")
         bits, strong = descriptor_bits(_pixels(rows, p, "rows"), p)
-        reference, no_reference = self.store.exchange(rows, bits)
+        reference, no_reference = (self.store.exchange(rows, bits) if sources is None
+                                   else self.store.exchange(rows, bits, sources))
         return _records(rows, measure_rows(
             bits, reference, [row.centre for row in rows], p, cur_strong=strong,
             bad=[row.bad for row in rows], no_reference=no_reference))

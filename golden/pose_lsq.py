@@ -89,16 +89,20 @@ class ShiftCoefficients:
         return cls(table[..., 0:3], table[..., 3:6], table[..., 6:9])
 
 
-def _lens_row_gradient(camera, xu, yu):
-    """``v = Jᵀ e_x``: gradient of the pixel column with respect to undistorted (x, y)."""
+def _lens_gradient(camera, xu, yu, axis):
+    """``v = Jᵀ e_axis``: gradient of the pixel column (``axis`` 0) or row (1) with respect
+    to undistorted (x, y)."""
     r2 = xu * xu + yu * yu
     factor = 1.0 + r2 * (camera.k1 + camera.k2 * r2)
     slope = camera.k1 + 2.0 * camera.k2 * r2  # d factor / d r²
-    return camera.fx * np.stack([factor + 2.0 * slope * xu * xu, 2.0 * slope * xu * yu],
+    if axis == 0:
+        return camera.fx * np.stack([factor + 2.0 * slope * xu * xu, 2.0 * slope * xu * yu],
+                                    axis=-1)
+    return camera.fy * np.stack([2.0 * slope * xu * yu, factor + 2.0 * slope * yu * yu],
                                 axis=-1)
 
 
-def shift_coefficients(camera, px, py, cue_scale=1.0):
+def shift_coefficients(camera, px, py, cue_scale=1.0, axis=0):
     """Coefficients of the shift equations at pixel positions ``(px, py)`` of ``camera``.
 
     Parameters
@@ -110,10 +114,15 @@ def shift_coefficients(camera, px, py, cue_scale=1.0):
     cue_scale : float or array_like
         ``1/Z = cue_scale · cue``: 1 when the cue is the inverse depth in 1/m,
         ``1/(f·baseline)`` when it is a stereo disparity in pixels.
+    axis : int
+        0: the shift along the row (what the matcher measures); 1: the displacement
+        across rows (current minus previous pixel row, for the reference row to read).
     """
+    if axis not in (0, 1):
+        raise ValueError(f"axis must be 0 or 1, not {axis!r}")
     px, py = np.broadcast_arrays(np.asarray(px, dtype=float), np.asarray(py, dtype=float))
     xu, yu = camera.pixel_to_normalized(px, py)
-    v = _lens_row_gradient(camera, xu, yu)
+    v = _lens_gradient(camera, xu, yu, axis)
     a = np.stack([v[..., 0], v[..., 1], -(v[..., 0] * xu + v[..., 1] * yu)], axis=-1)
     q = np.stack([xu, yu, np.ones_like(xu)], axis=-1)
     rotation, centre = camera.R, camera.c
@@ -279,9 +288,10 @@ def _log_so3(rotation):
     return axis * scale[..., None]
 
 
-def project_shift(camera, px, py, depth, step):
-    """Exact pixel-x displacement of the static point seen at ``(px, py)`` with camera
-    depth ``depth`` when the rig makes the finite body-frame ``step`` (..., 6).
+def project_shift(camera, px, py, depth, step, axis=0):
+    """Exact pixel-x (``axis`` 0) or pixel-y (1) displacement of the static point seen at
+    ``(px, py)`` with camera depth ``depth`` when the rig makes the finite body-frame
+    ``step`` (..., 6).
 
     The nonlinear counterpart of :func:`shift_coefficients`/:func:`design_rows`.
     """
@@ -292,8 +302,8 @@ def project_shift(camera, px, py, depth, step):
     point_body = point_cam @ camera.R.T + camera.c
     moved_body = np.einsum("...ji,...j->...i", exp_so3(step[..., 3:]), point_body - step[..., :3])
     moved_cam = (moved_body - camera.c) @ camera.R
-    new_px = camera.project(moved_cam)[..., 0]
-    return new_px - np.broadcast_to(np.asarray(px, float), new_px.shape)
+    new = camera.project(moved_cam)[..., axis]
+    return new - np.broadcast_to(np.asarray((px, py)[axis], float), new.shape)
 
 
 # --- synthetic row sequences ------------------------------------------------------------

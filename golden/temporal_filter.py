@@ -14,15 +14,20 @@ The tracker uses these pieces (see ``docs/tracker.md``): :class:`RobustScale` ju
 every measurement channel's innovation against the forecast (weight ``ψ(x)/x``,
 outliers replaced by the forecast), and :class:`HoltWinters` smooths the per-row motion,
 with :func:`information_gain` in place of the scalar α when a measurement constrains some
-directions much less than usual.
+directions much less than usual. :class:`DelayedForecast` gives that filter's forecasts
+as a loop with a solver latency sees them: a row's forecast includes only the values
+solved some row periods before the row starts.
 """
+
+import math
+from collections import deque
 
 import numpy as np
 
 from .checks import check_int, check_number
 
 __all__ = ["HUBER_K", "BIWEIGHT_CK", "huber_weight", "biweight_rho",
-           "RobustScale", "HoltWinters", "information_gain"]
+           "RobustScale", "HoltWinters", "DelayedForecast", "information_gain"]
 
 #: Huber and biweight tuning constant (Gelper et al.: k = 2).
 HUBER_K = 2.0
@@ -116,6 +121,52 @@ class HoltWinters:
             level = predicted + (self.alpha * innovation if gain is None else gain @ innovation)
         self.trend = self.beta * (level - self.level) + (1 - self.beta) * self.trend
         self.level = level
+        return level
+
+
+class DelayedForecast:
+    """A :class:`HoltWinters` filter updated once per occupied row slot, whose forecast for
+    a slot may only use the values of slots solved ``delay`` row periods before it starts.
+
+    The value of slot ``j`` is solved when its row ends, at the start of slot ``j + 1``; a
+    solver latency of ``delay`` row periods makes it available at the start of slot
+    ``j + 1 + delay``. The forecast for slot ``s`` is therefore made from the filter's
+    state after the newest slot ``j ≤ s − 1 − delay`` and extrapolated with its trend over
+    every update since (one per occupied slot, as :meth:`HoltWinters.forecast`). With
+    ``delay = 0`` it is exactly ``filter.forecast(ahead)``. The filter itself always takes
+    a new value on its newest state: only what the loop reads is late.
+
+    Parameters
+    ----------
+    motion : HoltWinters
+        The filter (its current state is the state before any slot).
+    delay : int
+        Loop delay in row periods, at least 0.
+    """
+
+    def __init__(self, motion, delay):
+        check_int("delay", delay, 0)
+        self.motion, self.delay, self.count = motion, delay, 0
+        # (slot, updates so far, level, trend) of the newest delay + 1 states: the slots
+        # are distinct, so a forecast's state is one of them
+        self._states = deque([(-math.inf, 0, motion.level, motion.trend)], maxlen=delay + 1)
+
+    def forecast(self, slot, ahead=1, latest=None):
+        """The forecast for slot ``slot``, whose value will be the ``ahead``-th update from
+        now, from the newest state of a slot at most ``slot − 1 − delay`` (and at most
+        ``latest``: a batch predicted at once cannot use later states)."""
+        limit = slot - 1 - self.delay if latest is None else min(latest, slot - 1 - self.delay)
+        for state_slot, count, level, trend in reversed(self._states):
+            if state_slot <= limit:
+                return level + (self.count + ahead - count) * trend
+        raise ValueError(f"slot {slot} is older than the states kept (delay {self.delay})")
+
+    def update(self, slot, value=None, gain=None):
+        """:meth:`HoltWinters.update` of the filter with slot ``slot``'s value (or none);
+        returns the new level."""
+        level = self.motion.update(value, gain)
+        self.count += 1
+        self._states.append((slot, self.count, level, self.motion.trend))
         return level
 
 

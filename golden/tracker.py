@@ -37,13 +37,14 @@ from .descriptor import describe, match, segment_bounds, strength
 from .depth import StereoDepth, stereo_pairs
 from .pose_lsq import body_step, normal_equations, solve_normal
 from .reference_rows import HomographyReference, PreviousFrameReference
-from .temporal_filter import HoltWinters, RobustScale, information_gain
+from .temporal_filter import DelayedForecast, HoltWinters, RobustScale, information_gain
 from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
-from .tracker_params import DEPTHS, REFERENCES, SOLVERS, TrackerParams, TrackResult
+from .tracker_params import (DEPTHS, MOTION_GAINS, REFERENCES, SOLVERS, TrackerParams,
+                             TrackResult)
 from .tracker_slots import RowSlots
 
-__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "TrackerParams", "TrackResult", "Tracker",
+__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "TrackerParams", "TrackResult", "Tracker",
            "track"]
 
 #: Gauss–Newton iterations and finite-difference probe (m or rad) of the nonlinear
@@ -115,6 +116,7 @@ class Tracker:
         motion = body_step(rotations[0], positions[0], rotations[-1], positions[-1])
         motion *= slots.period / span
         self.motion = HoltWinters(motion, alpha=self.params.alpha, beta=self.params.beta)
+        self.forecasts = DelayedForecast(self.motion, self.params.loop_delay_rows)
         self.typical = None
         self.track.set_extrapolation(motion / slots.period)
 
@@ -270,7 +272,8 @@ class Tracker:
             "updated": np.zeros(size, dtype=bool), "condition": np.full(size, np.nan),
             "equations": np.zeros(size, dtype=int),
             "camera_confidence": np.full((size, n_cams), np.nan),
-            "motion": np.full((size, 6), np.nan), "linear_step": np.full((size, 6), np.nan),
+            "motion": np.full((size, 6), np.nan), "forecast": np.full((size, 6), np.nan),
+            "measured": np.full((size, 6), np.nan), "linear_step": np.full((size, 6), np.nan),
             "refined_step": np.full((size, 6), np.nan)}
         starts = range(slots.first_tracked, size, p.block_rows)
         if progress:
@@ -291,8 +294,10 @@ class Tracker:
     def _run_block(self, first, stop, out):
         slots, k = self.slots, self.params.segments
         occupied = np.flatnonzero(slots.occupied[first:stop]) + first
-        # one Holt–Winters step per occupied slot (a blanking interval is not extrapolated)
-        block_forecasts = {s: self.motion.forecast(k + 1) for k, s in enumerate(occupied)}
+        # one Holt–Winters step per occupied slot (a blanking interval is not extrapolated);
+        # a slot within the loop delay of the block's start gets an older forecast
+        block_forecasts = {s: self.forecasts.forecast(s, k + 1, latest=first - 1)
+                           for k, s in enumerate(occupied)}
         entries = []
         for n in range(len(self.rig.cameras)):
             frames, rows, slot_ids = slots.members(n, first, stop)
@@ -324,7 +329,7 @@ class Tracker:
     def _step(self, s, linearised_at, table, mine, previous, out):
         """Robust weighted solve of slot ``s`` from the block's measurements ``mine``."""
         p = self.params
-        forecast = self.motion.forecast()
+        forecast = self.forecasts.forecast(s)       # what the loop knows when s starts
         step, gain, condition, used = None, None, np.nan, 0
         if len(mine):
             design, ratio = table.design[mine], table.ratio[mine]
@@ -355,26 +360,32 @@ class Tracker:
                         out["refined_step"][s] = step
                     self.typical = normal if self.typical is None else \
                         (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
-                    gain = information_gain(normal, self.typical, p.alpha)
-        level = self.motion.update(None if step is None else forecast + step, gain)
+                    if p.motion_gain == "information":
+                        gain = information_gain(normal, self.typical, p.alpha)
+        current = self.motion.forecast()            # the filter's own state is up to date
+        measured = None if step is None else forecast + step
+        level = self.forecasts.update(s, measured, gain)
         # the pose carried on from the latest one at the current rate (Y is the motion
         # over the last frame, i.e. the rate half a frame ago: the trend brings it up to
         # date) ...
         last = self.track.count - 1
         dt = self.slots.times[s] - self.track.times[last]
         half_frame = 0.5 * self.slots.period / self.slots.t_r
-        rate = (forecast + half_frame * self.motion.trend) / self.slots.period
+        rate = (current + half_frame * self.motion.trend) / self.slots.period
         rotation, position = compose(self.track.rotations[last], self.track.positions[last],
                                      rate * dt)
         if step is not None:  # ... pulled towards the measured one, weighted by information
-            measured = compose(*previous, forecast + step)
+            target = compose(*previous, measured)
             pull = information_gain(normal, self.typical, p.pose_alpha)
             rotation, position = compose(rotation, position,
-                                         pull @ body_step(rotation, position, *measured))
+                                         pull @ body_step(rotation, position, *target))
         self.track.append(self.slots.times[s], rotation, position)
         self.track.set_extrapolation(level / self.slots.period)
         out["updated"][s], out["condition"][s] = step is not None, condition
         out["equations"][s], out["motion"][s] = used, level
+        out["forecast"][s] = forecast
+        if measured is not None:
+            out["measured"][s] = measured
 
     def _exact_shifts(self, parts, motions):
         """Segment shifts (M, equations) predicted by the full projection model for one-

@@ -7,11 +7,12 @@ import numpy as np
 from .checks import check_int, check_number
 from .descriptor import DescriptorParams, MatchParams
 
-__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "TrackerParams", "TrackResult"]
+__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "TrackerParams", "TrackResult"]
 
 REFERENCES = ("homography", "previous")
 DEPTHS = ("auto", "stereo", "overlap", "oracle")
 SOLVERS = ("linear", "nonlinear")
+MOTION_GAINS = ("information", "scalar")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -50,6 +51,15 @@ class TrackerParams:
         Share of a segment's pixels that need a depth for the segment to count.
     alpha, beta : float
         Holt–Winters level and trend smoothing of the per-slot motion.
+    motion_gain : str
+        Gain of the motion filter's level update: ``"information"`` (the matrix gain of
+        :func:`golden.temporal_filter.information_gain`) or ``"scalar"`` (plain α, the
+        hardware forecast's simplification).
+    loop_delay_rows : int
+        Loop delay (row periods): a slot's forecast (window centres, followed rows, the
+        linearisation and the outlier test) only includes the steps of slots solved at
+        least this long before the slot starts, as with a hardware solver whose step
+        arrives after later rows have started (0: every earlier slot's step).
     pose_alpha : float
         How far a typical slot's pose moves from the pose carried on from the previous
         slot (at the forecast rate) towards the pose its measurements give.
@@ -88,6 +98,8 @@ class TrackerParams:
     min_depth_fraction: float = 0.5
     alpha: float = 0.1
     beta: float = 0.01
+    motion_gain: str = "information"
+    loop_delay_rows: int = 0
     pose_alpha: float = 0.02
     huber_k: float = 2.0
     scale_initial: float = 0.5
@@ -102,7 +114,7 @@ class TrackerParams:
 
     def __post_init__(self):
         for name, options in (("reference", REFERENCES), ("depth", DEPTHS),
-                              ("solver", SOLVERS)):
+                              ("solver", SOLVERS), ("motion_gain", MOTION_GAINS)):
             if getattr(self, name) not in options:
                 raise ValueError(f"{name} must be one of {', '.join(options)}, "
                                  f"not {getattr(self, name)!r}")
@@ -114,6 +126,7 @@ class TrackerParams:
         check_int("segments", self.segments, 1)
         check_int("disparity_blocks", self.disparity_blocks, 1)
         check_int("block_rows", self.block_rows, 1)
+        check_int("loop_delay_rows", self.loop_delay_rows, 0)
         check_int("geometry_stride", self.geometry_stride, 1)
         check_number("min_depth_fraction", self.min_depth_fraction, 0, 1,
                low_open=True)
@@ -153,6 +166,8 @@ class TrackResult:
     equations : (S,) measurements with non-zero confidence
     camera_confidence : (S, N) best segment confidence of each camera (NaN: no row)
     motion : (S, 6) the smoothed one-frame motion Y of each slot
+    forecast : (S, 6) the forecast Ŷ of each slot (with the loop delay)
+    measured : (S, 6) the value ``Ŷ + δ`` the motion filter took (NaN where no step)
     linear_step, refined_step : (S, 6) with ``solver="nonlinear"``: the linear and the
         refined δ (NaN where no step)
     period : frame period (s) over which Y is defined
@@ -167,6 +182,8 @@ class TrackResult:
     equations: np.ndarray
     camera_confidence: np.ndarray
     motion: np.ndarray
+    forecast: np.ndarray
+    measured: np.ndarray
     linear_step: np.ndarray
     refined_step: np.ndarray
     period: float

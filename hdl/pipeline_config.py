@@ -21,6 +21,7 @@ from golden.descriptor import segment_bounds
 from golden.pose_lsq import shift_coefficients
 
 from hdl.front_end.params import CameraParams
+from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import DEFAULT_COEF_WIDTH, coefficient_formats, quantize_coefficients
 from hdl.top_params import DEFAULT_SEGMENTS, TopParams
 
@@ -37,12 +38,13 @@ def segment_centres(lane):
                      segment_bounds(lane.width, lane.descriptor, lane.match)])
 
 
-def coefficient_table(rig, lane, cue_scales):
+def coefficient_table(rig, lane, cue_scales, axis=0):
     """Float coefficient table (cameras · K, rows, 9), camera-major, at the lane's
-    segment centres, each camera with its cue scale ``1/(f·b)``."""
+    segment centres, each camera with its cue scale ``1/(f·b)``; ``axis`` 0: the shift
+    along the row (the solver's), 1: the displacement across rows (the forecast's)."""
     rows = np.arange(lane.height, dtype=float)[None, :]
     centres = segment_centres(lane)[:, None]
-    return np.concatenate([shift_coefficients(cam, centres, rows, scale).table()
+    return np.concatenate([shift_coefficients(cam, centres, rows, scale, axis).table()
                            for cam, scale in zip(rig.cameras, cue_scales)])
 
 
@@ -58,11 +60,16 @@ class PipelineConfig:
         The rig's float coefficients at the lanes' segment centres.
     coef_raw : ndarray (slots, rows, 9)
         The solver's coefficient store: ``table`` quantized to the solver's formats.
+    row_table, row_coef_raw : ndarray (slots, rows, 9)
+        The same for the displacement across rows (the forecast's second store), in the
+        formats of :meth:`forecast`.
     rig_name : str
     """
     top: TopParams
     table: np.ndarray
     coef_raw: np.ndarray
+    row_table: np.ndarray
+    row_coef_raw: np.ndarray
     rig_name: str
 
     @classmethod
@@ -104,8 +111,22 @@ class PipelineConfig:
         solver = replace(shape.solver, **coefficient_formats(table, coef_width))
         top = TopParams.for_pairs(pairs, segments=segments, camera=camera, solver=solver,
                                   clk_hz=clk_hz, **top_changes)
+        row_table = coefficient_table(rig, shape.engine.temporal, scales, axis=1)
+        row_store = replace(solver, **coefficient_formats(row_table, coef_width))
         return cls(top=top, table=table, coef_raw=quantize_coefficients(solver, table),
+                   row_table=row_table, row_coef_raw=quantize_coefficients(row_store, row_table),
                    rig_name=rig.name)
+
+    def forecast(self, **changes):
+        """The motion forecast of this pipeline (:class:`ForecastParams`): its solver,
+        segments, rows and the lanes' centre range, the across-rows store's formats;
+        ``changes`` set the others (e.g. ``loop_delay_rows``, ``alpha``)."""
+        formats = coefficient_formats(self.row_table, self.top.solver.coef_width)
+        lane = self.router.temporal
+        derived = dict(solver=self.top.solver, segments=self.segments, height=lane.height,
+                       centre_range=lane.centre_range,
+                       **{f"row_{name}": fmt for name, fmt in formats.items()})
+        return ForecastParams(**{**derived, **changes})
 
     def window(self, rows, **top_changes):
         """The top of this pipeline built for cameras of ``rows`` rows (a co-simulated

@@ -12,7 +12,7 @@ HELP = "track a dataset with the golden per-row tracker; print the accuracy, wri
 
 
 def add_arguments(parser):
-    from golden.tracker import DEPTHS, REFERENCES, SOLVERS
+    from golden.tracker import DEPTHS, MOTION_GAINS, REFERENCES, SOLVERS
     parser.add_argument("data", type=Path, help="dataset .npz written by `rowtrack simulate`")
     parser.add_argument("--reference", choices=REFERENCES, default="homography",
                         help="reference rows: (a) the rotation-compensated previous frame or "
@@ -26,6 +26,12 @@ def add_arguments(parser):
                         help="per-row solve; 'nonlinear' refines every row on the exact "
                              "model (slow; default: %(default)s)")
     parser.add_argument("--segments", type=int, help="segments per camera row (default: 8)")
+    parser.add_argument("--motion-gain", choices=MOTION_GAINS, default="information",
+                        help="motion filter gain: the information-weighted matrix or the "
+                             "hardware forecast's scalar α (default: %(default)s)")
+    parser.add_argument("--loop-delay-rows", type=int, default=0,
+                        help="row periods between a slot's solve and the first slot whose "
+                             "forecast includes it, as in hardware (default: %(default)s)")
     parser.add_argument("-o", "--out", type=Path,
                         help="trajectory file (default: DATA with suffix .track.npz)")
     parser.add_argument("--plot", type=Path,
@@ -38,7 +44,8 @@ def add_arguments(parser):
 def _params(args):
     from golden.tracker import TrackerParams
     changes = {"reference": args.reference, "depth": args.depth, "solver": args.solver,
-               "parallax": not args.no_parallax}
+               "parallax": not args.no_parallax, "loop_delay_rows": args.loop_delay_rows,
+               "motion_gain": args.motion_gain}
     if args.segments is not None:
         changes["segments"] = args.segments
     try:

@@ -7,6 +7,7 @@ sure a batch (a whole frame, several frames, or a random cut of the stream) give
 same dicts in the same order as the per-row calls. SEED replays a run (printed).
 """
 
+import dataclasses
 import os
 
 import numpy as np
@@ -230,3 +231,47 @@ def test_bad_batch_arguments():
         measure_rows(bits, bits, [0, 1], SMALL)
     with pytest.raises(ValueError, match="bad must hold one value or one per row"):
         measure_rows(bits, bits, 0, SMALL, bad=[True, False])
+
+
+# --- the followed-row store (closed loop) -------------------------------------------------
+
+def test_following_the_own_row_is_the_plain_lane():
+    """A following lane told to read each row's own index gives the plain lane's dicts
+    (bad rows, wrapping frame numbers, saturated centres included)."""
+    rows = temporal_rows(rng_for(10), SMALL, 4, faults=3)
+    plain = TemporalLaneModel(SMALL).process_rows(rows)
+    following = TemporalLaneModel(SMALL, follow=True)
+    followed = [m for row in rows for m in following.process_rows([row], [row.row])]
+    assert followed == plain
+
+
+def test_a_followed_row_is_the_previous_frames_row_even_after_this_frame_wrote_it():
+    """Row 4 of frame 1 reads row 1 of frame 0, which frame 1's row 1 has already
+    replaced in the single store: the two banks keep it; a source outside the frame or a
+    row of the wrong frame gives no reference."""
+    rng = rng_for(11)
+    p = SMALL
+    pixels = rng.integers(0, 256, (2, p.height, p.width))
+    rows = [FramedRow(pixels=pixels[f, y], camera=0, frame=f, row=y, t_first=0, centre=0,
+                      bad=False, padded=False) for f in range(2) for y in range(p.height)]
+    store_lane = TemporalLaneModel(p, follow=True)
+    store_lane.process_rows(rows[:p.height], list(range(p.height)))     # frame 0
+    store = store_lane.store
+    bits, _ = descriptor_bits(pixels[1], p)
+    sources = [0, 1, 2, 3, 1, -1]
+    reference, none = store.exchange(rows[p.height:], bits, sources)
+    expected, _ = descriptor_bits(pixels[0], p)
+    kept = p.width - p.radius
+    np.testing.assert_array_equal(reference[4, :kept], expected[1, :kept])
+    assert list(none) == [False] * 5 + [True]
+    late = [dataclasses.replace(rows[0], frame=3)]        # frame 2 was never stored
+    _, none = store.exchange(late, bits[:1], [0])
+    assert none[0]
+
+
+def test_sources_must_match_the_lane_kind():
+    row = temporal_rows(rng_for(12), SMALL, 1, faults=0)[0]
+    with pytest.raises(ValueError, match="sources must be given exactly when"):
+        TemporalLaneModel(SMALL).process_rows([row], [0])
+    with pytest.raises(ValueError, match="sources must be given exactly when"):
+        TemporalLaneModel(SMALL, follow=True).process_rows([row])

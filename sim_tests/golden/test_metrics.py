@@ -31,6 +31,7 @@ def _result(dataset, rotations, positions):
                        tracked=np.arange(n) >= 16, updated=np.ones(n, bool),
                        condition=np.full(n, 3.0), equations=np.full(n, 20),
                        camera_confidence=np.ones((n, 20)), motion=np.zeros((n, 6)),
+                       forecast=np.zeros((n, 6)), measured=np.zeros((n, 6)),
                        linear_step=np.full((n, 6), np.nan), refined_step=np.full((n, 6), np.nan),
                        period=1 / 120, params={})
 

@@ -8,8 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from golden.temporal_filter import (BIWEIGHT_CK, HoltWinters, RobustScale, biweight_rho,
-                                    huber_weight, information_gain)
+from golden.temporal_filter import (BIWEIGHT_CK, DelayedForecast, HoltWinters, RobustScale,
+                                    biweight_rho, huber_weight, information_gain)
 
 SEED = int(os.environ.get("SEED", "5"))
 
@@ -74,6 +74,54 @@ def test_holt_winters_matrix_gain_generalises_alpha():
     assert np.allclose(a.update([3.0, -1.0]), b.update([3.0, -1.0], 0.25 * np.eye(2)))
     with pytest.raises(ValueError, match="alpha must be a number greater than 0 and at most 1"):
         HoltWinters([0.0], alpha=0.0, beta=0.1)
+
+
+def _random_updates(rng, count):
+    """Slots with gaps (blanking), values (some missing) and matrix gains."""
+    slots = np.cumsum(rng.integers(1, 3, size=count))
+    values = [None if rng.random() < 0.2 else rng.normal(size=3) for _ in range(count)]
+    gains = [np.diag(rng.uniform(0.05, 0.3, size=3)) for _ in range(count)]
+    return slots, values, gains
+
+
+def test_delayed_forecast_without_delay_is_the_filters_own_bit_for_bit():
+    print(f"SEED={SEED}")
+    rng = np.random.default_rng(SEED)
+    plain = HoltWinters(np.ones(3), alpha=0.1, beta=0.05)
+    delayed = DelayedForecast(HoltWinters(np.ones(3), alpha=0.1, beta=0.05), 0)
+    for slot, value, gain in zip(*_random_updates(rng, 50)):
+        for ahead in (1, 2, 5):
+            assert np.array_equal(delayed.forecast(slot, ahead, latest=slot - 1),
+                                  plain.forecast(ahead))
+        assert np.array_equal(delayed.forecast(slot), plain.forecast())
+        assert np.array_equal(delayed.update(slot, value, gain), plain.update(value, gain))
+
+
+def test_delayed_forecast_withholds_the_values_of_the_last_delay_slots():
+    """Slots 10, 11, 13, 14 (12 is blanking): with a delay of 2 row periods, slot 14's
+    forecast may use slot 11 (solved when slot 12 starts, known at 14) but not 13: the
+    state after slot 11 extrapolated over two updates (13 and 14)."""
+    filt = HoltWinters(np.zeros(2), alpha=0.5, beta=0.5)
+    delayed = DelayedForecast(filt, 2)
+    initial = filt.forecast()
+    assert np.array_equal(delayed.forecast(10), initial)
+    delayed.update(10, [1.0, 2.0])
+    assert np.array_equal(delayed.forecast(11), initial)     # slot 10 not known yet
+    delayed.update(11, [3.0, 1.0])
+    level, trend = filt.level.copy(), filt.trend.copy()
+    delayed.update(13, [4.0, -1.0])
+    assert np.array_equal(delayed.forecast(14), level + 2 * trend)
+    assert not np.allclose(delayed.forecast(14), filt.forecast())   # 13 withheld
+    assert np.array_equal(DelayedForecast(filt, 0).forecast(14), filt.forecast())
+
+
+@pytest.mark.parametrize("delay, error, message", [
+    (-1, ValueError, "delay must be an integer at least 0, not -1"),
+    (1.5, TypeError, "delay must be an integer, not 1.5"),
+])
+def test_delayed_forecast_rejects_a_bad_delay(delay, error, message):
+    with pytest.raises(error, match=message):
+        DelayedForecast(HoltWinters([0.0], alpha=0.1, beta=0.0), delay)
 
 
 def test_information_gain_is_alpha_for_a_typical_measurement_and_small_where_it_is_weak():

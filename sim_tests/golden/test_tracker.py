@@ -133,6 +133,22 @@ def test_previous_frame_reference_tracks(stereo_rig, follow_rows, bound_cm, boun
     assert np.all(np.array(metrics["rms_r_rad"]) < bound_rad)
 
 
+def test_a_loop_delay_withholds_steps_and_still_tracks():
+    """Reference (b) with the forecast of each slot four row periods late (stereo20 cut
+    to 32 rows, three frames): a different run from delay 0, still tracking."""
+    rig = strip_rig(preset("stereo20"), rows=32)
+    dataset = _simulate(rig, make_trajectory("paper"), frames=3)
+    runs = [track(dataset, TrackerParams(reference="previous", block_rows=16,
+                                         loop_delay_rows=delay)) for delay in (0, 4)]
+    assert not np.array_equal(runs[0].motion, runs[1].motion, equal_nan=True)
+    for result in runs:
+        metrics = evaluate(result, dataset)
+        print(result.params["loop_delay_rows"], metrics["rms_t_cm"], metrics["rms_r_rad"])
+        assert metrics["update_fraction"] > 0.9
+        assert np.all(np.array(metrics["rms_t_cm"]) < 0.1)
+        assert np.all(np.array(metrics["rms_r_rad"]) < 5e-4)
+
+
 def test_radial_rig_tracks_with_depth_bootstrapped_from_overlap():
     """The CVPR 2018 formulation on radial4 at 320×240: eight segments per distorted row,
     depth maps from the neighbouring cameras (no stereo pairs, no true depth)."""
@@ -160,6 +176,8 @@ def test_radial_rig_tracks_with_depth_bootstrapped_from_overlap():
     (dict(parallax="yes"), TypeError, "parallax must be a bool"),
     (dict(max_condition=-1.0), ValueError, "max_condition must be a number greater than 0"),
     (dict(sigma=20.0), ValueError, "sigma must be a number between"),
+    (dict(loop_delay_rows=-1), ValueError, "loop_delay_rows must be an integer at least 0"),
+    (dict(loop_delay_rows=1.0), TypeError, "loop_delay_rows must be an integer"),
 ])
 def test_bad_parameters_are_named(changes, error, message):
     with pytest.raises(error, match=message):

@@ -58,6 +58,7 @@ def test_table_output_and_chosen_paths(data_file, tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["missing.npz"], "does not exist"),
     (["{data}", "--segments", "0"], "segments must be an integer at least 1"),
+    (["{data}", "--loop-delay-rows", "-2"], "loop_delay_rows must be an integer at least 0"),
     (["{data}", "--depth", "oracle", "-o", "/no/such/dir/t.npz"], "does not exist"),
 ])
 def test_bad_input_is_a_clear_error(data_file, args, message, capsys):

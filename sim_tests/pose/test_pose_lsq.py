@@ -27,20 +27,21 @@ CAMERAS = {
 }
 
 
+@pytest.mark.parametrize("axis", [0, 1], ids=["along-row", "across-rows"])
 @pytest.mark.parametrize("name", sorted(CAMERAS))
-def test_rows_match_finite_difference_projection(name):
-    """Each column of A is the derivative of the exact pixel-x displacement."""
+def test_rows_match_finite_difference_projection(name, axis):
+    """Each column of A is the derivative of the exact pixel-x (pixel-y) displacement."""
     cam = CAMERAS[name]
     rng = np.random.default_rng(SEED)
     px, py = rng.uniform(0, cam.width - 1, 40), rng.uniform(0, cam.height - 1, 40)
     depth = rng.uniform(0.4, 6.0, 40)
-    rows = G.design_rows(G.shift_coefficients(cam, px, py), 1 / depth)
+    rows = G.design_rows(G.shift_coefficients(cam, px, py, axis=axis), 1 / depth)
     h = 1e-6
     for k in range(6):
         step = np.zeros(6)
         step[k] = h
-        central = (G.project_shift(cam, px, py, depth, step)
-                   - G.project_shift(cam, px, py, depth, -step)) / (2 * h)
+        central = (G.project_shift(cam, px, py, depth, step, axis)
+                   - G.project_shift(cam, px, py, depth, -step, axis)) / (2 * h)
         scale = np.linalg.norm(rows, axis=1)
         assert np.max(np.abs(central - rows[:, k]) / scale) < 1e-6, G.UNKNOWNS[k]
 
@@ -70,6 +71,11 @@ def test_signs_of_a_camera_at_the_origin():
     row = G.design_rows(G.shift_coefficients(cam, cam.cx, cam.cy), 1.0)
     assert row[0] == pytest.approx(-cam.fx)
     assert row[4] == pytest.approx(-cam.fx)
+
+
+def test_a_bad_axis_is_named():
+    with pytest.raises(ValueError, match="axis must be 0 or 1, not 2"):
+        G.shift_coefficients(CAMERAS["pinhole_at_origin"], 1.0, 1.0, axis=2)
 
 
 def test_table_round_trip_and_errors():
@@ -155,3 +161,23 @@ def test_noise_free_sequence_is_tracked(rig_name):
     angle = 2 * np.arcsin(np.minimum(1, np.linalg.norm(
         G.quat_multiply(q_true * [1, -1, -1, -1], q)[:, 1:], axis=1)))
     assert math.degrees(np.max(angle)) < 1e-3
+
+
+@pytest.mark.parametrize("name", sorted(CAMERAS))
+def test_both_axes_predict_the_trackers_reference_pixel(name):
+    """``a·Y`` along and across rows is the current pixel minus the previous frame's pixel
+    of the same point (``golden.tracker_geometry.reference_pixels``, which the tracker's
+    window centre and followed row use), to first order in a small motion."""
+    from golden.tracker_geometry import camera_poses, reference_pixels
+    from golden.tracker_motion import compose
+    cam = CAMERAS[name]
+    row, columns, inverse_depth = 150, np.arange(20, 620, 40), 0.5
+    motion = np.array([4e-3, -3e-3, 5e-3, 2e-3, -4e-3, 3e-3])
+    rotation, position = compose(np.eye(3)[None], np.zeros((1, 3)), motion[None])
+    vx, vy = reference_pixels(cam, cam.rays[row][columns][None],
+                              np.full((1, len(columns)), inverse_depth), rotation, position,
+                              np.eye(3)[None], camera_poses(cam, np.eye(3), np.zeros(3))[1])
+    for axis, moved in ((0, columns - vx[0]), (1, row - vy[0])):
+        linear = G.design_rows(G.shift_coefficients(cam, columns, row, axis=axis),
+                               inverse_depth) @ motion
+        assert np.max(np.abs(linear - moved)) < 0.05, axis     # pixels; motion ~ 1-3 px

@@ -1,0 +1,151 @@
+"""Bit-accurate model of the motion forecast after the pose solver (issue 16; the
+gateware is not built yet, this model is its specification).
+
+Integers only, with the formats of :class:`hdl.pose.forecast_params.ForecastParams` and
+the arithmetic of :mod:`hdl.fixed`:
+
+1. :class:`MotionFilter`: Holt–Winters on the one-frame motion ``Y`` with scalar gains
+   (the golden tracker's ``motion_gain="scalar"``): ``p = L + B``,
+   ``L' = p + α (y − p)``, ``B' = B + β (L' − L − B)``, each product rounded half-even
+   into ``motion_fmt``; a row without a solved step keeps ``L' = p``, ``B' = B``.
+2. The loop delay: a row's forecast is made from the filter's state after the newest row
+   solved ``loop_delay_rows`` row periods before it starts,
+   ``Ŷ = L_j + k·B_j`` on raw integers (:class:`golden.temporal_filter.DelayedForecast`
+   does the bookkeeping, the same code as the golden tracker's).
+3. :meth:`ForecastModel.predict`: for a camera row ``y`` with the depth cue of each
+   segment, the design rows of the solver's store (:func:`emulator.pose_solver.design_row`,
+   the solver's own rounding) give each segment's predicted shift ``a·Ŷ`` and, from the
+   across-rows store, its predicted displacement across rows, rounded half-even into
+   ``displacement_fmt`` (saturated, flagged). Per camera, the window centre is the mean
+   shift of its K segments and the row address ``y −`` their mean displacement, each
+   rounded half-up to an integer and saturated (to ``±centre_range`` and
+   ``[0, height − 1]``) with a flag, never silently.
+"""
+
+import numpy as np
+
+from golden.temporal_filter import DelayedForecast
+from hdl.fixed import SQ, Overflow, Rounding, mul, resize
+from emulator.pose.program import Value, dot
+from emulator.pose_solver import PoseRows, design_row
+
+__all__ = ["MotionFilter", "ForecastModel"]
+
+
+class MotionFilter:
+    """Holt–Winters with scalar gains on raw ``motion_fmt`` integers (6,).
+
+    Parameters
+    ----------
+    params : ForecastParams
+    level : array_like of int (6,)
+        Initial level, raw ``motion_fmt``; the trend starts at 0.
+    """
+
+    def __init__(self, params, level):
+        self.params = params
+        self.level = params.motion_fmt.raw(np.asarray(level, dtype=np.int64))
+        self.trend = np.zeros_like(self.level)
+
+    def _gained(self, gain_raw, raw, fmt):
+        """``gain · raw`` rounded half-even into ``motion_fmt``."""
+        p = self.params
+        product, product_fmt = mul(gain_raw, p.gain_fmt, raw, fmt)
+        return resize(product, product_fmt, p.motion_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+
+    def update(self, value=None, gain=None):
+        """Take a solved step (raw ``solver.step_fmt``, (6,)) or none; returns the new
+        level. ``gain`` must be ``None``: the hardware has scalar gains only (the
+        argument keeps the interface of :class:`golden.temporal_filter.HoltWinters`)."""
+        if gain is not None:
+            raise ValueError(f"gain must be None (scalar gains only), not {gain!r}")
+        p = self.params
+        fmt = p.motion_fmt
+        predicted = fmt.raw(self.level + self.trend)
+        level = predicted
+        if value is not None:
+            step_fmt = p.solver.step_fmt
+            y = resize(step_fmt.raw(np.asarray(value, dtype=np.int64)), step_fmt, fmt,
+                       Rounding.HALF_EVEN, Overflow.ERROR)
+            wide = SQ(fmt.int_bits + 1, fmt.frac_bits)
+            level = fmt.raw(predicted + self._gained(p.alpha_raw, y - predicted, wide))
+        change = SQ(fmt.int_bits + 2, fmt.frac_bits)
+        self.trend = self.trend + self._gained(p.beta_raw, level - self.level - self.trend,
+                                               change)
+        self.level = level
+        return level
+
+
+class ForecastModel:
+    """The forecast of one pipeline: step records in, window centres and row addresses of
+    the rows about to be read out.
+
+    Parameters
+    ----------
+    params : ForecastParams
+    coef_raw, row_coef_raw : ndarray (slots, rows, 9)
+        The solver's coefficient store and the across-rows store
+        (``PipelineConfig.coef_raw`` and ``.row_coef_raw``).
+    initial : array_like of int (6,)
+        The motion before the first row, raw ``motion_fmt``.
+    """
+
+    def __init__(self, params, coef_raw, row_coef_raw, initial):
+        self.params = params
+        self.coef_raw, self.row_coef_raw = coef_raw, row_coef_raw
+        self.filter = MotionFilter(params, initial)
+        self.loop = DelayedForecast(self.filter, params.loop_delay_rows)
+
+    def take(self, slot, step=None):
+        """The solver's step of row slot ``slot`` (raw ``step_fmt``; ``None`` if the row
+        was flagged): the filter's update."""
+        return self.loop.update(slot, step)
+
+    def motion(self, slot):
+        """Forecast ``Ŷ`` (raw ``motion_fmt``) for row slot ``slot``, whose step will be the
+        next the filter takes."""
+        return self.params.motion_fmt.raw(self.loop.forecast(slot))
+
+    def _displacements(self, store, coef_raw, row, cue, motion):
+        slots = self.params.solver.slots
+        zeros = np.zeros((1, slots), dtype=np.int64)
+        rows = PoseRows(slot=np.arange(slots)[None], shift=zeros, cue=np.asarray(cue)[None],
+                        conf=zeros, present=np.ones((1, slots), dtype=bool),
+                        row=np.array([row]), time=np.array([0]))
+        a = design_row(store, coef_raw, rows)
+        y = [Value(np.full((1, slots), int(v), dtype=np.int64), self.params.motion_fmt)
+             for v in motion]
+        value, saturated = dot(self.params.displacement_fmt,
+                               terms=[(1, a[i], y[i]) for i in range(6)])
+        return np.array([int(v) for v in value.raw[0]], dtype=np.int64), saturated[0]
+
+    def _camera_means(self, raw):
+        """Per camera: the mean of its K segments' raw displacements, rounded half-up to
+        an integer number of pixels."""
+        p = self.params
+        total = raw.reshape(p.cameras, p.segments).sum(axis=1)
+        unit = p.segments << p.displacement_fmt.frac_bits
+        return (2 * total + unit) // (2 * unit)
+
+    def predict(self, slot, row, cue):
+        """The forecast for camera row ``row`` read in row slot ``slot``, with the depth
+        cue of every segment ``cue`` (raw ``solver.cue_fmt``, (slots,)).
+
+        Returns a dict: ``motion`` (6,) raw ``motion_fmt``; ``shift`` and ``across``
+        (slots,) raw ``displacement_fmt`` with ``shift_saturated``/``across_saturated``;
+        per camera ``centre`` and ``source_row`` (integers, saturated) with
+        ``centre_saturated``/``row_saturated``.
+        """
+        p = self.params
+        motion = self.motion(slot)
+        shift, shift_sat = self._displacements(p.solver, self.coef_raw, row, cue, motion)
+        across, across_sat = self._displacements(p.row_store, self.row_coef_raw, row, cue,
+                                                 motion)
+        centre = self._camera_means(shift)
+        source = row - self._camera_means(across)
+        return {"motion": motion, "shift": shift, "shift_saturated": shift_sat,
+                "across": across, "across_saturated": across_sat,
+                "centre": np.clip(centre, -p.centre_range, p.centre_range),
+                "centre_saturated": np.abs(centre) > p.centre_range,
+                "source_row": np.clip(source, 0, p.height - 1),
+                "row_saturated": (source < 0) | (source >= p.height)}

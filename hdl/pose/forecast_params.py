@@ -1,0 +1,118 @@
+"""Parameters and number formats of the motion forecast after the pose solver (no
+Amaranth here: the emulator's model reads them; the gateware is not built yet).
+
+The forecast closes the measurement loop (issue 16): a Holt–Winters filter with scalar
+gains on the solver's one-frame motion ``Y`` gives, for every camera row about to be read,
+the predicted shift of each temporal segment (the lane's run-time window centre) and the
+predicted displacement across rows (which stored row of the previous frame the lane
+reads). Both come from coefficient stores like the solver's: the solver's own store for
+the shift along the row, a second one of the same layout for the displacement across rows
+(:func:`golden.pose_lsq.shift_coefficients` with ``axis=1``).
+"""
+
+from dataclasses import dataclass, replace
+
+from golden.checks import check_int, check_number
+
+from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding
+from hdl.pose.params import PoseSolverParams
+
+__all__ = ["ForecastParams"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ForecastParams:
+    """Sizes, gains and formats of the motion forecast.
+
+    Parameters
+    ----------
+    solver : PoseSolverParams
+        The solver whose step records the forecast takes (``step_fmt``) and whose
+        coefficient store and design-row arithmetic (``coef_*_fmt``, ``cue_fmt``,
+        ``a_fmt``) give the shift along the row.
+    row_coef_t_fmt, row_coef_c_fmt, row_coef_r_fmt : QFormat
+        Formats of the across-rows coefficient store (same layout as the solver's).
+    segments : int
+        Temporal segments K per camera row (``solver.slots`` = cameras × K).
+    height : int
+        Rows per frame (a predicted row address is saturated to ``[0, height − 1]``).
+    centre_range : int
+        A window centre is saturated to ``[−centre_range, centre_range]`` (the lanes').
+    alpha, beta : float
+        Level and trend gains; quantized to ``gain_fmt`` (half-even), neither may round
+        to 0 (alpha) or leave ``[0, 1]``.
+    gain_fmt : QFormat
+        Unsigned format of the gains.
+    motion_fmt : QFormat
+        Level, trend and forecast of ``Y`` (metres, radians); one format, so a forecast
+        ``k`` rows ahead is ``level + k·trend`` on raw integers.
+    displacement_fmt : QFormat
+        Predicted shift or displacement of a segment (pixels; rounded half-even,
+        saturated with a flag).
+    loop_delay_rows : int
+        Row periods between a row's solve and the first row whose forecast includes it
+        (``golden.tracker``'s parameter of the same name).
+    """
+    solver: PoseSolverParams
+    row_coef_t_fmt: QFormat
+    row_coef_c_fmt: QFormat
+    row_coef_r_fmt: QFormat
+    segments: int
+    height: int
+    centre_range: int = 32
+    alpha: float = 0.1
+    beta: float = 0.01
+    gain_fmt: QFormat = UQ(1, 17)
+    motion_fmt: QFormat = SQ(1, 39)
+    displacement_fmt: QFormat = SQ(10, 8)
+    loop_delay_rows: int = 1
+
+    def __post_init__(self):
+        if not isinstance(self.solver, PoseSolverParams):
+            raise TypeError(f"solver must be a PoseSolverParams, not {self.solver!r}")
+        for name in ("row_coef_t_fmt", "row_coef_c_fmt", "row_coef_r_fmt", "motion_fmt",
+                     "displacement_fmt", "gain_fmt"):
+            if not isinstance(getattr(self, name), QFormat):
+                raise TypeError(f"{name} must be a QFormat, not {getattr(self, name)!r}")
+        for name in ("motion_fmt", "displacement_fmt"):
+            if not getattr(self, name).signed:
+                raise ValueError(f"{name} must be signed, not {getattr(self, name)}")
+        if self.gain_fmt.signed:
+            raise ValueError(f"gain_fmt must be unsigned, not {self.gain_fmt}")
+        check_int("segments", self.segments, 1)
+        if self.solver.slots % self.segments:
+            raise ValueError(f"segments {self.segments} must divide the solver's "
+                             f"{self.solver.slots} slots")
+        check_int("height", self.height, 1, self.solver.rows)
+        check_int("centre_range", self.centre_range, 0)
+        check_number("alpha", self.alpha, 0, 1, low_open=True)
+        check_number("beta", self.beta, 0, 1)
+        if self.alpha_raw == 0:
+            raise ValueError(f"alpha {self.alpha} rounds to 0 in gain_fmt {self.gain_fmt}")
+        check_int("loop_delay_rows", self.loop_delay_rows, 0)
+        self.row_store   # the across-rows store must be a valid store of the solver's kind
+
+    replace = replace
+
+    @property
+    def cameras(self):
+        return self.solver.slots // self.segments
+
+    @property
+    def row_store(self):
+        """The solver's parameters with the across-rows store's formats: the same design
+        row arithmetic and store layout for the displacement across rows."""
+        return self.solver.replace(coef_t_fmt=self.row_coef_t_fmt,
+                                   coef_c_fmt=self.row_coef_c_fmt,
+                                   coef_r_fmt=self.row_coef_r_fmt)
+
+    def _gain_raw(self, value):
+        return int(self.gain_fmt.quantize(value, Rounding.HALF_EVEN, Overflow.ERROR))
+
+    @property
+    def alpha_raw(self):
+        return self._gain_raw(self.alpha)
+
+    @property
+    def beta_raw(self):
+        return self._gain_raw(self.beta)
