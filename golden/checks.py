@@ -40,12 +40,14 @@ def check_int(name, value, low=None, high=None):
     _check_range(name, "an integer", value, low, high)
 
 
-def check_number(name, value, low=None, high=None, *, low_open=False, high_open=False):
+def check_number(name, value, low=None, high=None, *, low_open=False, high_open=False,
+                 finite=True):
     """Raise ``TypeError`` unless ``value`` is a real number (not a ``bool``), and
-    ``ValueError`` unless it is finite and within the bounds (either may be ``None``;
-    ``low_open``/``high_open`` exclude the bound itself)."""
+    ``ValueError`` unless it is within the bounds (either may be ``None``;
+    ``low_open``/``high_open`` exclude the bound itself) and finite (``finite=False``
+    lets an infinity through, never a NaN)."""
     if isinstance(value, bool) or not isinstance(value, Real):
         raise TypeError(f"{name} must be a number, not {value!r}")
-    if not math.isfinite(value):
+    if math.isnan(value) or (finite and math.isinf(value)):
         raise ValueError(f"{name} must be a finite number, not {value!r}")
     _check_range(name, "a number", value, low, high, low_open, high_open)

@@ -31,6 +31,8 @@ import math
 
 import numpy as np
 
+from .checks import check_int, check_number
+
 __all__ = ["NORMS", "check_parameters", "sigma_schedule", "domain_derivative", "rf_weights", "rf_causal",
            "rf_anticausal", "rf_anticausal_window", "recursive_filter", "BoxBounds",
            "transformed_coords", "normalized_convolution"]
@@ -40,20 +42,15 @@ NORMS = ("l1", "l2")
 
 
 def _positive(name, value, allow_inf=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise TypeError(f"{name} must be a number, not {value!r}")
-    finite_ok = allow_inf or math.isfinite(value)
-    if math.isnan(value) or value <= 0 or not finite_ok:
-        kind = "positive number" if allow_inf else "positive finite number"
-        raise ValueError(f"{name} must be a {kind}, not {value}")
+    """``value`` as a float, checked (:func:`golden.checks.check_number`) to be above 0."""
+    check_number(name, value, 0, low_open=True, finite=not allow_inf)
     return float(value)
 
 
 def _count(name, value, minimum=1):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, not {value!r}")
-    if value < minimum:
-        raise ValueError(f"{name} must be at least {minimum}, not {value}")
+    """``value`` as an int, checked (:func:`golden.checks.check_int`) to be ``minimum`` or
+    more."""
+    check_int(name, value, minimum)
     return int(value)
 
 

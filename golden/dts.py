@@ -37,6 +37,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from .checks import check_number
 from .dt import NORMS, BoxBounds, _check_pair, _count, _image, _positive, transformed_coords
 
 __all__ = ["DtsParams", "dts", "target_confidence"]
@@ -106,15 +107,9 @@ class DtsParams:
         for name in ("depth_sigma", "depth_smoothing", "robust"):
             if getattr(self, name) is not None:
                 _positive(name, getattr(self, name))
-        power = self.disparity_power
-        if isinstance(power, bool) or not isinstance(power, (int, float, np.integer, np.floating)):
-            raise TypeError(f"disparity_power must be a number, not {power!r}")
-        if not (math.isfinite(power) and power >= 0):
-            raise ValueError(f"disparity_power must be a finite number >= 0, not {power}")
+        check_number("disparity_power", self.disparity_power, 0)
         if self.hard_threshold is not None:
-            _positive("hard_threshold", self.hard_threshold)
-            if self.hard_threshold > 1:
-                raise ValueError(f"hard_threshold must be in (0, 1], not {self.hard_threshold}")
+            check_number("hard_threshold", self.hard_threshold, 0, 1, low_open=True)
 
     replace = replace
 
@@ -206,9 +201,7 @@ def target_confidence(target, peak=0.3, edge_scale=0.01):
     """
     t = _image("target", target)
     t = t if t.ndim == 2 else t.mean(axis=2)
-    peak = _positive("peak", peak)
-    if peak > 1:
-        raise ValueError(f"peak must be in (0, 1], not {peak}")
+    check_number("peak", peak, 0, 1, low_open=True)
     scale = _positive("edge_scale", edge_scale) * max(float(t.max() - t.min()), 1e-12)
     gy, gx = np.gradient(t) if min(t.shape) > 1 else (np.zeros_like(t), np.zeros_like(t))
     return peak * np.exp(-(np.hypot(gx, gy) / scale) ** 2)

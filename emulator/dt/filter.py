@@ -9,6 +9,8 @@ every row's first pixel have weight 0), so a stream of frames is a list of frame
 
 import numpy as np
 
+from golden.checks import check_number
+
 from hdl.dt.params import (COEF_FMT, COEF_NUMERATOR, GUIDE_BITS, SCHEDULE_FMT, SIGMA_FMT,
                            SIGMA_MIN_RAW, TABLE_ADDR_BITS, DtFilterParams, lookup_fmt,
                            schedule_scales, weight_tables)
@@ -20,10 +22,7 @@ __all__ = ["sigma_register", "coefficient", "weights", "frame_weights", "rf_step
 
 def sigma_register(name, value):
     """A sigma in real units to its register value (raw ``SIGMA_FMT``); at least 1.0."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a number, not {value!r}")
-    if not 1.0 <= value <= SIGMA_FMT.max_value:
-        raise ValueError(f"{name} must be in [1, {SIGMA_FMT.max_value}], not {value}")
+    check_number(name, value, 1.0, SIGMA_FMT.max_value)
     return int(SIGMA_FMT.quantize(value))
 
 

@@ -40,6 +40,14 @@ def test_check_number_names_the_parameter_and_the_bound(value, kwargs, error, me
         check_number("x", value, **kwargs)
 
 
+def test_an_infinity_passes_only_when_allowed():
+    check_number("x", math.inf, 0, low_open=True, finite=False)
+    with pytest.raises(ValueError, match="x must be a finite number, not nan"):
+        check_number("x", math.nan, finite=False)
+    with pytest.raises(ValueError, match="x must be a number greater than 0, not -inf"):
+        check_number("x", -math.inf, 0, low_open=True, finite=False)
+
+
 def test_check_number_takes_the_closed_bounds_and_numpy_floats():
     for value in (0, 1, 0.5, np.float32(0.25)):
         check_number("x", value, 0, 1)

@@ -67,13 +67,13 @@ def test_dts_factor_and_colour_only_are_the_golden_settings(files):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--sigma-s", "0"], "--sigma-s must be a positive finite number, not 0.0"),
-    (["--iterations", "0"], "--iterations must be at least 1, not 0"),
-    (["--hard", "2"], r"--hard must be in \(0, 1\], not 2.0"),
-    (["--factor", "0"], "--factor must be a positive finite number, not 0.0"),
-    (["--depth-sigma", "-1"], "--depth-sigma must be a positive finite number, not -1.0"),
+    (["--sigma-s", "0"], "--sigma-s must be a number greater than 0, not 0.0"),
+    (["--iterations", "0"], "--iterations must be an integer at least 1, not 0"),
+    (["--hard", "2"], "--hard must be a number greater than 0 and at most 1, not 2.0"),
+    (["--factor", "0"], "--factor must be a number greater than 0, not 0.0"),
+    (["--depth-sigma", "-1"], "--depth-sigma must be a number greater than 0, not -1.0"),
     (["--depth-smoothing", "-2"],
-     "--depth-smoothing must be a positive finite number, not -2.0"),
+     "--depth-smoothing must be a number greater than 0, not -2.0"),
     (["--confidence", "missing.png"], "--confidence 'missing.png' does not exist"),
 ])
 def test_dts_bad_input_is_a_clear_error(files, capsys, args, message):

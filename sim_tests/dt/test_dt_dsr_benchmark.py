@@ -34,7 +34,7 @@ def test_degradation_noise_falls_with_disparity():
 def test_degradation_needs_a_dividing_factor():
     with pytest.raises(ValueError, match=r"factor must divide the image size \(10, 12\), not 4"):
         dsr.degrade(np.ones((10, 12)), 4, SEED)
-    with pytest.raises(ValueError, match="factor must be at least 2, not 1"):
+    with pytest.raises(ValueError, match="factor must be an integer at least 2, not 1"):
         dsr.benchmark_confidence((4, 4), 1)
 
 
@@ -57,7 +57,7 @@ def test_grid_solver_keeps_a_constant_and_smooths_noise():
     noisy = 90.0 + rng.normal(0, 5, (48, 64))
     out = dsr.grid_solver(noisy, guide, confidence, sigma_xy=8.0, sigma_l=0.05, lam=1.0)
     assert np.abs(out - 90).std() < 0.5 * np.abs(noisy - 90).std()
-    with pytest.raises(ValueError, match="sigma_l must be a positive finite number, not 0"):
+    with pytest.raises(ValueError, match="sigma_l must be a number greater than 0, not 0"):
         dsr.grid_solver(noisy, guide, confidence, sigma_xy=8.0, sigma_l=0, lam=1.0)
 
 

@@ -97,11 +97,11 @@ def test_vertical_window_converges_to_the_exact_pass():
 
 def test_bad_parameters_are_named():
     image = np.zeros((4, 5))
-    with pytest.raises(ValueError, match="sigma_s must be a positive finite number, not -1"):
+    with pytest.raises(ValueError, match="sigma_s must be a number greater than 0, not -1"):
         recursive_filter(image, sigma_s=-1, sigma_r=0.1)
     with pytest.raises(TypeError, match="sigma_r must be a number"):
         normalized_convolution(image, sigma_s=1, sigma_r="wide")
-    with pytest.raises(ValueError, match="iterations must be at least 1, not 0"):
+    with pytest.raises(ValueError, match="iterations must be an integer at least 1, not 0"):
         recursive_filter(image, sigma_s=1, sigma_r=0.1, iterations=0)
     with pytest.raises(ValueError, match="norm must be one of l1, l2, not 'l3'"):
         recursive_filter(image, sigma_s=1, sigma_r=0.1, norm="l3")

@@ -96,31 +96,33 @@ def test_colour_targets_are_solved_per_channel():
 
 
 def test_bad_parameters_are_named():
-    with pytest.raises(ValueError, match="lam must be a positive finite number, not 0"):
+    with pytest.raises(ValueError, match="lam must be a number greater than 0, not 0"):
         DtsParams(lam=0)
     with pytest.raises(TypeError, match="iterations must be an integer"):
         DtsParams(iterations=2.5)
-    with pytest.raises(ValueError, match=r"hard_threshold must be in \(0, 1\], not 2"):
+    with pytest.raises(ValueError,
+                       match="hard_threshold must be a number greater than 0 and at most 1, not 2"):
         DtsParams(hard_threshold=2)
     with pytest.raises(ValueError, match="norm must be one of l1, l2, not 'max'"):
         DtsParams(norm="max")
-    with pytest.raises(ValueError, match="robust must be a positive finite number, not -1"):
+    with pytest.raises(ValueError, match="robust must be a number greater than 0, not -1"):
         DtsParams(robust=-1)
-    with pytest.raises(ValueError, match=r"peak must be in \(0, 1\], not 1.5"):
+    with pytest.raises(ValueError,
+                       match="peak must be a number greater than 0 and at most 1, not 1.5"):
         target_confidence(np.zeros((3, 4)), peak=1.5)
     with pytest.raises(ValueError, match=r"confidence must lie in \[0, 1\]"):
         dts(np.zeros((3, 4)), np.zeros((3, 4)), np.full((3, 4), 2.0))
     with pytest.raises(ValueError, match=r"confidence must have shape \(3, 4\)"):
         dts(np.zeros((3, 4)), np.zeros((3, 4)), np.ones((4, 3)))
-    with pytest.raises(ValueError, match="depth_sigma must be a positive finite number, not 0"):
+    with pytest.raises(ValueError, match="depth_sigma must be a number greater than 0, not 0"):
         DtsParams(depth_sigma=0)
-    with pytest.raises(ValueError, match="depth_smoothing must be a positive finite number, not 0"):
+    with pytest.raises(ValueError, match="depth_smoothing must be a number greater than 0, not 0"):
         DtsParams(depth_smoothing=0)
-    with pytest.raises(ValueError, match="disparity_power must be a finite number >= 0, not -1"):
+    with pytest.raises(ValueError, match="disparity_power must be a number at least 0, not -1"):
         DtsParams(disparity_power=-1)
     with pytest.raises(ValueError, match="disparity_power 2.0 needs a target with a positive"):
         dts(np.zeros((3, 4)), np.zeros((3, 4)))
-    with pytest.raises(ValueError, match="factor must be a positive finite number, not -2"):
+    with pytest.raises(ValueError, match="factor must be a number greater than 0, not -2"):
         DtsParams.for_factor(-2)
     with pytest.raises(TypeError, match="params must be a DtsParams"):
         dts(np.zeros((3, 4)), np.zeros((3, 4)), None, {"lam": 1})
