@@ -9,7 +9,14 @@ from amaranth.lib.wiring import In, Out
 from hdl.bus.axi4lite import RESP_OKAY, RESP_SLVERR, AXI4LiteSignature
 from hdl.bus.register_map import WORD_BYTES, Access, RegisterMap
 
-__all__ = ["RegisterFile"]
+__all__ = ["RegisterFile", "command_signature"]
+
+
+def command_signature(shape, count=1):
+    """The port of a write-only register as the register file drives it: the written
+    value and a strobe per array element, high for one clock after the write. A block
+    that takes the command declares ``In(command_signature(...))``."""
+    return wiring.Signature({"data": Out(shape), "stb": Out(count)})
 
 
 class RegisterFile(wiring.Component):
@@ -64,8 +71,7 @@ class RegisterFile(wiring.Component):
             elif reg.access is Access.RO:
                 members[reg.name] = In(reg.port_shape())
             elif reg.access is Access.WO:
-                members[reg.name] = Out(wiring.Signature({
-                    "data": Out(reg.port_shape()), "stb": Out(reg.count)}))
+                members[reg.name] = Out(command_signature(reg.port_shape(), reg.count))
         return wiring.Signature(members)
 
     def _decode(self, addr):

@@ -5,15 +5,12 @@ from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from hdl.bus.register_file import command_signature
 from hdl.output.packet import PoseOutput
 from hdl.top_params import TopParams
 from hdl.output.uart import UartTx
 
-__all__ = ["PoseLink", "POP_SIGNATURE"]
-
-#: A write-only one-bit register's port as the register file drives it
-#: (:class:`hdl.bus.register_file.RegisterFile`): the written bit and its one-clock strobe.
-POP_SIGNATURE = wiring.Signature({"data": Out(1), "stb": Out(1)})
+__all__ = ["PoseLink"]
 
 
 class PoseLink(wiring.Component):
@@ -31,7 +28,7 @@ class PoseLink(wiring.Component):
     divisor : In(uart.divisor_fmt.shape())
     fifo_head : Out(packet.record_layout())
         The oldest record in the PS FIFO (valid while ``status.fifo_level`` is not 0).
-    fifo_pop : In(:data:`POP_SIGNATURE`)
+    fifo_pop : In(command_signature(1))
         The ``fifo_pop`` register's write strobe: a write of 1 drops ``fifo_head``.
     status : Out(pose_output.status_layout())
     tx : Out(1)
@@ -47,7 +44,7 @@ class PoseLink(wiring.Component):
             "cfg": In(po.config_layout()),
             "divisor": In(params.uart.divisor_fmt.shape()),
             "fifo_head": Out(po.packet.record_layout()),
-            "fifo_pop": In(POP_SIGNATURE),
+            "fifo_pop": In(command_signature(1)),
             "status": Out(po.status_layout()),
             "tx": Out(1, init=1),
         })
