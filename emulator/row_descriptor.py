@@ -102,48 +102,74 @@ class ReferenceStoreModel:
 
 
 class FollowedReferenceStoreModel:
-    """A reference store that serves any row of the previous frame (issue 16's followed
-    rows): two banks of ``height`` descriptor rows, frame ``f`` written into bank
-    ``f mod 2`` while bank ``(f − 1) mod 2`` is read, so no row of the previous frame is
-    overwritten before the frame ends. Twice the memory of :class:`ReferenceStoreModel`;
-    whether the hardware pays that or delays the writes by the largest row displacement
-    is open.
+    """A reference store that serves a row of the previous frame chosen per row (issue
+    16's followed rows): a ring of ``ring_rows = height + D + 1`` descriptor rows
+    (``params.max_row_displacement`` = D), the gateware's ``ReferenceStore(params,
+    follow=True)``.
+
+    Row ``y`` of a frame goes to slot ``(base + y) mod ring_rows``, where ``base``
+    advances by ``height`` (mod ``ring_rows``) whenever a row's frame number differs from
+    the previous row's (the frame's absolute first row index, modulo the ring; it follows
+    the frames seen, so a wrapping frame counter does not break it). The previous frame's
+    row ``s`` is read from ``(previous base + s) mod ring_rows``. That slot is rewritten by
+    row ``s + D + 1`` of this frame, which reads it first, so row ``y`` is served every
+    ``s`` with ``0 ≤ s < height`` and ``y − s ≤ D + 1``
+    (:meth:`~hdl.descriptor.params.RowDescriptorParams.source_in_range`). A request
+    outside that range reads zeros, has no reference and is counted
+    (:attr:`out_of_range`); a request inside it has a reference when the slot's tag
+    says it holds row ``s`` of frame ``frame − 1`` (modulo ``2**frame_bits``) and that
+    row was not bad. The bits read are the slot's, whatever the tag.
     """
 
     def __init__(self, params):
         self.params = params
-        self.bits = np.zeros((2, params.height, params.width), dtype=bool)
-        self.tag_valid = np.zeros((2, params.height), dtype=bool)
-        self.tag_frame = np.zeros((2, params.height), dtype=np.int64)
+        size = params.ring_rows
+        self.bits = np.zeros((size, params.width), dtype=bool)
+        self.tag_valid = np.zeros(size, dtype=bool)
+        self.tag_frame = np.zeros(size, dtype=np.int64)
+        self.tag_row = np.zeros(size, dtype=np.int64)
+        self.out_of_range = 0
+        self.reset()
+
+    def reset(self):
+        """What the gateware's reset does: the ring's bases and the frame seen restart
+        (the memories and the counter keep their contents)."""
+        self.frame, self.base, self.previous_base = 0, 0, 0
 
     def exchange(self, rows, bits, sources):
-        """Store each row's ``bits`` at its own index and read, for each row, the
-        previous frame's row ``sources[i]``; returns ``(reference bits (N, width),
-        no_reference (N,))`` (no reference: that stored row is not of frame − 1, or bad).
-        """
+        """Store each row's ``bits`` in its ring slot and read, for each row, the
+        previous frame's row ``sources[i]`` (any integer); returns ``(reference bits
+        (N, width), no_reference (N,))``, one row after the other as they arrive."""
         p, n = self.params, len(rows)
-        kept = p.width - p.radius
+        size, kept = p.ring_rows, p.width - p.radius
         reference = np.zeros((n, p.width), dtype=bool)
         no_reference = np.ones(n, dtype=bool)
         for i, (row, source) in enumerate(zip(rows, sources)):
+            if row.frame != self.frame:
+                self.frame, self.previous_base = row.frame, self.base
+                self.base = (self.base + p.height) % size
             if row.row >= p.height:
                 continue
-            bank, previous = row.frame % 2, (row.frame - 1) % 2
-            if 0 <= source < p.height:
-                reference[i] = self.bits[previous, source]
-                no_reference[i] = not (self.tag_valid[previous, source] and
-                                       self.tag_frame[previous, source]
+            if p.source_in_range(row.row, source):
+                slot = (self.previous_base + source) % size
+                reference[i] = self.bits[slot]
+                no_reference[i] = not (self.tag_valid[slot] and self.tag_row[slot] == source
+                                       and self.tag_frame[slot]
                                        == (row.frame - 1) % (1 << p.frame_bits))
-            self.bits[bank, row.row, :kept] = bits[i, :kept]
-            self.tag_valid[bank, row.row] = not row.bad
-            self.tag_frame[bank, row.row] = row.frame
+            else:
+                self.out_of_range += 1
+            slot = (self.base + row.row) % size
+            self.bits[slot, :kept] = bits[i, :kept]
+            self.tag_valid[slot], self.tag_frame[slot] = not row.bad, row.frame
+            self.tag_row[slot] = row.row
         return reference, no_reference
 
 
 class TemporalLaneModel:
     """One camera: each row matched against the same row of the previous frame, or with
     ``follow=True`` against a row of the previous frame chosen per row (the forecast's
-    row address, :class:`FollowedReferenceStoreModel`)."""
+    row address, :class:`FollowedReferenceStoreModel`, a ring of
+    ``height + max_row_displacement + 1`` rows)."""
 
     def __init__(self, params, follow=False):
         self.params = params

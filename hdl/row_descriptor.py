@@ -8,7 +8,8 @@ A temporal lane (:class:`RowDescriptor`) chains four blocks, one pixel per clock
 2. :class:`hdl.descriptor.fir.DescriptorFIR` convolves each row with the quantized second derivative of a
    Gaussian (``RowDescriptorParams.kernel_raw``) and keeps the sign: one bit per column;
 3. :class:`hdl.descriptor.store.ReferenceStore` swaps the row's bits with the bits
-   of the same row of the previous frame (on-chip memory);
+   of the same row of the previous frame, or (``follow=True``) of the previous frame's
+   row the input names per row, from a ring of ``height + D + 1`` rows (on-chip memory);
 4. :class:`hdl.descriptor.matcher.ShiftMatcher` accumulates Hamming costs for every shift of the
    window while the row streams and, per segment, finds the best shift, its sub-pixel
    refinement and the peak-ratio confidence.
@@ -26,7 +27,7 @@ from amaranth.lib.wiring import In, Out
 
 from hdl.descriptor.matcher import ShiftMatcher
 from hdl.descriptor.params import STEREO_640X480, RowDescriptorParams, check_lane_params
-from hdl.descriptor.store import ReferenceStore
+from hdl.descriptor.store import COUNT_BITS, ReferenceStore
 from hdl.descriptor.fir import DescriptorFIR
 from hdl.descriptor.framer import RowFramer, StereoJoin
 
@@ -49,22 +50,30 @@ def _connect_pair(m, fir, matcher):
 class RowDescriptor(wiring.Component):
     """Temporal lane of one camera: framer → FIR → reference store → matcher.
 
-    Each row is matched against the same row of the previous frame; K measurements
-    per row (``params.segments``).
+    Each row is matched against the same row of the previous frame, or with
+    ``follow=True`` against the previous frame's row its beats name (the forecast's row
+    address, from a ring store: :class:`hdl.descriptor.store.ReferenceStore`); K
+    measurements per row (``params.segments``). Model:
+    ``emulator.row_descriptor.TemporalLaneModel(params, follow)``.
 
     Parameters
     ----------
     params : RowDescriptorParams
+    follow : bool
+        Follow rows: centre and source row come with each row's first beat.
 
     Members
     -------
-    i : In(stream.Signature(params.input_layout()))
-        Camera beats, one pixel per transfer (``hdl.streams.camera_pixel_layout``).
-    centre : In(params.centre_fmt.shape())
+    i : In(stream.Signature(params.input_layout(follow)))
+        Camera beats, one pixel per transfer (``hdl.streams.camera_pixel_layout``, with
+        ``follow`` ``hdl.streams.followed_pixel_layout``).
+    centre : In(params.centre_fmt.shape()), without ``follow`` only
         Window centre in pixels (e.g. the shift predicted from the motion), sampled
         with each row's first pixel, saturated to ``±centre_range``.
     o : Out(stream.Signature(params.measurement_layout()))
         Measurements (formats in ``hdl.descriptor.params.row_measurement_layout``).
+    out_of_range : Out(hdl.descriptor.store.COUNT_BITS), with ``follow`` only
+        Rows whose source row was outside the range the ring serves (saturating).
 
     Latency :attr:`latency` clocks from a row's last pixel to its segment-0
     measurement (segment k follows k clocks later); one pixel per clock with no
@@ -73,17 +82,20 @@ class RowDescriptor(wiring.Component):
     reference is invalid until a full frame has passed (tags start invalid).
     """
 
-    def __init__(self, params=RowDescriptorParams()):
+    def __init__(self, params=RowDescriptorParams(), follow=False):
         self.params = check_lane_params(params)
-        self.framer = RowFramer(params)
+        self.store = ReferenceStore(params, follow)
+        self.follow = follow
+        self.framer = RowFramer(params, follow)
         self.fir = DescriptorFIR(params)
-        self.store = ReferenceStore(params)
         self.matcher = ShiftMatcher(params)
-        super().__init__({
-            "i": In(stream.Signature(params.input_layout())),
-            "centre": In(params.centre_fmt.shape()),
-            "o": Out(stream.Signature(params.measurement_layout())),
-        })
+        members = {"i": In(stream.Signature(params.input_layout(follow))),
+                   "o": Out(stream.Signature(params.measurement_layout()))}
+        if follow:
+            members["out_of_range"] = Out(COUNT_BITS)
+        else:
+            members["centre"] = In(params.centre_fmt.shape())
+        super().__init__(members)
 
     @property
     def latency(self):
@@ -97,7 +109,10 @@ class RowDescriptor(wiring.Component):
         m.submodules.store = self.store
         m.submodules.matcher = self.matcher
         wiring.connect(m, wiring.flipped(self.i), self.framer.i)
-        m.d.comb += self.framer.centre.eq(self.centre)
+        if self.follow:
+            m.d.comb += self.out_of_range.eq(self.store.out_of_range)
+        else:
+            m.d.comb += self.framer.centre.eq(self.centre)
         wiring.connect(m, self.framer.o, self.fir.i)
         wiring.connect(m, self.fir.o, self.store.i)
         wiring.connect(m, self.store.o, self.matcher.i)

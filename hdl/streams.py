@@ -193,3 +193,23 @@ def row_measurement_layout(*, camera_bits, frame_bits, row_bits, timestamp_bits,
 
 
 __all__ += ["row_measurement_layout"]
+
+
+def followed_pixel_layout(*, centre_fmt, **camera):
+    """A camera pixel (:func:`camera_pixel_layout`, same keyword arguments) with the
+    forecast for its row, for a lane that follows rows (``RowDescriptor(follow=True)``).
+
+    Fields (besides the camera pixel's)
+    ------
+    centre : centre_fmt, SQ(c, 0)
+        The row's shift-window centre in pixels (saturated by the lane).
+    source : unsigned(row_bits)
+        The previous frame's row the lane compares this row with.
+
+    Both are sampled with the row's ``first`` beat, like the row's metadata.
+    """
+    return data.StructLayout({**camera_pixel_layout(**camera).members,
+                              "centre": centre_fmt.shape(), "source": camera["row_bits"]})
+
+
+__all__ += ["followed_pixel_layout"]

@@ -23,13 +23,21 @@ class RowFramer(wiring.Component):
     indexed at or beyond ``height`` are bad; ``meta.bad`` is sticky along the row, so its
     last item carries the final verdict.
 
+    Parameters
+    ----------
+    params : RowDescriptorParams
+    follow : bool
+        The beats carry their row's centre and source row
+        (``hdl.streams.followed_pixel_layout``) instead of a ``centre`` port; without,
+        ``meta.source`` is the row itself.
+
     Members
     -------
-    i : In(stream.Signature(params.input_layout()))
+    i : In(stream.Signature(params.input_layout(follow)))
         Camera beats (``hdl.streams.camera_pixel_layout``).
-    centre : In(params.centre_fmt.shape())
+    centre : In(params.centre_fmt.shape()), without ``follow`` only
         Shift-window centre, integer pixels, sampled with each row's first beat and
-        saturated to ``±centre_range``.
+        saturated to ``±centre_range`` (with ``follow``: the beat's ``centre``).
     o : Out(stream.Signature(framed_layout(params, 1)))
 
     Latency 1 (output register); one beat per clock, except one clock per pad pixel.
@@ -38,19 +46,21 @@ class RowFramer(wiring.Component):
 
     latency = 1
 
-    def __init__(self, params):
+    def __init__(self, params, follow=False):
         self.params = check_lane_params(params)
-        super().__init__({
-            "i": In(stream.Signature(params.input_layout())),
-            "centre": In(params.centre_fmt.shape()),
-            "o": Out(stream.Signature(framed_layout(params, 1))),
-        })
+        self.follow = follow
+        members = {"i": In(stream.Signature(params.input_layout(follow))),
+                   "o": Out(stream.Signature(framed_layout(params, 1)))}
+        if not follow:
+            members["centre"] = In(params.centre_fmt.shape())
+        super().__init__(members)
 
     def elaborate(self, platform):
         p = self.params
         m = Module()
         beat = self.i.payload
         width = p.width
+        asked, source = (beat.centre, beat.source) if self.follow else (self.centre, beat.row)
 
         col = Signal(range(width + 1), init=width)   # width: no incomplete row
         incomplete = Signal()                         # col != width, registered
@@ -67,13 +77,13 @@ class RowFramer(wiring.Component):
         long_row = take & at_end & ~beat.last
 
         cr = p.centre_range
-        centre = Mux(self.centre > cr, cr, Mux(self.centre < -cr, -cr, self.centre))
+        centre = Mux(asked > cr, cr, Mux(asked < -cr, -cr, asked))
         item = Signal.like(self.o.payload)
         with m.If(opens):
             m.d.comb += [
                 item.meta.camera.eq(beat.camera), item.meta.frame.eq(beat.frame),
                 item.meta.row.eq(beat.row), item.meta.t_first.eq(beat.t_first),
-                item.meta.centre.eq(centre),
+                item.meta.centre.eq(centre), item.meta.source.eq(source),
             ]
         with m.Else():
             m.d.comb += item.meta.eq(meta)

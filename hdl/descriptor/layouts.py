@@ -12,10 +12,13 @@ __all__ = ["meta_layout", "framed_layout", "descriptor_layout", "pair_layout"]
 
 def meta_layout(params):
     """Row metadata: the camera beat's indices, the saturated centre (``centre_fmt``),
-    and ``bad``, sticky within the row (final on the row's last item)."""
+    the previous frame's row the reference store reads (``source``: the row itself in a
+    same-row lane, the forecast's row address in a following one), and ``bad``, sticky
+    within the row (final on the row's last item)."""
     return data.StructLayout({
         "camera": params.camera_bits, "frame": params.frame_bits, "row": params.row_bits,
-        "t_first": params.timestamp_bits, "centre": params.centre_fmt.shape(), "bad": 1,
+        "t_first": params.timestamp_bits, "centre": params.centre_fmt.shape(),
+        "source": params.row_bits, "bad": 1,
     })
 
 

@@ -53,6 +53,14 @@ class RowDescriptorParams:
         Unsigned format of the peak-ratio confidence; must hold ``peak_ratio_cap``.
     centre_range : int
         The run-time centre is saturated to ``[-centre_range, centre_range]``.
+    max_row_displacement : int
+        D, the largest upward row displacement ``d = y − source`` (content moving down
+        the image) a followed reference store serves: its ring holds ``height + D + 1``
+        rows (:attr:`ring_rows`) and serves, for row ``y``, the previous frame's rows
+        ``max(0, y − D − 1) … height − 1``. Default 31: the measured row displacement of
+        the papers' motion on stereo20 is at most 11 rows per frame (docs/descriptor/
+        row_descriptor.md), and at 640×480 a ring of 512 rows fills the nine block RAMs
+        the same-row store already uses.
     scan_lanes : int
         Costs the matcher examines per clock after a segment ends.
     pixel_bits, camera_bits, frame_bits, row_bits, timestamp_bits : int
@@ -73,6 +81,7 @@ class RowDescriptorParams:
     subpixel_frac_bits: int = 6
     confidence_fmt: QFormat = UQ(2, 6)
     centre_range: int = 32
+    max_row_displacement: int = 31
     scan_lanes: int = 4
     pixel_bits: int = 8
     camera_bits: int = 3
@@ -100,6 +109,7 @@ class RowDescriptorParams:
         check_int("frame_bits", self.frame_bits, 1, 32)
         check_int("row_bits", self.row_bits, 1, 16)
         check_int("timestamp_bits", self.timestamp_bits, 1, 64)
+        check_int("max_row_displacement", self.max_row_displacement, 0, 1 << self.row_bits)
         if self.height > 1 << self.row_bits:
             raise ValueError(f"row_bits {self.row_bits} cannot index {self.height} rows")
         if self.n_shifts < 4:
@@ -133,6 +143,17 @@ class RowDescriptorParams:
     @property
     def segments(self):
         return self.match.segments
+
+    @property
+    def ring_rows(self):
+        """Rows of a followed reference store's ring: ``height + D + 1``."""
+        return self.height + self.max_row_displacement + 1
+
+    def source_in_range(self, row, source):
+        """Whether a followed store serves row ``source`` of the previous frame to row
+        ``row``: ``0 ≤ source < height`` and ``row − source ≤ D + 1`` (the ring slot of
+        ``source`` is rewritten by row ``source + D + 1``, which reads it first)."""
+        return 0 <= source < self.height and row - source <= self.max_row_displacement + 1
 
     def clamp_centre(self, centre):
         """The centre the hardware uses: saturated to ``±centre_range``."""
@@ -264,12 +285,17 @@ class RowDescriptorParams:
 
     # --- stream layouts (Amaranth imported only when asked for) -------------------------
 
-    def input_layout(self):
-        """The camera pixel stream this lane consumes (one pixel per transfer)."""
-        from hdl.streams import camera_pixel_layout
-        return camera_pixel_layout(pixel_bits=self.pixel_bits, camera_bits=self.camera_bits,
-                                   frame_bits=self.frame_bits, row_bits=self.row_bits,
-                                   timestamp_bits=self.timestamp_bits)
+    def input_layout(self, follow=False):
+        """The camera pixel stream this lane consumes (one pixel per transfer); with
+        ``follow`` each beat also carries its row's window centre and source row
+        (``hdl.streams.followed_pixel_layout``)."""
+        from hdl.streams import camera_pixel_layout, followed_pixel_layout
+        camera = {"pixel_bits": self.pixel_bits, "camera_bits": self.camera_bits,
+                  "frame_bits": self.frame_bits, "row_bits": self.row_bits,
+                  "timestamp_bits": self.timestamp_bits}
+        if follow:
+            return followed_pixel_layout(centre_fmt=self.centre_fmt, **camera)
+        return camera_pixel_layout(**camera)
 
     def measurement_layout(self):
         """The measurement stream (one transfer per segment per row)."""

@@ -1,13 +1,27 @@
-"""Reference store: the previous frame's descriptor row for every row of a camera.
+"""Reference store: the previous frame's descriptor row that a camera row is matched
+against.
 
 Descriptor bits of columns ``0 … width − R − 1`` of every row in 36-bit words of a
-``lib.memory`` (18 words per 640-pixel row, 8,640 words = 311,040 bits for 640×480:
-the width of a block RAM with its parity bits, so the frame fits nine RAMB36),
-plus a tag per row (valid, frame number). Each word is read one column before the row
-reaches it and written back, with the new row's bits, after its last column: the
-read of the previous frame's word always comes first, so reading the reference and
-writing the new row never collide, whatever the window and centre, without a second
-frame buffer. The matcher lines the bits up with its own delay lines.
+``lib.memory`` (18 words per 640-pixel row: the width of a block RAM with its parity
+bits), plus a tag per stored row. Each word is read one column before the row reaches
+it and written back, with the new row's bits, after its last column: the read of a
+word always comes first, so a row may overwrite the very slot it reads, whatever the
+window and centre. The matcher lines the bits up with its own delay lines.
+
+Two kinds, one parameter (``follow``):
+
+* same row (``follow=False``, the top's lanes today): one slot per row index, row ``y``
+  reads what row ``y`` of the previous frame left (8,640 words for 640×480: nine RAMB36);
+* followed rows (``follow=True``, issue 16): a ring of ``height + D + 1`` slots
+  (``params.ring_rows``, D = ``params.max_row_displacement``); row ``y`` of a frame is
+  written to slot ``(base + y) mod ring_rows`` and reads row ``source`` (the row's
+  ``meta.source``, the forecast's row address) of the previous frame from
+  ``(previous base + source) mod ring_rows``; ``base`` moves on by ``height`` whenever
+  the frame number changes. The previous frame's row ``s`` is overwritten by row
+  ``s + D + 1``, which reads it first, so every ``0 ≤ source < height`` with
+  ``row − source ≤ D + 1`` is served; a request outside that range reads zeros, has no
+  reference and is counted. At 640×480 and the default D = 31 the ring is 512 rows =
+  9,216 words, the same nine RAMB36.
 """
 
 from amaranth.hdl import Cat, Const, Module, Mux, Signal
@@ -16,12 +30,15 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from hdl.descriptor.layouts import descriptor_layout, pair_layout
-from hdl.descriptor.params import RowDescriptorParams
+from hdl.descriptor.params import check_lane_params
 
-__all__ = ["ReferenceStore"]
+__all__ = ["ReferenceStore", "COUNT_BITS"]
 
 #: Bits per memory word (a block RAM's data and parity bits).
 WORD_BITS = 36
+
+#: Width of the saturating count of out-of-range requests.
+COUNT_BITS = 32
 
 
 def _times_constant(value, constant):
@@ -33,40 +50,121 @@ def _times_constant(value, constant):
     return total
 
 
-class ReferenceStore(wiring.Component):
-    """Swap a streaming descriptor row with the stored row of the previous frame.
+def _wrap(value, size):
+    """``value mod size`` for ``0 ≤ value < 2·size`` (one compare and subtract)."""
+    return Mux(value >= size, value - size, value)
 
-    Column ``j = pos − R ≥ 0`` of row ``meta.row`` comes out as ``ref`` with the bit the
-    previous write of that row left there, and the current bit replaces it. The row's
-    tag is read with every column and written with its last one: ``valid = not
-    meta.bad`` (the row's final verdict), ``frame = meta.frame``. ``no_reference`` is
-    set unless the tag is valid and from frame ``meta.frame − 1`` (modulo
-    ``2**frame_bits``). Rows at or beyond ``height`` are not written and read as zeros.
+
+class ReferenceStore(wiring.Component):
+    """Swap a streaming descriptor row with a stored row of the previous frame.
+
+    Column ``j = pos − R ≥ 0`` of the row comes out as ``ref`` with the bit of the
+    stored row it reads (the same row index, or with ``follow`` the ring slot of row
+    ``meta.source`` of the previous frame), and the current bit replaces the bit of the
+    row's own slot. The row's tag is written with its last column: ``valid = not
+    meta.bad`` (the row's final verdict), ``frame = meta.frame`` (and ``row = meta.row``
+    with ``follow``). ``no_reference`` is set unless the tag read is valid, from frame
+    ``meta.frame − 1`` (modulo ``2**frame_bits``) and, with ``follow``, of row
+    ``meta.source`` with the request in range. Rows at or beyond ``height`` are not
+    written and read as zeros, like out-of-range requests.
+
+    Parameters
+    ----------
+    params : RowDescriptorParams
+    follow : bool
+        Ring of followed rows instead of the same-row store; needs ``radius ≥ 3``
+        (the row's slot addresses take two columns to compute, before the first read
+        at column −1).
 
     Members
     -------
     i : In(stream.Signature(descriptor_layout(params, 1)))
     o : Out(stream.Signature(pair_layout(params)))
+    out_of_range : Out(COUNT_BITS), with ``follow`` only
+        Rows (index below ``height``) whose request was outside the served range,
+        counted with their last column; saturates at all ones.
 
     Latency 2 (bit select, output register with the tag check); one column per clock;
-    backpressure stalls both stages. Reset clears the valid bits, not the memories
-    (which start all zero: no valid reference until a frame has been stored).
+    backpressure stalls both stages. With ``follow``, ``no_reference`` is final from
+    column ``2 − R`` on (set before: the ring address is not known yet); the matcher
+    takes it with the row's last column. Reset restarts the ring's frame tracking, not
+    the memories (which start all zero: no valid reference until a frame has been
+    stored).
     """
 
     latency = 2
 
-    def __init__(self, params):
-        if not isinstance(params, RowDescriptorParams):
-            raise TypeError(f"params must be a RowDescriptorParams, not {params!r}")
-        self.params = params
-        super().__init__({
-            "i": In(stream.Signature(descriptor_layout(params, 1))),
-            "o": Out(stream.Signature(pair_layout(params))),
-        })
+    def __init__(self, params, follow=False):
+        self.params = check_lane_params(params)
+        if not isinstance(follow, bool):
+            raise TypeError(f"follow must be a bool, not {follow!r}")
+        if follow and params.radius < 3:
+            raise ValueError(f"a followed reference store needs a descriptor radius of at "
+                             f"least 3 (sigma > 2/3) to compute its ring address, not "
+                             f"{params.radius}")
+        self.follow = follow
+        members = {"i": In(stream.Signature(descriptor_layout(params, 1))),
+                   "o": Out(stream.Signature(pair_layout(params)))}
+        if follow:
+            members["out_of_range"] = Out(COUNT_BITS)
+        super().__init__(members)
 
     @property
     def words_per_row(self):
         return -(-(self.params.width - self.params.radius) // WORD_BITS)
+
+    @property
+    def slots(self):
+        """Stored rows: ``height``, or the ring's ``height + D + 1``."""
+        return self.params.ring_rows if self.follow else self.params.height
+
+    def _same_row(self, m, item, first):
+        """Slot = the row index: word base registered with the row's first item (R ≥ 2,
+        so the first read, at column −1 = pos R − 1, comes after it)."""
+        p = self.params
+        row_base = Signal(range(p.height * self.words_per_row + 1))
+        with m.If(first):
+            m.d.sync += row_base.eq(_times_constant(item.meta.row, self.words_per_row))
+        return {"read_base": row_base, "write_base": row_base,
+                "read_slot": item.meta.row, "write_slot": item.meta.row, "ok": Const(1)}
+
+    def _ring(self, m, item, first, accept):
+        """Ring slots: sums with the row's first item, wrapped and turned into word
+        addresses with its second (both final from pos 2 ≤ R − 1 on)."""
+        p = self.params
+        size, height, w = p.ring_rows, p.height, self.words_per_row
+        base, previous, following = (Signal(range(size), name=n)
+                                     for n in ("base", "previous", "following"))
+        frame = Signal(p.frame_bits)
+        m.d.sync += following.eq(_wrap(base + height, size))      # settles within a row
+        changed = item.meta.frame != frame
+        now = Mux(changed, following, base)
+        before = Mux(changed, base, previous)
+        sum_shape = range(size + (1 << p.row_bits))
+        read_sum, write_sum = Signal(sum_shape), Signal(sum_shape)
+        out_of_range = Signal()
+        source, row = item.meta.source, item.meta.row
+        with m.If(first):
+            m.d.sync += [base.eq(now), previous.eq(before), frame.eq(item.meta.frame),
+                         read_sum.eq(before + source), write_sum.eq(now + row),
+                         out_of_range.eq((source >= height) |
+                                         (row > source + (p.max_row_displacement + 1)))]
+        read_slot, write_slot = Signal(range(size)), Signal(range(size))
+        read_base, write_base = (Signal(range(size * w + 1), name=n)
+                                 for n in ("read_base", "write_base"))
+        read_wrapped = Mux(out_of_range, 0, _wrap(read_sum, size))
+        write_wrapped = Mux(row < height, _wrap(write_sum, size), 0)
+        with m.If(accept & ~item.first):
+            m.d.sync += [read_slot.eq(read_wrapped), write_slot.eq(write_wrapped),
+                         read_base.eq(_times_constant(read_wrapped, w)),
+                         write_base.eq(_times_constant(write_wrapped, w))]
+
+        count = Signal(COUNT_BITS)
+        with m.If(accept & item.last & (row < height) & out_of_range & ~count.all()):
+            m.d.sync += count.eq(count + 1)
+        m.d.comb += self.out_of_range.eq(count)
+        return {"read_base": read_base, "write_base": write_base, "read_slot": read_slot,
+                "write_slot": write_slot, "ok": ~out_of_range & (item.pos >= 2)}
 
     def elaborate(self, platform):
         p = self.params
@@ -76,25 +174,26 @@ class ReferenceStore(wiring.Component):
         m.d.comb += self.i.ready.eq(advance)
         item = self.i.payload
         accept = self.i.valid & advance
+        first = accept & item.first
         stored = p.width - p.radius            # columns 0 … stored − 1 are kept
+        w = self.words_per_row
 
-        tag_layout = data.StructLayout({"valid": 1, "frame": p.frame_bits})
-        m.submodules.words = words = Memory(shape=WORD_BITS,
-                                            depth=p.height * self.words_per_row, init=[])
-        m.submodules.tags = tags = Memory(shape=tag_layout, depth=p.height, init=[])
+        tag_fields = {"valid": 1, "frame": p.frame_bits}
+        if self.follow:
+            tag_fields["row"] = p.row_bits
+        m.submodules.words = words = Memory(shape=WORD_BITS, depth=self.slots * w, init=[])
+        m.submodules.tags = tags = Memory(shape=data.StructLayout(tag_fields),
+                                          depth=self.slots, init=[])
         words_rd, words_wr = words.read_port(), words.write_port()
         tags_rd, tags_wr = tags.read_port(), tags.write_port()
-
-        # the row's first word, registered with its first item (R ≥ 2, so the first
-        # read, at column −1 = pos R − 1, comes after it)
-        row_base = Signal(range(p.height * self.words_per_row + 1))
+        at = self._ring(m, item, first, accept) if self.follow else \
+            self._same_row(m, item, first)
         in_frame = item.meta.row < p.height
-        with m.If(accept & item.first):
-            m.d.sync += row_base.eq(_times_constant(item.meta.row, self.words_per_row))
+
         # word and bit of this item's column j = pos − R, counted from the row's first
         # item (column −R: bit WORD_BITS − R of word −1)
         next_bit = Signal(range(WORD_BITS))
-        next_word = Signal(range(-1, self.words_per_row + 1))
+        next_word = Signal(range(-1, w + 1))
         bit = Mux(item.first, WORD_BITS - p.radius, next_bit)
         word = Mux(item.first, -1, next_word)
         word_end = bit == WORD_BITS - 1
@@ -104,7 +203,7 @@ class ReferenceStore(wiring.Component):
 
         # read the next word while passing the last column of this one
         m.d.comb += [
-            words_rd.addr.eq(row_base + word + 1),
+            words_rd.addr.eq(at["read_base"] + word + 1),
             words_rd.en.eq(accept & word_end & (column + 1 < stored)),
         ]
         # the stored word, shifted out one bit per column (no wide bit-select mux)
@@ -119,29 +218,34 @@ class ReferenceStore(wiring.Component):
         with m.If(accept):
             m.d.sync += new_word.eq(merged)
         m.d.comb += [
-            words_wr.addr.eq(row_base + word), words_wr.data.eq(merged),
+            words_wr.addr.eq(at["write_base"] + word), words_wr.data.eq(merged),
             words_wr.en.eq(accept & (column >= 0) & in_frame &
                            (word_end | (column == stored - 1))),
-            tags_rd.addr.eq(item.meta.row), tags_rd.en.eq(advance),
-            tags_wr.addr.eq(item.meta.row),
+            tags_rd.addr.eq(at["read_slot"]), tags_rd.en.eq(advance),
+            tags_wr.addr.eq(at["write_slot"]),
             tags_wr.data.valid.eq(~item.meta.bad), tags_wr.data.frame.eq(item.meta.frame),
             tags_wr.en.eq(accept & item.last & in_frame),
         ]
+        if self.follow:
+            m.d.comb += tags_wr.data.row.eq(item.meta.row)
 
-        s1_valid = Signal()
+        s1_valid, s1_ok = Signal(), Signal()
         s1 = Signal(pair_layout(p))
         with m.If(advance):
             m.d.sync += [s1_valid.eq(self.i.valid), s1.cur.eq(item.bits[0]),
                          s1.ref.eq(ref_bit), s1.strong.eq(item.strong[0]),
                          s1.pos.eq(item.pos), s1.first.eq(item.first), s1.last.eq(item.last),
-                         s1.meta.eq(item.meta)]
+                         s1.meta.eq(item.meta), s1_ok.eq(at["ok"])]
             tag = tags_rd.data
             previous = (s1.meta.frame - 1)[:p.frame_bits]
-            s1_in_frame = s1.meta.row < p.height
+            served = s1_ok & (s1.meta.row < p.height)
+            stale = ~tag.valid | (tag.frame != previous)
+            if self.follow:
+                stale |= tag.row != s1.meta.source
             out = self.o.payload
             m.d.sync += [
                 self.o.valid.eq(s1_valid), out.eq(s1),
-                out.ref.eq(s1.ref & s1_in_frame),
-                out.no_reference.eq(~tag.valid | (tag.frame != previous) | ~s1_in_frame),
+                out.ref.eq(s1.ref & served),
+                out.no_reference.eq(stale | ~served),
             ]
         return m

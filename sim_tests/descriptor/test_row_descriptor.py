@@ -40,12 +40,14 @@ def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_pro
 
     ``streams`` maps port name → beats (sources hold each beat until it is taken and,
     with ``valid_prob`` < 1, idle at random between beats); ``centres`` gives the
-    centre port's value with each beat of the first stream. Returns ``(outputs, accepted)``:
+    centre port's value with each beat of the first stream (``None`` for a following
+    lane, whose beats carry it). Returns ``(outputs, accepted)``:
     ``[(cycle, measurement dict)]`` and, per port, the cycle of every transfer.
     """
     rng = random.Random(seed)
     params = dut.params
-    in_layout, out_layout = params.input_layout(), params.measurement_layout()
+    in_layout = params.input_layout(centres is None)
+    out_layout = params.measurement_layout()
     names = list(streams)
     accepted = {name: [] for name in names}
     outputs = []
@@ -64,8 +66,8 @@ def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_pro
                 ctx.set(port.valid, offering[name])
                 if idx < len(streams[name]):
                     ctx.set(port.payload.as_value(), pack(in_layout, streams[name][idx]))
-            head = min(len(accepted[names[0]]), len(centres) - 1)
-            ctx.set(dut.centre, centres[head])
+            if centres is not None:
+                ctx.set(dut.centre, centres[min(len(accepted[names[0]]), len(centres) - 1)])
             ready = rng.random() < ready_prob
             ctx.set(dut.o.ready, ready)
             taken = {name: ctx.get(getattr(dut, name).valid) and ctx.get(getattr(dut, name).ready)
