@@ -35,14 +35,16 @@ SMALL = RowDescriptorParams(width=160, height=3, centre_range=4,
 SMALL_STEREO = RowDescriptorParams(width=160, height=4, centre_range=4, match=STEREO_MATCH)
 
 
-def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_prob=1.0):
+def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_prob=1.0,
+             final=None):
     """Drive beat lists into the named input ports of a lane and collect its outputs.
 
     ``streams`` maps port name → beats (sources hold each beat until it is taken and,
     with ``valid_prob`` < 1, idle at random between beats); ``centres`` gives the
     centre port's value with each beat of the first stream (``None`` for a following
     lane, whose beats carry it). Returns ``(outputs, accepted)``:
-    ``[(cycle, measurement dict)]`` and, per port, the cycle of every transfer.
+    ``[(cycle, measurement dict)]`` and, per port, the cycle of every transfer; the
+    names in the dict ``final`` get the values of those ports of ``dut`` at the end.
     """
     rng = random.Random(seed)
     params = dut.params
@@ -58,6 +60,8 @@ def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_pro
         for cycle in range(limit):
             if len(outputs) >= expected and all(len(accepted[n]) == len(streams[n])
                                                 for n in names):
+                for name in final or {}:
+                    final[name] = ctx.get(getattr(dut, name))
                 return
             for name in names:
                 port, idx = getattr(dut, name), len(accepted[name])

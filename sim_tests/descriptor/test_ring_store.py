@@ -1,0 +1,220 @@
+"""The followed reference store (a ring of ``height + D + 1`` rows): the model against
+the two-bank specification it replaces, its served range and flags, and the following
+lane's gateware (``RowDescriptor(params, follow=True)``) against the model in the
+Amaranth simulator. The cocotb bench on the generated Verilog is
+``row_descriptor/followed_bench.py``. SEED replays a run (printed).
+"""
+
+import os
+
+import numpy as np
+import pytest
+
+from emulator.descriptor.framer import FramedRow, frame_rows
+from emulator.descriptor.matcher import descriptor_bits
+from emulator.hdl_sim.row_stimulus import frame_beats, inject_faults, moving_rows
+from emulator.row_descriptor import FollowedReferenceStoreModel, TemporalLaneModel
+from golden.descriptor import DescriptorParams, MatchParams
+from hdl.descriptor.params import RowDescriptorParams
+from hdl.descriptor.store import ReferenceStore
+from hdl.row_descriptor import RowDescriptor
+from sim_tests.descriptor.test_row_descriptor import check_latency, simulate
+
+SEED = int(os.environ.get("SEED", 20261202))
+
+#: 160-pixel rows, 8 rows a frame, D = 2: a ring of 11 rows, so requests leave the
+#: served range often.
+RING = RowDescriptorParams(width=160, height=8, centre_range=4, max_row_displacement=2,
+                           match=MatchParams(segments=2))
+
+
+def rng_for(offset):
+    print(f"SEED={SEED}")
+    return np.random.default_rng(SEED + offset)
+
+
+class TwoBanks:
+    """The specification the ring replaces (the former model): two banks of ``height``
+    rows, frame ``f`` written into bank ``f mod 2``, any row of the previous frame
+    readable until its frame ends."""
+
+    def __init__(self, params):
+        self.params = params
+        self.bits = np.zeros((2, params.height, params.width), dtype=bool)
+        self.valid = np.zeros((2, params.height), dtype=bool)
+        self.frame = np.zeros((2, params.height), dtype=np.int64)
+
+    def exchange(self, rows, bits, sources):
+        p, kept = self.params, self.params.width - self.params.radius
+        reference = np.zeros((len(rows), p.width), dtype=bool)
+        none = np.ones(len(rows), dtype=bool)
+        for i, (row, source) in enumerate(zip(rows, sources)):
+            bank, previous = row.frame % 2, (row.frame - 1) % 2
+            if 0 <= source < p.height:
+                reference[i] = self.bits[previous, source]
+                none[i] = not (self.valid[previous, source] and self.frame[previous, source]
+                               == (row.frame - 1) % (1 << p.frame_bits))
+            self.bits[bank, row.row, :kept] = bits[i, :kept]
+            self.valid[bank, row.row], self.frame[bank, row.row] = not row.bad, row.frame
+        return reference, none
+
+
+def random_sources(rng, params, row_indices, outside=0.25):
+    """A source row per row index: mostly inside the served range, the rest outside it
+    (too far up, below the frame, beyond the row index width)."""
+    out = []
+    for y in row_indices:
+        lo = max(0, y - params.max_row_displacement - 1)
+        if rng.random() > outside:
+            out.append(int(rng.integers(lo, params.height)))
+        else:
+            far_up = [y - params.max_row_displacement - 2] if lo > 0 else []
+            choices = far_up + [-1, params.height, (1 << params.row_bits) - 1]
+            out.append(int(rng.choice(choices)))
+    return out
+
+
+def textured_rows(rng, params, n_frames, faults=0, frame0=65534):
+    frames, _ = moving_rows(rng, n_frames, params.height, params.width)
+    beats = inject_faults(rng, frame_beats(frames, frame0=frame0), params.width, faults)
+    centres = [int(c) for c in rng.integers(-6, 7, len(beats))]
+    return frame_rows(beats, centres, params)
+
+
+# --- the model ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("faults", [0, 6])
+def test_ring_equals_two_banks_inside_the_range_and_flags_the_rest(faults):
+    """Random sources over five frames (frame numbers wrapping, bad rows): every request
+    the ring serves gives the two banks' bits and flag; every other one is flagged,
+    reads zeros and is counted."""
+    rng = rng_for(faults)
+    p = RING
+    rows = textured_rows(rng, p, 5, faults)
+    sources = random_sources(rng, p, [r.row for r in rows])
+    bits, _ = descriptor_bits(np.array([r.pixels for r in rows]), p)
+    ring = FollowedReferenceStoreModel(p)
+    got, got_none = ring.exchange(rows, bits, sources)
+    want, want_none = TwoBanks(p).exchange(rows, bits, sources)
+    served = np.array([p.source_in_range(r.row, s) for r, s in zip(rows, sources)])
+    assert 0.1 < served.mean() < 0.95 and (~want_none[served]).sum() > 10
+    np.testing.assert_array_equal(got[served], want[served])
+    np.testing.assert_array_equal(got_none[served], want_none[served])
+    assert got_none[~served].all() and not got[~served].any()
+    assert ring.out_of_range == (~served).sum()
+
+
+def test_the_served_range_is_exact():
+    """Row y of frame 1 against frame 0: sources y − D − 1 … height − 1 are frame 0's
+    rows; y − D − 2, −1 and height are not."""
+    p = RING
+    d = p.max_row_displacement
+    pixels = rng_for(2).integers(0, 256, (2, p.height, p.width))
+    bits = [descriptor_bits(pixels[f], p)[0] for f in range(2)]
+    kept = p.width - p.radius
+    for y in range(p.height):
+        for source in range(-1, p.height + 1):
+            store = FollowedReferenceStoreModel(p)
+            rows = [FramedRow(pixels=pixels[f, r], camera=0, frame=f, row=r, t_first=0,
+                              centre=0, bad=False, padded=False)
+                    for f, r in [(0, r) for r in range(p.height)] + [(1, r) for r in
+                                                                     range(y + 1)]]
+            stack = np.concatenate([bits[0], bits[1][:y + 1]])
+            ref, none = store.exchange(rows, stack, [0] * p.height + [0] * y + [source])
+            inside = 0 <= source < p.height and y - source <= d + 1
+            assert p.source_in_range(y, source) == inside
+            assert none[-1] == (not inside), (y, source)
+            if inside:
+                np.testing.assert_array_equal(ref[-1, :kept], bits[0][source, :kept])
+
+
+def test_a_lost_row_or_frame_is_flagged_never_replaced():
+    """Frame 1 lost its row 3 and frame 3 never came: row 3 of frame 1 is not served to
+    frame 2 (its ring slot holds another row), and frame 4 has no reference at all."""
+    p = RING
+    pixels = rng_for(3).integers(0, 256, (5, p.height, p.width))
+    rows = [FramedRow(pixels=pixels[f, y], camera=0, frame=f, row=y, t_first=0, centre=0,
+                      bad=False, padded=False)
+            for f in (0, 1, 2, 4) for y in range(p.height) if (f, y) != (1, 3)]
+    bits, _ = descriptor_bits(np.array([r.pixels for r in rows]), p)
+    sources = [r.row for r in rows]
+    _, none = FollowedReferenceStoreModel(p).exchange(rows, bits, sources)
+    flagged = {(r.frame, r.row) for r, n in zip(rows, none) if n}
+    assert flagged == ({(0, y) for y in range(p.height)} | {(2, 3)} |
+                       {(4, y) for y in range(p.height)})
+
+
+def test_the_default_ring_fills_nine_block_rams_at_640x480():
+    p = RowDescriptorParams()
+    words = p.ring_rows * ReferenceStore(p, follow=True).words_per_row
+    assert (p.max_row_displacement, p.ring_rows, words) == (31, 512, 9 * 1024)
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    ({"max_row_displacement": -1}, ValueError,
+     "max_row_displacement must be an integer between 0 and 1024, not -1"),
+    ({"max_row_displacement": 2.0}, TypeError, "max_row_displacement must be an integer"),
+])
+def test_bad_max_row_displacement(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        RowDescriptorParams(**kwargs)
+
+
+def test_bad_store_arguments():
+    with pytest.raises(TypeError, match="follow must be a bool, not 1"):
+        ReferenceStore(RING, 1)
+    thin = RowDescriptorParams(width=160, height=8, descriptor=DescriptorParams(sigma=0.5),
+                               centre_range=4, match=MatchParams(segments=2))
+    with pytest.raises(ValueError, match="needs a descriptor radius of at least 3 .* not 2"):
+        RowDescriptor(thin, follow=True)
+    RowDescriptor(thin)                     # the same-row lane has no such limit
+
+
+# --- the gateware ---------------------------------------------------------------------------
+
+def followed_beats(rng, params, n_frames, faults=0):
+    """Beats carrying each row's centre and source (random, some outside the served
+    range and the centre range), and the model's measurements of them."""
+    frames, _ = moving_rows(rng, n_frames, params.height, params.width)
+    beats = inject_faults(rng, frame_beats(frames, frame0=65534), params.width, faults)
+    firsts = [i for i, b in enumerate(beats) if b["first"]]
+    sources = [s % (1 << params.row_bits)                          # the port is unsigned
+               for s in random_sources(rng, params, [beats[i]["row"] for i in firsts])]
+    centres = [int(c) for c in rng.integers(-params.centre_range - 2,
+                                            params.centre_range + 3, len(firsts))]
+    per_beat, k = [], -1
+    for i, beat in enumerate(beats):
+        k += beat["first"]
+        beat.update(centre=centres[max(k, 0)], source=sources[max(k, 0)])
+        per_beat.append(beat["centre"])
+    model = TemporalLaneModel(params, follow=True)
+    expected = model.process_rows(frame_rows(beats, per_beat, params), sources)
+    return beats, expected, model.store.out_of_range
+
+
+@pytest.mark.parametrize("traffic", ["full_rate", "gaps_and_backpressure"])
+def test_following_lane_matches_model(traffic):
+    busy = traffic == "full_rate"
+    rng = rng_for(10 + busy)
+    beats, expected, out_of_range = followed_beats(rng, RING, 4)
+    assert out_of_range > 0 and any(not m["no_reference"] for m in expected)
+    dut = RowDescriptor(RING, follow=True)
+    final = {"out_of_range": None}
+    outputs, accepted = simulate(dut, {"i": beats}, None, len(expected), seed=SEED,
+                                 valid_prob=1.0 if busy else 0.7,
+                                 ready_prob=1.0 if busy else 0.4, final=final)
+    assert [m for _, m in outputs] == expected, f"SEED={SEED}"
+    assert final["out_of_range"] == out_of_range
+    if busy:
+        lasts = [c for c, b in zip(accepted["i"], beats) if b["last"]]
+        check_latency(outputs, lasts, dut)
+        assert accepted["i"] == list(range(accepted["i"][0], accepted["i"][0] + len(beats)))
+
+
+def test_following_lane_with_bad_rows():
+    rng = rng_for(12)
+    beats, expected, _ = followed_beats(rng, RING, 4, faults=5)
+    assert any(m["bad"] for m in expected)
+    outputs, _ = simulate(RowDescriptor(RING, follow=True), {"i": beats}, None,
+                          len(expected), seed=SEED, valid_prob=0.8, ready_prob=0.7)
+    assert [m for _, m in outputs] == expected, f"SEED={SEED}"
