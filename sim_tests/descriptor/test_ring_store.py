@@ -59,18 +59,21 @@ class TwoBanks:
         return reference, none
 
 
-def random_sources(rng, params, row_indices, outside=0.25):
-    """A source row per row index: mostly inside the served range, the rest outside it
-    (too far up, below the frame, beyond the row index width)."""
+def random_sources(rng, params, row_indices):
+    """A source row per row index: uniform inside the served range, on its upper
+    boundary (d = D + 1), just beyond it (d = D + 2), or far outside (−1, height, the
+    largest row index), each a quarter of the time (the boundary cases where they
+    exist)."""
     out = []
     for y in row_indices:
-        lo = max(0, y - params.max_row_displacement - 1)
-        if rng.random() > outside:
-            out.append(int(rng.integers(lo, params.height)))
+        lo = y - params.max_row_displacement - 1
+        kind = rng.integers(4)
+        if kind == 0 or (kind in (1, 2) and lo - (kind == 2) < 0):
+            out.append(int(rng.integers(max(lo, 0), params.height)))
+        elif kind in (1, 2):
+            out.append(int(lo - (kind == 2)))
         else:
-            far_up = [y - params.max_row_displacement - 2] if lo > 0 else []
-            choices = far_up + [-1, params.height, (1 << params.row_bits) - 1]
-            out.append(int(rng.choice(choices)))
+            out.append(int(rng.choice([-1, params.height, (1 << params.row_bits) - 1])))
     return out
 
 
@@ -197,6 +200,9 @@ def test_following_lane_matches_model(traffic):
     busy = traffic == "full_rate"
     rng = rng_for(10 + busy)
     beats, expected, out_of_range = followed_beats(rng, RING, 4)
+    d = RING.max_row_displacement
+    displacements = {b["row"] - b["source"] for b in beats if b["first"]}
+    assert {d + 1, d + 2} <= displacements, "the stimulus misses the range's edge"
     assert out_of_range > 0 and any(not m["no_reference"] for m in expected)
     dut = RowDescriptor(RING, follow=True)
     final = {"out_of_range": None}
