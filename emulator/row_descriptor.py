@@ -128,13 +128,12 @@ class FollowedReferenceStoreModel:
         self.tag_valid = np.zeros(size, dtype=bool)
         self.tag_frame = np.zeros(size, dtype=np.int64)
         self.tag_row = np.zeros(size, dtype=np.int64)
-        self.out_of_range = 0
         self.reset()
 
     def reset(self):
-        """What the gateware's reset does: the ring's bases and the frame seen restart
-        (the memories and the counter keep their contents)."""
-        self.frame, self.base, self.previous_base = 0, 0, 0
+        """What the gateware's reset does: the ring's bases, the frame seen and the
+        :attr:`out_of_range` count restart; the memories keep their contents."""
+        self.frame, self.base, self.previous_base, self.out_of_range = 0, 0, 0, 0
 
     def exchange(self, rows, bits, sources):
         """Store each row's ``bits`` in its ring slot and read, for each row, the

@@ -87,9 +87,9 @@ class ReferenceStore(wiring.Component):
     Latency 2 (bit select, output register with the tag check); one column per clock;
     backpressure stalls both stages. With ``follow``, ``no_reference`` is final from
     column ``2 − R`` on (set before: the ring address is not known yet); the matcher
-    takes it with the row's last column. Reset restarts the ring's frame tracking, not
-    the memories (which start all zero: no valid reference until a frame has been
-    stored).
+    takes it with the row's last column. Reset restarts the ring's frame tracking and
+    the count, not the memories (which start all zero: no valid reference until a frame
+    has been stored).
     """
 
     latency = 2
