@@ -224,3 +224,26 @@ def test_following_lane_with_bad_rows():
     outputs, _ = simulate(RowDescriptor(RING, follow=True), {"i": beats}, None,
                           len(expected), seed=SEED, valid_prob=0.8, ready_prob=0.7)
     assert [m for _, m in outputs] == expected, f"SEED={SEED}"
+
+
+# --- block RAM (RUN_SLOW=1: three Yosys runs, a few minutes) -----------------------------
+
+@pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="synthesis: set RUN_SLOW=1")
+def test_block_ram_of_the_stores_at_640x480():
+    """Yosys synth_xilinx of the store alone at 640×480: the same-row store, the ring
+    with the default D = 31, and two frames' worth of rows (the ring with D = height − 1
+    = 2 × height slots, which serves every row the two banks served). The ring costs
+    the same-row store's block RAM; two frames cost about twice."""
+    from emulator.synth import synth_report
+    p = RowDescriptorParams()
+    stores = {"store_same_row": ReferenceStore(p),
+              "store_ring_d31": ReferenceStore(p, follow=True),
+              "store_two_frames": ReferenceStore(
+                  p.replace(max_row_displacement=p.height - 1), follow=True)}
+    figures = {name: synth_report(store, name) for name, store in stores.items()}
+    for name, f in figures.items():
+        print(f"{name}: {f['bram36']} BRAM36, {f['lut']} LUT, {f['ff']} FF, "
+              f"{f['lutram']} LUTRAM, {f['lut_levels']} LUT levels")
+    same, ring, two = (figures[n]["bram36"] for n in stores)
+    assert ring == same
+    assert two >= 1.8 * same
