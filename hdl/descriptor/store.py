@@ -133,10 +133,11 @@ class ReferenceStore(wiring.Component):
         addresses with its second (both final from pos 2 ≤ R − 1 on)."""
         p = self.params
         size, height, w = p.ring_rows, p.height, self.words_per_row
-        base, previous, following = (Signal(range(size), name=n)
-                                     for n in ("base", "previous", "following"))
+        base, previous = Signal(range(size)), Signal(range(size))
         frame = Signal(p.frame_bits)
-        m.d.sync += following.eq(_wrap(base + height, size))      # settles within a row
+        # (base + height) mod size, one clock behind base (rows are ≥ 8 items apart)
+        following = Signal(range(size), init=height)
+        m.d.sync += following.eq(_wrap(base + height, size))
         changed = item.meta.frame != frame
         now = Mux(changed, following, base)
         before = Mux(changed, base, previous)
