@@ -246,8 +246,8 @@ def test_following_the_own_row_is_the_plain_lane():
 
 
 def test_a_followed_row_is_the_previous_frames_row_even_after_this_frame_wrote_it():
-    """Row 4 of frame 1 reads row 1 of frame 0, which frame 1's row 1 has already
-    replaced in the single store: the two banks keep it; a source outside the frame or a
+    """Row 4 of frame 1 reads row 1 of frame 0, which frame 1's row 1 would already
+    have replaced in a same-row store: the ring keeps it; a source outside the frame or a
     row of the wrong frame gives no reference."""
     rng = rng_for(11)
     p = SMALL
