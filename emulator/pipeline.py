@@ -29,6 +29,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from emulator.measurement.consistency import ConsistencyModel
 from emulator.measurement.router import pose_rows, route_row
 from emulator.pose.forecast import ForecastModel
 from emulator.pose_solver import pose_solver_model, solve_rows
@@ -96,7 +97,8 @@ def _framed(dataset, camera, frame, row, config, t0):
                      padded=False)
 
 
-def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_motion=None):
+def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_motion=None,
+        consistency=None):
     """Run the dataset (first ``frames`` frames, default all) through the pipeline of
     ``config`` (:class:`hdl.pipeline_config.PipelineConfig`); ``progress`` shows a bar
     over the frames.
@@ -110,7 +112,11 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
     (6,)) sets each temporal lane's window centre and the previous frame's row it reads
     (:class:`emulator.row_descriptor.FollowedReferenceStoreModel`), with the depth cue
     each segment had in the same row of the previous frame, and takes each row's solved
-    step. The stereo lanes stay open loop (centre 0)."""
+    step. The stereo lanes stay open loop (centre 0). With ``consistency``
+    (:class:`hdl.measurement.consistency_params.ConsistencyParams`, closed loop only)
+    each row's transfers pass :class:`emulator.measurement.consistency.ConsistencyModel`
+    against the forecast's predicted shifts (with the row's own depth cues) before the
+    solver."""
     from tqdm import tqdm
     router = config.router
     cams = range(router.cameras)
@@ -121,7 +127,10 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
     stereo_lanes = [StereoLaneModel(router.stereo) for _ in router.pairs]
     temporal, stereo, transfers, record_frames = [], [], [], []
     t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
-    loop = _Loop(config, forecast, initial_motion, dataset, t0) if follow else None
+    if consistency is not None and not follow:
+        raise ValueError("consistency needs forecast (it judges shifts against it)")
+    loop = _Loop(config, forecast, initial_motion, dataset, t0, consistency) if follow \
+        else None
     start = time.perf_counter()
     for frame in tqdm(range(frames), desc="emulator", unit="frame", disable=not progress,
                       leave=False):
@@ -139,7 +148,7 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
             s_row = [m for per_pair in s for m in per_pair[row * k_s:(row + 1) * k_s]]
             out = route_row(router, t_row, s_row)
             if follow:
-                loop.close(out, frame, row)
+                out = loop.close(out, frame, row)
             temporal += t_row
             stereo += s_row
             transfers += out
@@ -157,10 +166,11 @@ class _Loop:
     """The closed loop of :func:`run`: forecast → lane centres and row addresses →
     measurements → solved step → forecast."""
 
-    def __init__(self, config, params, initial_motion, dataset, t0):
+    def __init__(self, config, params, initial_motion, dataset, t0, consistency=None):
         if initial_motion is None:
             raise ValueError("initial_motion must be given with forecast")
         self.config, self.params = config, params
+        self.consistency = None if consistency is None else ConsistencyModel(consistency)
         self.model = ForecastModel(params, config.coef_raw, config.row_coef_raw,
                                    params.motion_fmt.quantize(initial_motion))
         self.cues = np.zeros((params.solver.slots, params.height), dtype=np.int64)
@@ -181,9 +191,16 @@ class _Loop:
                                            [int(source)])]
 
     def close(self, transfers, frame, row):
-        """Keep the row's depth cues for the next frame and feed its step (if solved)
-        to the forecast."""
+        """Judge the row's transfers (with a consistency stage), keep its depth cues for
+        the next frame and feed its step (if solved) to the forecast; returns the
+        transfers the solver takes."""
         step = None
+        slot = self.slot(frame, row)
+        if self.consistency is not None and transfers:
+            cue = np.zeros(self.params.solver.slots, dtype=np.int64)
+            cue[[t["slot"] for t in transfers]] = [t["cue"] for t in transfers]
+            predicted = self.model.predict(slot, row, cue)["shift"]
+            transfers, _ = self.consistency.apply(transfers, predicted)
         for t in transfers:
             if t["cue"]:                          # 0: no stereo cue for that segment
                 self.cues[t["slot"], row] = t["cue"]
@@ -193,11 +210,11 @@ class _Loop:
                                 pose_rows(self.config.router, transfers))
             if result.flags[0] == 0:
                 step = result.step[0]
-        slot = self.slot(frame, row)
         level = self.model.take(slot, step)
         p = self.prediction
         self.log.append((frame, row, slot, p["centre"], p["centre_saturated"],
                          p["source_row"], p["row_saturated"], level))
+        return transfers
 
     def history(self):
         names = ("frame", "row", "slot", "centre", "centre_saturated", "source_row",

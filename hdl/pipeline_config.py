@@ -21,6 +21,7 @@ from golden.descriptor import segment_bounds
 from golden.pose_lsq import shift_coefficients
 
 from hdl.front_end.params import CameraParams
+from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.pose.forecast_params import ForecastParams
 from hdl.fixed import Overflow
 from hdl.pose.params import DEFAULT_COEF_WIDTH, coefficient_formats, quantize_coefficients
@@ -161,6 +162,14 @@ class PipelineConfig:
                        centre_range=lane.centre_range,
                        **{f"row_{name}": fmt for name, fmt in formats.items()})
         return ForecastParams(**{**derived, **changes})
+
+    def consistency(self, **changes):
+        """The robust consistency stage of this pipeline (:class:`ConsistencyParams`): its
+        solver and segments, the forecast's predicted-shift format; ``changes`` set the
+        others (e.g. ``huber_k``, ``min_cameras``)."""
+        derived = dict(solver=self.top.solver, segments=self.segments,
+                       predicted_fmt=self.forecast().displacement_fmt)
+        return ConsistencyParams(**{**derived, **changes})
 
     def window(self, rows, **top_changes):
         """The top of this pipeline built for cameras of ``rows`` rows (a co-simulated
