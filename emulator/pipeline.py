@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from emulator.measurement.consistency import ConsistencyModel
-from emulator.measurement.router import pose_rows, route_row
+from emulator.measurement.router import pose_rows, route_row, usable_cues
 from emulator.pose.forecast import ForecastModel
 from emulator.pose_solver import pose_solver_model, solve_rows
 from emulator.descriptor.framer import FramedRow
@@ -98,7 +98,7 @@ def _framed(dataset, camera, frame, row, config, t0):
 
 
 def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_motion=None,
-        consistency=None):
+        consistency=None, cue_fallback=False):
     """Run the dataset (first ``frames`` frames, default all) through the pipeline of
     ``config`` (:class:`hdl.pipeline_config.PipelineConfig`); ``progress`` shows a bar
     over the frames.
@@ -116,7 +116,9 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
     (:class:`hdl.measurement.consistency_params.ConsistencyParams`, closed loop only)
     each row's transfers pass :class:`emulator.measurement.consistency.ConsistencyModel`
     against the forecast's predicted shifts (with the row's own depth cues) before the
-    solver."""
+    solver. With ``cue_fallback`` a segment whose stereo match fails takes its pair's
+    last usable cue of the same row (the previous frame's; a store of
+    ``pairs × K_s × height`` cues)."""
     from tqdm import tqdm
     router = config.router
     cams = range(router.cameras)
@@ -126,6 +128,7 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
     temporal_lanes = [TemporalLaneModel(router.temporal, follow) for _ in cams]
     stereo_lanes = [StereoLaneModel(router.stereo) for _ in router.pairs]
     temporal, stereo, transfers, record_frames = [], [], [], []
+    fallback = {}                 # row -> {(camera A, stereo segment): last usable cue}
     t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
     if consistency is not None and not follow:
         raise ValueError("consistency needs forecast (it judges shifts against it)")
@@ -146,7 +149,9 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
             else:
                 t_row = [m for per_camera in t for m in per_camera[row * k:(row + 1) * k]]
             s_row = [m for per_pair in s for m in per_pair[row * k_s:(row + 1) * k_s]]
-            out = route_row(router, t_row, s_row)
+            out = route_row(router, t_row, s_row, fallback.get(row) if cue_fallback else None)
+            if cue_fallback:
+                fallback[row] = {**fallback.get(row, {}), **usable_cues(router, s_row)}
             if follow:
                 out = loop.close(out, frame, row)
             temporal += t_row
@@ -200,7 +205,8 @@ class _Loop:
             cue = np.zeros(self.params.solver.slots, dtype=np.int64)
             cue[[t["slot"] for t in transfers]] = [t["cue"] for t in transfers]
             predicted = self.model.predict(slot, row, cue)["shift"]
-            transfers, _ = self.consistency.apply(transfers, predicted)
+            delta = self.prediction["source_row"] - row
+            transfers, _ = self.consistency.apply(transfers, predicted, delta)
         for t in transfers:
             if t["cue"]:                          # 0: no stereo cue for that segment
                 self.cues[t["slot"], row] = t["cue"]

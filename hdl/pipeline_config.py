@@ -83,6 +83,9 @@ class PipelineConfig:
         The same for the displacement across rows (the forecast's second store), in the
         formats of :meth:`forecast`.
     rig_name : str
+    frame_rows : float
+        Row periods per frame period (``1/(fps·t_r)``, blanking included): the
+        consistency stage's reference-time correction.
     """
     top: TopParams
     table: np.ndarray
@@ -92,6 +95,7 @@ class PipelineConfig:
     row_table: np.ndarray
     row_coef_raw: np.ndarray
     rig_name: str
+    frame_rows: float
 
     @classmethod
     def for_rig(cls, rig, *, segments=DEFAULT_SEGMENTS, coef_width=DEFAULT_COEF_WIDTH,
@@ -140,7 +144,8 @@ class PipelineConfig:
         return cls(top=top, table=table, coef_raw=coef_raw, coef_store=coef_store,
                    coef_error_lsb=error, row_table=row_table,
                    row_coef_raw=quantize_coefficients(row_store, row_table),
-                   rig_name=rig.name)
+                   rig_name=rig.name,
+                   frame_rows=1.0 / (rig.cameras[0].fps * rig.cameras[0].t_r))
 
     def store_window(self, first_row, rows):
         """The solver store's contents for a window of ``rows`` camera rows from
@@ -168,7 +173,8 @@ class PipelineConfig:
         solver and segments, the forecast's predicted-shift format; ``changes`` set the
         others (e.g. ``huber_k``, ``min_cameras``)."""
         derived = dict(solver=self.top.solver, segments=self.segments,
-                       predicted_fmt=self.forecast().displacement_fmt)
+                       predicted_fmt=self.forecast().displacement_fmt,
+                       frame_rows=self.frame_rows)
         return ConsistencyParams(**{**derived, **changes})
 
     def window(self, rows, **top_changes):

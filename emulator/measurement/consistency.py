@@ -6,7 +6,10 @@ uses it (``golden.tracker.Tracker._step``); the parameters and formats are
 :class:`hdl.measurement.consistency_params.ConsistencyParams`. Integers only, every
 narrowing through :func:`hdl.fixed.resize`. Per measurement of a row (one channel =
 one solver slot; a measurement with zero confidence is passed on untouched and leaves
-its channel's scale alone):
+its channel's scale alone), after the camera's reference-time factor
+``P/(P − Δ)`` (``Δ = source − row``, one division per camera, half-even into
+``time_fmt``) has scaled its shift (half-even, saturated into ``shift_fmt``, counted);
+a camera with ``|Δ| > max_row_offset`` gets zero confidence (counted):
 
 1. innovation ``r = shift − predicted`` (exact, then half-even and saturated into
    ``innovation_fmt``, counted);
@@ -37,6 +40,12 @@ from hdl.measurement.consistency_params import ConsistencyParams
 __all__ = ["ConsistencyParams", "ConsistencyModel"]
 
 
+def _divide_half_even(num, den):
+    """``num / den`` rounded half-even (``den > 0``; integer arrays)."""
+    q, r = np.divmod(num, den)
+    return q + ((2 * r > den) | ((2 * r == den) & (q & 1 == 1)))
+
+
 def _nearest_sqrt(n):
     """``round(√n)`` of non-negative integers (ties cannot occur: √n = m + ½ is never
     an integer's root)."""
@@ -57,7 +66,7 @@ class ConsistencyModel:
             raise TypeError(f"params must be a ConsistencyParams, not {params!r}")
         self.params = params
         self.scale = np.full(params.channels, params.initial_raw, dtype=np.int64)
-        self.counts = {"innovation_saturated": 0, "scale_saturated": 0,
+        self.counts = {"far_rows": 0, "time_saturated": 0, "innovation_saturated": 0, "scale_saturated": 0,
                        "shift_saturated": 0, "outliers": 0, "gated_rows": 0}
 
     def judge(self, channel, shift, predicted, conf):
@@ -123,17 +132,41 @@ class ConsistencyModel:
         self.counts["scale_saturated"] += int(np.count_nonzero(root > p.scale_fmt.max_raw))
         return np.maximum(np.minimum(root, p.scale_fmt.max_raw), p.floor_raw)
 
-    def apply(self, transfers, predicted):
+    def time_factor(self, delta):
+        """Raw ``time_fmt`` factors ``P/(P − Δ)`` of row offsets ``delta`` (integers)."""
+        p = self.params
+        frac = p.frame_rows_fmt.frac_bits
+        return _divide_half_even(np.int64(p.frame_rows_raw) << p.time_fmt.frac_bits,
+                                 p.frame_rows_raw - (np.asarray(delta, dtype=np.int64) << frac))
+
+    def to_one_frame(self, shift, delta):
+        """Shifts (raw ``shift_fmt``) of rows compared ``delta`` rows off, scaled to one
+        frame period."""
+        p, fmt = self.params, self.params.solver.shift_fmt
+        product = mul(np.asarray(shift, dtype=np.int64), fmt, self.time_factor(delta),
+                      p.time_fmt)
+        out = resize(*product, fmt, Rounding.HALF_EVEN, Overflow.SATURATE)
+        self.counts["time_saturated"] += int(np.count_nonzero(
+            out != resize(*product, fmt, Rounding.HALF_EVEN, Overflow.WRAP)))
+        return out
+
+    def apply(self, transfers, predicted, delta):
         """One row of router transfers (dicts in stream order, the row's slots distinct)
         with the forecast's predicted shift of every slot (raw ``predicted_fmt``,
-        (slots,)): the transfers the solver gets (copies) and the verdict of
-        :meth:`judge` plus ``gated`` (the row failed the gates)."""
+        (slots,)) and each camera's row offset ``delta = source − row`` (cameras,): the
+        transfers the solver gets (copies) and the verdict of :meth:`judge` plus
+        ``gated`` (the row failed the gates)."""
         if not transfers:
             return [], None
         p = self.params
         channel = np.array([t["slot"] for t in transfers])
-        verdict = self.judge(channel, [t["shift"] for t in transfers],
-                             np.asarray(predicted)[channel], [t["conf"] for t in transfers])
+        delta = np.asarray(delta, dtype=np.int64)[channel // p.segments]
+        far = np.abs(delta) > p.max_row_offset
+        self.counts["far_rows"] += len(np.unique(channel[far] // p.segments))
+        delta = np.where(far, 0, delta)
+        shift = self.to_one_frame([t["shift"] for t in transfers], delta)
+        conf = np.where(far, 0, [t["conf"] for t in transfers])
+        verdict = self.judge(channel, shift, np.asarray(predicted)[channel], conf)
         conf = verdict["conf"]
         cameras = np.unique(channel[conf > 0] // p.segments)
         gated = conf.max() < p.min_confidence_raw or len(cameras) < p.min_cameras

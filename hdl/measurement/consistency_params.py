@@ -2,7 +2,14 @@
 router and the pose solver (issue 16 item 3; no Amaranth here: the emulator's model
 :mod:`emulator.measurement.consistency` reads them, the gateware is not built yet).
 
-Per channel (camera × segment = the solver's slot) the stage judges each measured shift
+First, per camera, the reference-time correction: the lane compared the row with the
+previous frame's row ``source`` (the forecast's row address), exposed ``source − row``
+row periods later than the same row, so its shifts show the motion over
+``P − (source − row)`` row periods (``P`` row periods per frame); each shift is scaled by
+``P / (P − (source − row))`` to the one-frame motion ``Y`` the solver estimates (the
+golden tracker predicts from the reference row's own pose instead).
+
+Then, per channel (camera × segment = the solver's slot) the stage judges each measured shift
 against the forecast's predicted shift, as :class:`golden.temporal_filter.RobustScale`
 does in float: the innovation ``r = shift − predicted``, the robust scale ``σ`` of the
 channel (its only state), the Huber weight ``min(1, kσ/|r|)`` that multiplies the peak
@@ -35,6 +42,13 @@ class ConsistencyParams:
         out, ``conf_fmt`` of the confidences.
     segments : int
         Segments K per camera (a channel's camera is ``slot // K``).
+    frame_rows : float
+        Row periods per frame period ``P`` (blanking included; register,
+        ``frame_rows_fmt``), at least the solver's rows.
+    max_row_offset : int
+        Largest ``|source − row|`` whose shifts are used (register); a camera compared
+        further off gets zero confidence (counted): its reference is nearly as new as the
+        row, the factor ``P/(P − Δ)`` large.
     predicted_fmt : QFormat
         Signed format of the forecast's predicted shift (the forecast's
         ``displacement_fmt``).
@@ -58,12 +72,17 @@ class ConsistencyParams:
     scale_fmt : QFormat
         Unsigned format of ``σ`` (pixels; the state, one word per channel; an update that
         would leave it saturates, counted).
+    frame_rows_fmt, time_fmt : QFormat
+        Unsigned formats of ``P`` and of the per-camera factor ``P/(P − Δ)`` (one
+        division per camera and row, rounded half-even).
     k_fmt, ratio_fmt, gain_fmt : QFormat
         Unsigned formats of ``k``, of the divider's quotient ``min(|r|, kσ)/max(|r|, kσ)``
         (floor) and of the recursion's gains and factor.
     """
     solver: PoseSolverParams
     segments: int
+    frame_rows: float
+    max_row_offset: int = 16
     predicted_fmt: object = SQ(10, 8)
     huber_k: float = HUBER_K
     scale_initial: float = 0.5
@@ -74,6 +93,8 @@ class ConsistencyParams:
     min_cameras: int = 3
     innovation_fmt: object = SQ(7, 10)
     scale_fmt: object = UQ(5, 11)
+    frame_rows_fmt: object = UQ(13, 4)
+    time_fmt: object = UQ(2, 16)
     k_fmt: object = UQ(3, 8)
     ratio_fmt: object = UQ(1, 15)
     gain_fmt: object = UQ(2, 16)
@@ -87,13 +108,23 @@ class ConsistencyParams:
                              f"{self.solver.slots} slots")
         for name in ("predicted_fmt", "innovation_fmt"):
             check_format(name, getattr(self, name), signed=True)
-        for name in ("scale_fmt", "k_fmt", "ratio_fmt", "gain_fmt"):
+        for name in ("scale_fmt", "k_fmt", "ratio_fmt", "gain_fmt", "frame_rows_fmt",
+                     "time_fmt"):
             check_format(name, getattr(self, name), signed=False)
         if self.ratio_fmt.int_bits < 1:
             raise ValueError(f"ratio_fmt must hold 1, not {self.ratio_fmt}")
         for name in ("huber_k", "scale_initial", "scale_floor"):
             check_number(name, getattr(self, name), 0, low_open=True)
         check_number("smoothing", self.smoothing, 0, 1, low_open=True)
+        rows = self.solver.rows
+        check_number("frame_rows", self.frame_rows, rows, self.frame_rows_fmt.max_value)
+        check_int("max_row_offset", self.max_row_offset, 0, rows - 1)
+        largest = self.frame_rows_raw / (self.frame_rows_raw - (
+            self.max_row_offset << self.frame_rows_fmt.frac_bits))
+        if largest > self.time_fmt.max_value:
+            raise ValueError(f"time_fmt {self.time_fmt} cannot hold the largest "
+                             f"reference-time factor {largest:.3f} (frame_rows "
+                             f"{self.frame_rows}, max_row_offset {self.max_row_offset})")
         check_number("biweight_ck", self.biweight_ck, 0, low_open=True)
         check_number("min_confidence", self.min_confidence, 0)
         check_int("min_cameras", self.min_cameras, 1, self.cameras)
@@ -126,6 +157,10 @@ class ConsistencyParams:
         return self.solver.slots
 
     # --- the run-time registers, raw -----------------------------------------------------
+
+    @property
+    def frame_rows_raw(self):
+        return self._raw(self.frame_rows, self.frame_rows_fmt)
 
     @property
     def k_raw(self):
