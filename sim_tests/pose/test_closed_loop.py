@@ -99,3 +99,11 @@ def test_the_loop_judged_and_followed(closed):
 def test_consistency_needs_the_forecast(config, dataset):
     with pytest.raises(ValueError, match="consistency needs forecast"):
         run(config, dataset, frames=1, consistency=config.consistency())
+
+
+def test_each_temporal_segment_has_its_stereo_segment(config, dataset):
+    assert config.router.stereo.segments == K
+    assert config.router.stereo.match.shift_min == 10     # STEREO_MATCH's disparities
+    with pytest.raises(ValueError, match="stereo_segments must be an integer at least 1, "
+                                         "not 0"):
+        PipelineConfig.for_rig(dataset.rig, segments=K, stereo_segments=0)
