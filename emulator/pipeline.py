@@ -63,7 +63,8 @@ class PipelineResult:
         Closed loop only (``forecast`` given): per row set, in order, ``frame``, ``row``,
         ``slot``, the forecast ``centre`` and ``source_row`` (n, cameras) it used and its
         saturation flags, and ``level`` (n, 6) the filter's level after the row's step
-        (raw ``motion_fmt``).
+        (raw ``motion_fmt``); with a consistency stage also ``counts``, its counters
+        (:class:`emulator.measurement.consistency.ConsistencyModel`).
     """
     temporal: list
     stereo: list
@@ -225,5 +226,8 @@ class _Loop:
     def history(self):
         names = ("frame", "row", "slot", "centre", "centre_saturated", "source_row",
                  "row_saturated", "level")
-        return {name: np.array([entry[k] for entry in self.log])
-                for k, name in enumerate(names)}
+        out = {name: np.array([entry[k] for entry in self.log])
+               for k, name in enumerate(names)}
+        if self.consistency is not None:
+            out["counts"] = dict(self.consistency.counts)
+        return out

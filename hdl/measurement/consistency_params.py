@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 from golden.checks import check_int, check_number
 from golden.temporal_filter import BIWEIGHT_CK, HUBER_K
 
-from hdl.fixed import SQ, UQ, Overflow, Rounding, check_format
+from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, check_format
 from hdl.pose.params import PoseSolverParams
 
 __all__ = ["ConsistencyParams"]
@@ -83,7 +83,7 @@ class ConsistencyParams:
     segments: int
     frame_rows: float
     max_row_offset: int = 16
-    predicted_fmt: object = SQ(10, 8)
+    predicted_fmt: QFormat = SQ(10, 8)
     huber_k: float = HUBER_K
     scale_initial: float = 0.5
     scale_floor: float = 0.1
@@ -91,13 +91,13 @@ class ConsistencyParams:
     biweight_ck: float = BIWEIGHT_CK
     min_confidence: float = 1.0
     min_cameras: int = 3
-    innovation_fmt: object = SQ(7, 10)
-    scale_fmt: object = UQ(5, 11)
-    frame_rows_fmt: object = UQ(13, 4)
-    time_fmt: object = UQ(2, 16)
-    k_fmt: object = UQ(3, 8)
-    ratio_fmt: object = UQ(1, 15)
-    gain_fmt: object = UQ(2, 16)
+    innovation_fmt: QFormat = SQ(7, 10)
+    scale_fmt: QFormat = UQ(5, 11)
+    frame_rows_fmt: QFormat = UQ(13, 4)
+    time_fmt: QFormat = UQ(2, 16)
+    k_fmt: QFormat = UQ(3, 8)
+    ratio_fmt: QFormat = UQ(1, 15)
+    gain_fmt: QFormat = UQ(2, 16)
 
     def __post_init__(self):
         if not isinstance(self.solver, PoseSolverParams):

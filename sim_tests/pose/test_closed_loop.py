@@ -90,8 +90,13 @@ def test_the_closed_loop_tracks_like_golden_b(config, dataset, golden_b, closed)
 
 
 def test_the_loop_judged_and_followed(closed):
-    """The pieces ran: rows followed and centred by the forecast."""
+    """The pieces ran: rows followed and centred by the forecast, outliers replaced,
+    nothing saturated."""
     loop = closed.loop
+    counts = loop["counts"]
+    print(counts)
+    assert counts["outliers"] > 0
+    assert counts["innovation_saturated"] == counts["scale_saturated"] == 0
     assert len(loop["row"]) == FRAMES * ROWS
     assert loop["centre"].any() and (loop["source_row"] != loop["row"][:, None]).any()
 
