@@ -19,9 +19,9 @@ a camera with ``|Δ| > max_row_offset`` gets zero confidence (counted):
    weight ``kσ/|r| = q``;
 4. confidence ``conf · weight`` (half-even into ``conf_fmt``); an outlier's shift is
    replaced by the prediction (half-even, saturated into ``shift_fmt``, counted);
-5. scale: ``u = min(|r|/kσ, 1)²``, ``ρ/c_k = 1 − (1 − u)³`` (each product half-even into
-   ``ratio_fmt``), factor ``f = (1 − λ) + λc_k · ρ/c_k`` (half-even into ``gain_fmt``),
-   ``σ'² = σ² f`` (half-even to twice ``scale_fmt``'s fraction bits), ``σ'`` its square
+5. scale: ``u = min(|r|/kσ, 1)²``, ``ρ/c_k = 1 − (1 − u)³`` (each product half-even
+   into ``ratio_fmt``), factor ``f = (1 − λ) + λc_k · ρ/c_k`` (half-even into
+   ``gain_fmt``), ``σ'² = σ² f`` (half-even to twice ``scale_fmt``'s fraction bits), ``σ'`` its square
    root rounded to nearest, saturated into ``scale_fmt`` (counted), at least the floor.
 
 Per row, the golden's gates: unless some confidence reaches ``min_confidence`` and at
@@ -66,8 +66,9 @@ class ConsistencyModel:
             raise TypeError(f"params must be a ConsistencyParams, not {params!r}")
         self.params = params
         self.scale = np.full(params.channels, params.initial_raw, dtype=np.int64)
-        self.counts = {"far_rows": 0, "time_saturated": 0, "innovation_saturated": 0, "scale_saturated": 0,
-                       "shift_saturated": 0, "outliers": 0, "gated_rows": 0}
+        self.counts = {"far_rows": 0, "time_saturated": 0, "innovation_saturated": 0,
+                       "scale_saturated": 0, "shift_saturated": 0, "outliers": 0,
+                       "gated_rows": 0}
 
     def judge(self, channel, shift, predicted, conf):
         """The verdict on measurements of distinct channels (raw int arrays: ``shift``
@@ -136,8 +137,9 @@ class ConsistencyModel:
         """Raw ``time_fmt`` factors ``P/(P − Δ)`` of row offsets ``delta`` (integers)."""
         p = self.params
         frac = p.frame_rows_fmt.frac_bits
+        offset = np.asarray(delta, dtype=np.int64) << frac
         return _divide_half_even(np.int64(p.frame_rows_raw) << p.time_fmt.frac_bits,
-                                 p.frame_rows_raw - (np.asarray(delta, dtype=np.int64) << frac))
+                                 p.frame_rows_raw - offset)
 
     def to_one_frame(self, shift, delta):
         """Shifts (raw ``shift_fmt``) of rows compared ``delta`` rows off, scaled to one

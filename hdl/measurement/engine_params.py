@@ -71,8 +71,8 @@ class EngineParams:
         Lanes are ``camera.max_width × camera.max_height`` with the camera beat's widths;
         temporal lanes have ``segments`` segments (the solver needs ``n_cameras ×
         segments`` slots and ``max_height`` rows), stereo lanes ``stereo_segments``
-        (``golden.descriptor.STEREO_MATCH``'s disparity range). ``pairs``: ``(A, B)`` camera indices per
-        rectified pair, every camera in exactly one.
+        (``golden.descriptor.STEREO_MATCH``'s disparity range). ``pairs``: ``(A, B)``
+        camera indices per rectified pair, every camera in exactly one.
 
         Raises
         ------
