@@ -21,6 +21,7 @@ from golden.descriptor import segment_bounds
 from golden.pose_lsq import shift_coefficients
 
 from hdl.front_end.params import CameraParams
+from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.pose.forecast_params import ForecastParams
 from hdl.fixed import Overflow
 from hdl.pose.params import DEFAULT_COEF_WIDTH, coefficient_formats, quantize_coefficients
@@ -82,6 +83,9 @@ class PipelineConfig:
         The same for the displacement across rows (the forecast's second store), in the
         formats of :meth:`forecast`.
     rig_name : str
+    frame_rows : float
+        Row periods per frame period (``1/(fps·t_r)``, blanking included): the
+        consistency stage's reference-time correction.
     """
     top: TopParams
     table: np.ndarray
@@ -91,6 +95,7 @@ class PipelineConfig:
     row_table: np.ndarray
     row_coef_raw: np.ndarray
     rig_name: str
+    frame_rows: float
 
     @classmethod
     def for_rig(cls, rig, *, segments=DEFAULT_SEGMENTS, coef_width=DEFAULT_COEF_WIDTH,
@@ -139,7 +144,8 @@ class PipelineConfig:
         return cls(top=top, table=table, coef_raw=coef_raw, coef_store=coef_store,
                    coef_error_lsb=error, row_table=row_table,
                    row_coef_raw=quantize_coefficients(row_store, row_table),
-                   rig_name=rig.name)
+                   rig_name=rig.name,
+                   frame_rows=1.0 / (rig.cameras[0].fps * rig.cameras[0].t_r))
 
     def store_window(self, first_row, rows):
         """The solver store's contents for a window of ``rows`` camera rows from
@@ -161,6 +167,15 @@ class PipelineConfig:
                        centre_range=lane.centre_range,
                        **{f"row_{name}": fmt for name, fmt in formats.items()})
         return ForecastParams(**{**derived, **changes})
+
+    def consistency(self, **changes):
+        """The robust consistency stage of this pipeline (:class:`ConsistencyParams`): its
+        solver and segments, the forecast's predicted-shift format; ``changes`` set the
+        others (e.g. ``huber_k``, ``min_cameras``)."""
+        derived = dict(solver=self.top.solver, segments=self.segments,
+                       predicted_fmt=self.forecast().displacement_fmt,
+                       frame_rows=self.frame_rows)
+        return ConsistencyParams(**{**derived, **changes})
 
     def window(self, rows, **top_changes):
         """The top of this pipeline built for cameras of ``rows`` rows (a co-simulated
