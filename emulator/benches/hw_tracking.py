@@ -6,7 +6,9 @@ Per rig and motion: the tracker benchmark's noisy sequence (:func:`noisy_sequenc
 :data:`DURATION` = 12 frames at 120 fps), the first frame's poses given as in the papers
 (the loop starts at the true one-frame motion of the first tracked row), the pipeline of
 :meth:`hdl.pipeline_config.PipelineConfig.for_rig` closed through its forecast
-(:meth:`~hdl.pipeline_config.PipelineConfig.forecast`, the hardware's loop delay). The
+(:meth:`~hdl.pipeline_config.PipelineConfig.forecast`, the hardware's loop delay), with
+the consistency stage, a disparity per temporal segment and the stereo cue fallback
+(docs/e2e.md, "Closed loop"). The
 quantity is the papers' Table 1 one: each row's one-frame motion ``Y`` against the true
 one from the poses at the same two times, RMS per axis over the rows of frames 1…11: the
 hardware path's estimate is the forecast filter's level after each row (its smoothed
@@ -45,11 +47,13 @@ def hardware_path(dataset, progress=False):
     from emulator.e2e import true_steps
     from emulator.pipeline import run
     from hdl.pipeline_config import PipelineConfig
-    config = PipelineConfig.for_rig(dataset.rig)
+    from hdl.top_params import DEFAULT_SEGMENTS
+    config = PipelineConfig.for_rig(dataset.rig, stereo_segments=DEFAULT_SEGMENTS)
     forecast = config.forecast()
     start = time.perf_counter()
     result = run(config, dataset, forecast=forecast, progress=progress,
-                 initial_motion=true_steps(dataset, [1], [0])[0])
+                 initial_motion=true_steps(dataset, [1], [0])[0],
+                 consistency=config.consistency(), cue_fallback=True)
     loop = result.loop
     scored = loop["frame"] > 0
     level = forecast.motion_fmt.to_float(loop["level"][scored])
