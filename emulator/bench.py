@@ -25,6 +25,7 @@ BENCHES = {
     "top": "emulator.benches.top",
     "row_descriptor": "emulator.benches.row_descriptor",
     "e2e": "emulator.benches.e2e",
+    "hw_tracking": "emulator.benches.hw_tracking",
 }
 
 

@@ -359,7 +359,7 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, segments=DEFAULT_SEGMEN
     pclk_ps = [PCLK_PS + k * PCLK_STEP_PS for k in range(cameras)]
     clock_ps = round(1e12 / params.clk_hz)
     period = timing.frame_pclks * max(pclk_ps) // clock_ps * 5 // 4 + 2_000
-    stim = {"images": images, "coef": coef_raw, "divisor": DIVISOR,
+    stim = {"images": images, "coef": config.store_window(first_row, rows), "divisor": DIVISOR,
             "hblank": HBLANK, "pclk_ps": pclk_ps, "period": period}
     paths = {"in": build_dir / "stimulus.pkl", "out": build_dir / "record.pkl"}
     with open(paths["in"], "wb") as f:

@@ -29,7 +29,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from emulator.measurement.router import pose_rows, route_row
+from emulator.measurement.consistency import ConsistencyModel
+from emulator.measurement.router import pose_rows, route_row, usable_cues
 from emulator.pose.forecast import ForecastModel
 from emulator.pose_solver import pose_solver_model, solve_rows
 from emulator.descriptor.framer import FramedRow
@@ -62,7 +63,8 @@ class PipelineResult:
         Closed loop only (``forecast`` given): per row set, in order, ``frame``, ``row``,
         ``slot``, the forecast ``centre`` and ``source_row`` (n, cameras) it used and its
         saturation flags, and ``level`` (n, 6) the filter's level after the row's step
-        (raw ``motion_fmt``).
+        (raw ``motion_fmt``); with a consistency stage also ``counts``, its counters
+        (:class:`emulator.measurement.consistency.ConsistencyModel`).
     """
     temporal: list
     stereo: list
@@ -96,7 +98,8 @@ def _framed(dataset, camera, frame, row, config, t0):
                      padded=False)
 
 
-def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_motion=None):
+def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_motion=None,
+        consistency=None, cue_fallback=False):
     """Run the dataset (first ``frames`` frames, default all) through the pipeline of
     ``config`` (:class:`hdl.pipeline_config.PipelineConfig`); ``progress`` shows a bar
     over the frames.
@@ -110,7 +113,13 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
     (6,)) sets each temporal lane's window centre and the previous frame's row it reads
     (:class:`emulator.row_descriptor.FollowedReferenceStoreModel`), with the depth cue
     each segment had in the same row of the previous frame, and takes each row's solved
-    step. The stereo lanes stay open loop (centre 0)."""
+    step. The stereo lanes stay open loop (centre 0). With ``consistency``
+    (:class:`hdl.measurement.consistency_params.ConsistencyParams`, closed loop only)
+    each row's transfers pass :class:`emulator.measurement.consistency.ConsistencyModel`
+    against the forecast's predicted shifts (with the row's own depth cues) before the
+    solver. With ``cue_fallback`` a segment whose stereo match fails takes its pair's
+    last usable cue of the same row (the previous frame's; a store of
+    ``pairs × K_s × height`` cues)."""
     from tqdm import tqdm
     router = config.router
     cams = range(router.cameras)
@@ -120,8 +129,12 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
     temporal_lanes = [TemporalLaneModel(router.temporal, follow) for _ in cams]
     stereo_lanes = [StereoLaneModel(router.stereo) for _ in router.pairs]
     temporal, stereo, transfers, record_frames = [], [], [], []
+    fallback = {}                 # row -> {(camera A, stereo segment): last usable cue}
     t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
-    loop = _Loop(config, forecast, initial_motion, dataset, t0) if follow else None
+    if consistency is not None and not follow:
+        raise ValueError("consistency needs forecast (it judges shifts against it)")
+    loop = _Loop(config, forecast, initial_motion, dataset, t0, consistency) if follow \
+        else None
     start = time.perf_counter()
     for frame in tqdm(range(frames), desc="emulator", unit="frame", disable=not progress,
                       leave=False):
@@ -137,9 +150,11 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
             else:
                 t_row = [m for per_camera in t for m in per_camera[row * k:(row + 1) * k]]
             s_row = [m for per_pair in s for m in per_pair[row * k_s:(row + 1) * k_s]]
-            out = route_row(router, t_row, s_row)
+            out = route_row(router, t_row, s_row, fallback.get(row) if cue_fallback else None)
+            if cue_fallback:
+                fallback[row] = {**fallback.get(row, {}), **usable_cues(router, s_row)}
             if follow:
-                loop.close(out, frame, row)
+                out = loop.close(out, frame, row)
             temporal += t_row
             stereo += s_row
             transfers += out
@@ -157,10 +172,11 @@ class _Loop:
     """The closed loop of :func:`run`: forecast → lane centres and row addresses →
     measurements → solved step → forecast."""
 
-    def __init__(self, config, params, initial_motion, dataset, t0):
+    def __init__(self, config, params, initial_motion, dataset, t0, consistency=None):
         if initial_motion is None:
             raise ValueError("initial_motion must be given with forecast")
         self.config, self.params = config, params
+        self.consistency = None if consistency is None else ConsistencyModel(consistency)
         self.model = ForecastModel(params, config.coef_raw, config.row_coef_raw,
                                    params.motion_fmt.quantize(initial_motion))
         self.cues = np.zeros((params.solver.slots, params.height), dtype=np.int64)
@@ -181,9 +197,17 @@ class _Loop:
                                            [int(source)])]
 
     def close(self, transfers, frame, row):
-        """Keep the row's depth cues for the next frame and feed its step (if solved)
-        to the forecast."""
+        """Judge the row's transfers (with a consistency stage), keep its depth cues for
+        the next frame and feed its step (if solved) to the forecast; returns the
+        transfers the solver takes."""
         step = None
+        slot = self.slot(frame, row)
+        if self.consistency is not None and transfers:
+            cue = np.zeros(self.params.solver.slots, dtype=np.int64)
+            cue[[t["slot"] for t in transfers]] = [t["cue"] for t in transfers]
+            predicted = self.model.predict(slot, row, cue)["shift"]
+            delta = self.prediction["source_row"] - row
+            transfers, _ = self.consistency.apply(transfers, predicted, delta)
         for t in transfers:
             if t["cue"]:                          # 0: no stereo cue for that segment
                 self.cues[t["slot"], row] = t["cue"]
@@ -193,14 +217,17 @@ class _Loop:
                                 pose_rows(self.config.router, transfers))
             if result.flags[0] == 0:
                 step = result.step[0]
-        slot = self.slot(frame, row)
         level = self.model.take(slot, step)
         p = self.prediction
         self.log.append((frame, row, slot, p["centre"], p["centre_saturated"],
                          p["source_row"], p["row_saturated"], level))
+        return transfers
 
     def history(self):
         names = ("frame", "row", "slot", "centre", "centre_saturated", "source_row",
                  "row_saturated", "level")
-        return {name: np.array([entry[k] for entry in self.log])
-                for k, name in enumerate(names)}
+        out = {name: np.array([entry[k] for entry in self.log])
+               for k, name in enumerate(names)}
+        if self.consistency is not None:
+            out["counts"] = dict(self.consistency.counts)
+        return out

@@ -21,14 +21,25 @@ from golden.descriptor import segment_bounds
 from golden.pose_lsq import shift_coefficients
 
 from hdl.front_end.params import CameraParams
+from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.pose.forecast_params import ForecastParams
+from hdl.fixed import Overflow
 from hdl.pose.params import DEFAULT_COEF_WIDTH, coefficient_formats, quantize_coefficients
+from hdl.pose.row_polynomials import (evaluate_polynomials, fit_row_polynomials,
+                                      polynomial_formats, quantize_polynomials,
+                                      shift_polynomials)
 from hdl.top_params import DEFAULT_SEGMENTS, TopParams
 
-__all__ = ["PipelineConfig", "segment_centres", "coefficient_table"]
+__all__ = ["PipelineConfig", "segment_centres", "coefficient_table", "DEFAULT_COEF_DEGREE"]
 
 #: System clock (FCLK_CLK0) the time stamps count.
 DEFAULT_CLK_HZ = 100_000_000
+#: Degree of the solver store's polynomials in the row: a rectified pinhole camera's
+#: coefficients along the row are exactly linear in it (:mod:`hdl.pose.row_polynomials`).
+DEFAULT_COEF_DEGREE = 1
+#: Largest difference (LSB of the coefficient formats) a polynomial store may make
+#: against the per-row store of the same table: the terms' rounding plus the fit.
+COEF_POLYNOMIAL_TOLERANCE_LSB = 1
 
 
 def segment_centres(lane):
@@ -59,26 +70,42 @@ class PipelineConfig:
     table : ndarray (slots, rows, 9)
         The rig's float coefficients at the lanes' segment centres.
     coef_raw : ndarray (slots, rows, 9)
-        The solver's coefficient store: ``table`` quantized to the solver's formats.
+        The coefficients the solver uses for every row, raw in its formats (the
+        emulator's table): the polynomial store evaluated at each row, or ``table``
+        quantized when the store holds every row.
+    coef_store : ndarray (slots, entries_per_slot, 9)
+        The solver's coefficient store contents (the HDL's): polynomial terms, or
+        ``coef_raw`` itself.
+    coef_error_lsb : int
+        Largest difference between ``coef_raw`` and ``table`` quantized directly, in
+        LSB of the coefficient formats (0 for a store of every row).
     row_table, row_coef_raw : ndarray (slots, rows, 9)
         The same for the displacement across rows (the forecast's second store), in the
         formats of :meth:`forecast`.
     rig_name : str
+    frame_rows : float
+        Row periods per frame period (``1/(fps·t_r)``, blanking included): the
+        consistency stage's reference-time correction.
     """
     top: TopParams
     table: np.ndarray
     coef_raw: np.ndarray
+    coef_store: np.ndarray
+    coef_error_lsb: int
     row_table: np.ndarray
     row_coef_raw: np.ndarray
     rig_name: str
+    frame_rows: float
 
     @classmethod
     def for_rig(cls, rig, *, segments=DEFAULT_SEGMENTS, coef_width=DEFAULT_COEF_WIDTH,
-                clk_hz=DEFAULT_CLK_HZ, camera=CameraParams(), **top_changes):
+                coef_degree=DEFAULT_COEF_DEGREE, clk_hz=DEFAULT_CLK_HZ,
+                camera=CameraParams(), **top_changes):
         """The pipeline for ``rig``: its cameras (one image size), each in the rectified
         stereo pair :func:`golden.depth.stereo_pairs` finds, temporal lanes of
         ``segments`` segments, a ``coef_width``-bit coefficient store whose formats hold
-        the rig's table, time stamps in clocks of ``clk_hz``. ``camera`` gives the front
+        the rig's table — as polynomials of ``coef_degree`` in the row (``None``: every
+        row stored) —, time stamps in clocks of ``clk_hz``. ``camera`` gives the front
         end's other widths (its count and size come from the rig); ``top_changes`` go to
         :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``).
 
@@ -109,13 +136,26 @@ class PipelineConfig:
                                     **top_changes)
         table = coefficient_table(rig, shape.engine.temporal, scales)
         solver = replace(shape.solver, **coefficient_formats(table, coef_width))
+        solver, coef_store, coef_raw, error = _store(solver, table, coef_degree, rig.name)
         top = TopParams.for_pairs(pairs, segments=segments, camera=camera, solver=solver,
                                   clk_hz=clk_hz, **top_changes)
         row_table = coefficient_table(rig, shape.engine.temporal, scales, axis=1)
         row_store = replace(solver, **coefficient_formats(row_table, coef_width))
-        return cls(top=top, table=table, coef_raw=quantize_coefficients(solver, table),
-                   row_table=row_table, row_coef_raw=quantize_coefficients(row_store, row_table),
-                   rig_name=rig.name)
+        return cls(top=top, table=table, coef_raw=coef_raw, coef_store=coef_store,
+                   coef_error_lsb=error, row_table=row_table,
+                   row_coef_raw=quantize_coefficients(row_store, row_table),
+                   rig_name=rig.name,
+                   frame_rows=1.0 / (rig.cameras[0].fps * rig.cameras[0].t_r))
+
+    def store_window(self, first_row, rows):
+        """The solver store's contents for a window of ``rows`` camera rows from
+        ``first_row`` (:meth:`window`): the polynomials in the window's row index, or the
+        window's rows."""
+        check_int("first_row", first_row, 0, self.top.solver.rows - 1)
+        check_int("rows", rows, 1, self.top.solver.rows - first_row)
+        if not self.top.solver.coef_terms:
+            return self.coef_store[:, first_row:first_row + rows]
+        return shift_polynomials(self.coef_store, first_row)
 
     def forecast(self, **changes):
         """The motion forecast of this pipeline (:class:`ForecastParams`): its solver,
@@ -127,6 +167,15 @@ class PipelineConfig:
                        centre_range=lane.centre_range,
                        **{f"row_{name}": fmt for name, fmt in formats.items()})
         return ForecastParams(**{**derived, **changes})
+
+    def consistency(self, **changes):
+        """The robust consistency stage of this pipeline (:class:`ConsistencyParams`): its
+        solver and segments, the forecast's predicted-shift format; ``changes`` set the
+        others (e.g. ``huber_k``, ``min_cameras``)."""
+        derived = dict(solver=self.top.solver, segments=self.segments,
+                       predicted_fmt=self.forecast().displacement_fmt,
+                       frame_rows=self.frame_rows)
+        return ConsistencyParams(**{**derived, **changes})
 
     def window(self, rows, **top_changes):
         """The top of this pipeline built for cameras of ``rows`` rows (a co-simulated
@@ -154,3 +203,23 @@ class PipelineConfig:
     @property
     def clk_hz(self):
         return self.top.clk_hz
+
+
+def _store(solver, table, degree, rig_name):
+    """The solver with its store's formats, the store contents, the coefficients it gives
+    every row and their largest difference (LSB) from ``table`` quantized per row."""
+    direct = quantize_coefficients(solver, table)
+    if degree is None:
+        return solver, direct, direct, 0
+    poly, _ = fit_row_polynomials(table, degree)
+    groups = (solver.coef_t_fmt, solver.coef_c_fmt, solver.coef_r_fmt)
+    solver = replace(solver, coef_poly_fmts=polynomial_formats(poly, groups, solver.rows))
+    store = quantize_polynomials(solver, poly)
+    coef_raw = evaluate_polynomials(solver, store, np.arange(solver.rows), Overflow.ERROR)
+    error = int(np.abs(coef_raw - direct).max())
+    if error > COEF_POLYNOMIAL_TOLERANCE_LSB:
+        raise ValueError(f"coef_degree {degree}: rig {rig_name!r}'s coefficients differ from "
+                         f"polynomials of that degree in the row by up to {error} LSB (at "
+                         f"most {COEF_POLYNOMIAL_TOLERANCE_LSB} allowed); raise coef_degree "
+                         f"or store every row (coef_degree=None)")
+    return solver, store, coef_raw, error

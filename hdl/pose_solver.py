@@ -4,9 +4,9 @@ integrated pose, in fixed point.
 Measurements (one per camera or row segment) stream in; each row's last measurement
 closes the row, and one pose record per row streams out. Inside:
 
-* the coefficient store (nine :class:`amaranth.lib.memory.Memory`, one per
-  coefficient, one entry per slot and row; initial contents at build time, rewritable
-  at run time through ``coef_write``);
+* the coefficient store (:class:`hdl.pose.coef_store.CoefficientStore`: per slot
+  every row's coefficients, or their polynomials in the row; initial contents at build
+  time, rewritable at run time through ``coef_write``);
 * :class:`hdl.pose.accumulator.PoseAccumulator`: the weighted normal equations;
 * :class:`hdl.pose.engine.PoseEngine`: Jacobi scaling, the Cholesky solve with its
   pivot check, and the pose integration onto the pose of the same row one frame
@@ -16,36 +16,17 @@ The algorithm, formats and error budget are in ``docs/pose/pose_solver.md``; the
 bit-accurate model is :mod:`emulator.pose_solver`.
 """
 
-import numpy as np
-from amaranth.hdl import Module, signed
+from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
-from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out, connect
 
+from hdl.pose.coef_store import CoefficientStore, coef_write_signature
 from hdl.pose.accumulator import PAIRS, PoseAccumulator, measurement_layout
 from hdl.pose.engine import PoseEngine, counters_layout, record_layout
 from hdl.pose.params import PoseFlag, PoseSolverParams
 
-__all__ = ["PoseSolver", "PoseSolverParams", "PoseFlag", "coef_write_signature",
+__all__ = ["PoseSolver", "PoseSolverParams", "PoseFlag",
            "measurement_layout", "record_layout", "counters_layout"]
-
-
-def coef_write_signature(params):
-    """Run-time write of one coefficient (driven by the register file).
-
-    Members
-    -------
-    addr : Out(entry_bits)
-        Entry ``slot · rows + row``.
-    index : Out(4)
-        Coefficient 0..8 (a_Tx, a_Ty, a_Tz, a_Cx, a_Cy, a_Cz, a_Rx, a_Ry, a_Rz).
-    data : Out(signed(coef_width))
-        Raw value in that coefficient's format.
-    en : Out(1)
-        Write in this clock.
-    """
-    return wiring.Signature({"addr": Out(params.entry_bits), "index": Out(4),
-                             "data": Out(signed(params.coef_width)), "en": Out(1)})
 
 
 class PoseSolver(wiring.Component):
@@ -54,9 +35,10 @@ class PoseSolver(wiring.Component):
     Parameters
     ----------
     params : PoseSolverParams
-    coefficients : ndarray (slots, rows, 9) of int, optional
-        Initial raw contents of the coefficient store (see
-        :func:`hdl.pose.params.quantize_coefficients`); zeros if omitted.
+    coefficients : ndarray (slots, entries_per_slot, 9) of int, optional
+        Initial raw contents of the coefficient store: rows (see
+        :func:`hdl.pose.params.quantize_coefficients`) or polynomial terms
+        (:func:`hdl.pose.row_polynomials.quantize_polynomials`); zeros if omitted.
 
     Members
     -------
@@ -90,17 +72,9 @@ class PoseSolver(wiring.Component):
         params = PoseSolverParams() if params is None else params
         if not isinstance(params, PoseSolverParams):
             raise TypeError(f"params must be a PoseSolverParams, not {params!r}")
-        if coefficients is None:
-            coefficients = np.zeros((params.slots, params.rows, 9), dtype=np.int64)
-        coefficients = np.asarray(coefficients)
-        if coefficients.shape != (params.slots, params.rows, 9):
-            raise ValueError(f"coefficients must have shape ({params.slots}, {params.rows}, "
-                             f"9), not {coefficients.shape}")
-        fmts = [params.coef_t_fmt] * 3 + [params.coef_c_fmt] * 3 + [params.coef_r_fmt] * 3
-        for k, fmt in enumerate(fmts):
-            fmt.raw(coefficients[..., k])  # raises if a value does not fit
         self.params = params
-        self.coefficients = coefficients
+        self._store = CoefficientStore(params, coefficients)
+        self.coefficients = self._store.contents
         self._accumulator = PoseAccumulator(params)
         self._engine = PoseEngine(params)
         super().__init__({
@@ -137,16 +111,10 @@ class PoseSolver(wiring.Component):
         m.submodules.accumulator = acc = self._accumulator
         m.submodules.engine = engine = self._engine
 
-        # one memory per coefficient: 18-bit lanes pack into 2048×18 block RAMs
-        for k in range(9):
-            store = Memory(shape=signed(p.coef_width), depth=p.entries,
-                           init=[int(v) for v in self.coefficients[..., k].reshape(-1)])
-            m.submodules[f"coefficients{k}"] = store
-            read, write = store.read_port(), store.write_port()
-            m.d.comb += [read.addr.eq(acc.coef_addr), acc.coef_data[k].eq(read.data),
-                         write.addr.eq(self.coef_write.addr), write.data.eq(self.coef_write.data),
-                         write.en.eq(self.coef_write.en & (self.coef_write.index == k))]
-
+        m.submodules.coefficients = store = self._store
+        m.d.comb += [store.slot.eq(acc.coef_slot), store.row.eq(acc.coef_row),
+                     acc.coef_data.eq(store.data)]
+        connect(m, wiring.flipped(self.coef_write), store.write)
         connect(m, wiring.flipped(self.i), acc.i)
         connect(m, engine.o, wiring.flipped(self.o))
         m.d.comb += [engine.row_done.eq(acc.done), acc.release.eq(engine.release),

@@ -38,6 +38,9 @@ class TopParams:
     segments : int
         Temporal-lane segments per row (K): the solver's ``slots`` must be
         ``camera.n_cameras × segments``.
+    stereo_segments : int
+        Stereo-lane segments per row (K_s, each its own disparity; temporal segment k
+        takes stereo segment ``k·K_s // K``).
     solver : PoseSolverParams
         ``rows`` must be the cameras' ``max_height``, ``time_bits`` their
         ``timestamp_bits`` and ``slots`` ``n_cameras × segments``.
@@ -60,6 +63,7 @@ class TopParams:
     camera: CameraParams = CameraParams(n_cameras=DEFAULT_CAMERAS)
     pairs: tuple = ((0, 1), (2, 3))
     segments: int = DEFAULT_SEGMENTS
+    stereo_segments: int = 1
     solver: PoseSolverParams = PoseSolverParams(slots=DEFAULT_CAMERAS * DEFAULT_SEGMENTS)
     pose_output: PoseOutputParams = PoseOutputParams(source=solver_source(PoseSolverParams()))
     uart: UartParams = UartParams()
@@ -90,7 +94,8 @@ class TopParams:
         self.uart.divisor_raw(self.clk_hz, self.baud)       # raises if the baud is unreachable
         # The engine checks pairs (every camera in one pair), segments and solver.slots.
         object.__setattr__(self, "engine", EngineParams.for_cameras(
-            self.camera, self.solver, self.pairs, segments=self.segments))
+            self.camera, self.solver, self.pairs, segments=self.segments,
+            stereo_segments=self.stereo_segments))
 
     @classmethod
     def for_pairs(cls, pairs, *, segments=DEFAULT_SEGMENTS, camera=CameraParams(),

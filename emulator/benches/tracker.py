@@ -33,7 +33,9 @@ PAPERS = {
 TARGETS = {"stereo20": (0.08, 0.00025), "radial4": (0.2, math.radians(0.1))}
 
 
-def _dataset(rig_name, motion, seed):
+def noisy_sequence(rig_name, motion, seed):
+    """The benchmark sequence: preset ``rig_name`` with sensor noise, ``motion``
+    (``paper``, ``head``), :data:`DURATION` seconds, the default scene of ``seed``."""
     from golden.rig import preset
     from golden.scene import default_scene_spec
     from golden.simulator import simulate
@@ -83,7 +85,7 @@ def _flatten(prefix, metrics):
 def measure():
     figures = {}
     for rig, seed in (("stereo20", STEREO_SEED), ("radial4", RADIAL_SEED)):
-        dataset = _dataset(rig, "paper", seed)
+        dataset = noisy_sequence(rig, "paper", seed)
         figures.update(_flatten(rig, _run(dataset)))
         short = _first_frames(dataset, SHORT_FRAMES)
         variants = {
@@ -103,7 +105,7 @@ def measure():
                 _first_frames(dataset, NONLINEAR_FRAMES), solver="nonlinear")))
             figures.update(_flatten(f"{rig}.linear", _run(
                 _first_frames(dataset, NONLINEAR_FRAMES))))
-        head = _first_frames(_dataset(rig, "head", HEAD_SEED), SHORT_FRAMES)
+        head = _first_frames(noisy_sequence(rig, "head", HEAD_SEED), SHORT_FRAMES)
         figures.update(_flatten(f"{rig}.short.head_motion", _run(head)))
     return figures
 

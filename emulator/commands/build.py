@@ -55,7 +55,7 @@ def _rig_params(spec, rig_name, fclk_hz, baud):
         config = PipelineConfig.for_rig(rig, clk_hz=fclk_hz, baud=baud)
     except (OSError, TypeError, ValueError) as exc:
         raise UsageError(f"--rig {rig_name}: {exc}") from None
-    return config.top, config.coef_raw
+    return config.top, config.coef_store
 
 
 def write_docs(out_dir, params):

@@ -64,15 +64,15 @@ class FifoArrivals:
 
 
 async def load_coefficients(regs, solver, coef):
-    """Coefficients ``coef`` (slots, rows used, 9) of the store of ``solver`` (its
-    entry ``slot · solver.rows + row``) through ``solver.coef``."""
-    slots, rows, _ = coef.shape
+    """The store contents ``coef`` (slots, entries used, 9: rows or polynomial terms) of
+    ``solver`` (its entry ``slot · entries_per_slot + j``) through ``solver.coef``."""
+    slots, entries, _ = coef.shape
     for slot in range(slots):
-        for row in range(rows):
+        for j in range(entries):
             for index in range(9):
                 await regs.write_register("solver", "coef", {
-                    "addr": slot * solver.rows + row, "index": index,
-                    "data": int(coef[slot, row, index])})
+                    "addr": slot * solver.entries_per_slot + j, "index": index,
+                    "data": int(coef[slot, j, index])})
 
 
 async def _read_fifo(regs, po, count):

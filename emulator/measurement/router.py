@@ -21,7 +21,10 @@ Decisions (each one is a choice the HDL router must copy):
   default K_s = 1 one disparity serves the whole row): ``shift + subpixel`` of the
   stereo lane, half-even, saturated into ``cue_fmt``. Both cameras of a pair use it
   (camera B sees the same points ``d`` pixels further left; the depth difference is
-  neglected), so the coefficient table is built with ``cue_scale = 1/(f·b)``. Every
+  neglected), so the coefficient table is built with ``cue_scale = 1/(f·b)``. With a
+  ``fallback`` (the closed loop's store of each pair's last usable cue per row and
+  stereo segment, i.e. the previous frame's), a segment whose stereo match fails takes
+  the stored cue of the same row instead (issue 16 item 4). Every
   camera must belong to exactly one pair: the depth-map cue of the radial rigs is not
   modelled.
 * **Confidence.** The temporal lane's peak ratio, half-even and saturated into
@@ -65,7 +68,7 @@ from hdl.measurement.router_params import RouterParams
 
 from emulator.pose_solver import PoseRows
 
-__all__ = ["RouterParams", "measured_shifts", "route_row", "route", "route_tickets",
+__all__ = ["RouterParams", "measured_shifts", "usable_cues", "route_row", "route", "route_tickets",
            "stream_order", "pose_rows"]
 
 
@@ -85,7 +88,7 @@ def measured_shifts(records, lane, dst):
     return resize(*_exact_shifts(records, lane), dst, Rounding.HALF_EVEN, Overflow.SATURATE)
 
 
-def _cues(params, stereo):
+def usable_cues(params, stereo):
     """``{(camera A, segment): raw cue}`` of the stereo measurements that give a depth."""
     if not stereo:
         return {}
@@ -95,14 +98,16 @@ def _cues(params, stereo):
             if m["confidence"] and not m["edge_hit"] and e > 0}
 
 
-def route_row(params, temporal, stereo):
+def route_row(params, temporal, stereo, fallback=None):
     """Solver transfers of one row: ``temporal`` and ``stereo`` are the lanes'
-    measurement dicts of that (frame, row), any order; returns dicts in stream order."""
+    measurement dicts of that (frame, row), any order; ``fallback`` optionally maps
+    ``(camera A, stereo segment)`` to the raw cue used where the stereo lane gave none
+    usable. Returns dicts in stream order."""
     d, s = params.temporal, params.solver
     ordered = sorted(temporal, key=lambda m: (m["camera"], m["segment"]))
     if not ordered:
         return []
-    cues = _cues(params, stereo)
+    cues = {**(fallback or {}), **usable_cues(params, stereo)}
     time = ordered[0]["t_first"] & ((1 << s.time_bits) - 1)
     shift = measured_shifts(ordered, d, s.shift_fmt)
     conf = resize(_field(ordered, "confidence"), d.confidence_fmt, s.conf_fmt,

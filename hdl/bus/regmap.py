@@ -137,9 +137,12 @@ def _solver(params):
         Register("counters", counters_layout(solver), Access.RO, "rows solved and rows "
                  "flagged per reason (`PoseFlag`)"),
         Register("coef", data.StructLayout({
-            "addr": solver.entry_bits, "index": 4, "data": signed(solver.coef_width)}),
-                 Access.WO, "write one stored coefficient: entry `slot · rows + row`, "
+            "addr": solver.entry_bits, "index": 4, "data": signed(solver.coef_store_width)}),
+                 Access.WO, "write one stored entry: entry `slot · entries + row` "
+                 "(or `+ term` when `coef_terms` > 0; entries = rows or terms), "
                  "coefficient 0–8 (a_T x y z, a_C x y z, a_R x y z), raw value"),
+        Register("coef_terms", 4, Access.CONST, "polynomial terms per coefficient in "
+                 "the row (0: the store holds every row)", value=solver.coef_terms),
     ])
 
 

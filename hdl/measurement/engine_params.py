@@ -64,14 +64,15 @@ class EngineParams:
     replace = replace
 
     @classmethod
-    def for_cameras(cls, camera, solver, pairs, *, segments=DEFAULT_SEGMENTS):
+    def for_cameras(cls, camera, solver, pairs, *, segments=DEFAULT_SEGMENTS,
+                    stereo_segments=1):
         """The engine behind a camera front end with parameters ``camera``.
 
         Lanes are ``camera.max_width × camera.max_height`` with the camera beat's widths;
         temporal lanes have ``segments`` segments (the solver needs ``n_cameras ×
-        segments`` slots and ``max_height`` rows), stereo lanes one
-        (``golden.descriptor.STEREO_MATCH``). ``pairs``: ``(A, B)`` camera indices per
-        rectified pair, every camera in exactly one.
+        segments`` slots and ``max_height`` rows), stereo lanes ``stereo_segments``
+        (``golden.descriptor.STEREO_MATCH``'s disparity range). ``pairs``: ``(A, B)``
+        camera indices per rectified pair, every camera in exactly one.
 
         Raises
         ------
@@ -83,13 +84,14 @@ class EngineParams:
         if not isinstance(solver, PoseSolverParams):
             raise TypeError(f"solver must be a PoseSolverParams, not {solver!r}")
         check_int("segments", segments, 1)
+        check_int("stereo_segments", stereo_segments, 1)
         if solver.rows != camera.max_height:
             raise ValueError(f"solver.rows must be camera.max_height ({camera.max_height}), "
                              f"not {solver.rows}")
         beat = {name: getattr(camera, source) for name, source in _BEAT_FIELDS.items()}
         lanes = {}
         for kind, match in (("temporal", MatchParams(segments=segments)),
-                            ("stereo", STEREO_MATCH)):
+                            ("stereo", replace(STEREO_MATCH, segments=stereo_segments))):
             try:
                 lanes[kind] = RowDescriptorParams(**beat, match=match)
             except ValueError as err:

@@ -87,10 +87,12 @@ class PoseAccumulator(wiring.Component):
     i : In(stream.Signature(measurement_layout(params)))
         Measurements. One transfer per ``27 / lanes`` clocks at most; held off while a
         finished row waits for the engine.
-    coef_addr : Out(entry_bits)
-        Coefficient store address ``slot · rows + row`` of the transfer being accepted.
+    coef_slot, coef_row : Out
+        Slot and row of the transfer being accepted, to the coefficient store
+        (:class:`hdl.pose.coef_store.CoefficientStore`).
     coef_data : In(ArrayLayout(signed(coef_width), 9))
-        The store's synchronous read data (one clock later).
+        The store's coefficients of that slot and row, ``params.coef_latency`` clocks
+        later.
     done : Out(1)
         A row's sums, exponents and flags are valid (until ``release``).
     release : In(1)
@@ -118,7 +120,8 @@ class PoseAccumulator(wiring.Component):
         self.period = -(-len(PAIRS) // params.lanes)
         super().__init__({
             "i": In(stream.Signature(measurement_layout(params))),
-            "coef_addr": Out(params.entry_bits),
+            "coef_slot": Out(params.slot_bits),
+            "coef_row": Out(params.row_bits),
             "coef_data": In(data.ArrayLayout(signed(params.coef_width), 9)),
             "done": Out(1),
             "release": In(1),
@@ -131,15 +134,18 @@ class PoseAccumulator(wiring.Component):
             "time": Out(params.time_bits),
         })
 
-    #: Clocks from accepting a measurement to its first product reaching the sums:
-    #: coefficient read, coef·cue, rounding, c·a, operand select, product.
-    FRONT = 6
+    @property
+    def front(self):
+        """Clocks from accepting a measurement to its first product reaching the sums:
+        the coefficient store's latency, coef·cue, rounding, c·a, operand select,
+        product."""
+        return self.params.coef_latency + 5
 
     @property
     def tail(self):
         """Clocks from a row's last transfer to ``done``: the front, the products, the
         diagonal's bit lengths and the exponents."""
-        return self.FRONT + self.period + 2
+        return self.front + self.period + 2
 
     def elaborate(self, platform):
         p = self.params
@@ -158,7 +164,7 @@ class PoseAccumulator(wiring.Component):
             m.d.sync += spacing.eq(period - 1)
         with m.Elif(spacing != 0):
             m.d.sync += spacing.eq(spacing - 1)
-        m.d.comb += self.coef_addr.eq(self.i.payload.slot * p.rows + self.i.payload.row)
+        m.d.comb += [self.coef_slot.eq(self.i.payload.slot), self.coef_row.eq(self.i.payload.row)]
 
         count_next = Mux(first_of_row, 1, Mux(count > p.slots, count, count + 1))
         with m.If(take):
@@ -170,18 +176,22 @@ class PoseAccumulator(wiring.Component):
         with m.If(self.release):
             m.d.sync += [waiting.eq(0), self.done.eq(0)]
 
-        # --- front: stage 1 (coefficients arrive), 2 (coef·cue), 3 (a), 4 (c·a); each
-        # stage's data load only with a measurement, so they hold while the back works.
+        # --- front: stage 1 (coefficients arrive, `coef_latency` clocks after the
+        # transfer: the measurement waits alongside), 2 (coef·cue), 3 (a), 4 (c·a); the
+        # data of stages 2-4 load only with a measurement, so they hold while the back works.
         stage = data.StructLayout({"valid": 1, "first": 1, "last": 1,
                                    "shift": p.shift_fmt.shape(), "conf": conf_fmt.shape()})
-        s1, s2, s3, s4 = (Signal(stage, name=f"s{k}") for k in range(1, 5))
-        cue1 = Signal(p.cue_fmt.shape())
-        m.d.sync += [s1.valid.eq(take), s2.valid.eq(s1.valid), s3.valid.eq(s2.valid),
-                     s4.valid.eq(s3.valid)]
-        with m.If(take):
-            m.d.sync += [s1.first.eq(first_of_row), s1.last.eq(self.i.payload.last),
-                         s1.shift.eq(self.i.payload.shift), s1.conf.eq(self.i.payload.conf),
-                         cue1.eq(self.i.payload.cue)]
+        s2, s3, s4 = (Signal(stage, name=f"s{k}") for k in range(2, 5))
+        waiting_coef = data.StructLayout({"stage": stage, "cue": p.cue_fmt.shape()})
+        s1 = Signal(waiting_coef)
+        m.d.comb += [s1.stage.valid.eq(take), s1.stage.first.eq(first_of_row),
+                     s1.stage.last.eq(self.i.payload.last), s1.stage.shift.eq(self.i.payload.shift),
+                     s1.stage.conf.eq(self.i.payload.conf), s1.cue.eq(self.i.payload.cue)]
+        for k in range(p.coef_latency):
+            s1, entered = Signal(waiting_coef, name=f"s1_{k}"), s1
+            m.d.sync += s1.eq(entered)
+        s1, cue1 = s1.stage, s1.cue
+        m.d.sync += [s2.valid.eq(s1.valid), s3.valid.eq(s2.valid), s4.valid.eq(s3.valid)]
         fmts = [p.coef_t_fmt] * 3 + [p.coef_c_fmt] * 3
         products = []
         for k in range(6):

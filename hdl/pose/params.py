@@ -62,6 +62,13 @@ class PoseSolverParams:
     coef_t_fmt, coef_c_fmt, coef_r_fmt : QFormat
         Formats of the stored coefficients a_T, a_C, a_R; all of one width (the store
         is an array of equal lanes). :func:`coefficient_formats` picks them from a table.
+    coef_poly_fmts : tuple
+        Empty: the store holds every row's coefficients (``slots × rows`` entries, any
+        lens). Otherwise the formats ``((t, c, r), …)`` of the terms ``c_0 … c_d`` of
+        each coefficient as a polynomial in the row (:mod:`hdl.pose.row_polynomials`;
+        ``slots × (d + 1)`` entries, evaluated per measurement). The terms of a group
+        share one fraction width, at least the group's coefficient format's (so a
+        window's terms, :func:`hdl.pose.row_polynomials.shift_polynomials`, are exact).
     a_fmt : QFormat
         Design-row entries ``w·a_T`` and ``a_R + w·a_C`` (rounded half-even, saturated).
     engine_width : int
@@ -89,6 +96,7 @@ class PoseSolverParams:
     coef_t_fmt: QFormat = SQ(5, 13)
     coef_c_fmt: QFormat = SQ(2, 16)
     coef_r_fmt: QFormat = SQ(11, 7)
+    coef_poly_fmts: tuple = ()
     a_fmt: QFormat = SQ(13, 12)
     engine_width: int = 42
     pivot_log2: int = 20
@@ -119,6 +127,7 @@ class PoseSolverParams:
         if len(widths) != 1:
             raise ValueError(f"coef_t_fmt, coef_c_fmt and coef_r_fmt must have one width, "
                              f"not {sorted(widths)}")
+        self._check_poly_fmts()
         check_int("engine_width", self.engine_width, 32, 64)
         # the seed register keeps the table's fraction bits and one more
         check_int("pivot_log2", self.pivot_log2, 2,
@@ -133,14 +142,56 @@ class PoseSolverParams:
             raise ValueError(f"min_diagonal {self.min_diagonal} does not fit the normal "
                              f"matrix format {self.normal_fmt}")
 
+    def _check_poly_fmts(self):
+        fmts = self.coef_poly_fmts
+        if not isinstance(fmts, tuple) or not all(
+                isinstance(term, tuple) and len(term) == 3 for term in fmts):
+            raise TypeError(f"coef_poly_fmts must be a tuple of (t, c, r) format tuples, "
+                            f"not {fmts!r}")
+        if len(fmts) > 4:
+            raise ValueError(f"coef_poly_fmts must have at most 4 terms (degree 3), not "
+                             f"{len(fmts)}")
+        groups = (self.coef_t_fmt, self.coef_c_fmt, self.coef_r_fmt)
+        for g, (name, coef_fmt) in enumerate(zip(COEF_GROUPS, groups)):
+            for k, term in enumerate(fmts):
+                check_format(f"coef_poly_fmts[{k}][{g}]", term[g], signed=True)
+            fracs = {term[g].frac_bits for term in fmts}
+            if fracs and (len(fracs) != 1 or fracs.pop() < coef_fmt.frac_bits):
+                raise ValueError(f"coef_poly_fmts terms of group {name} must share one "
+                                 f"fraction width of at least {coef_fmt.frac_bits}, not "
+                                 f"{[str(term[g]) for term in fmts]}")
+
     replace = replace
 
     # --- sizes -------------------------------------------------------------------------
 
     @property
+    def coef_terms(self):
+        """Polynomial terms per coefficient (0: a store of every row)."""
+        return len(self.coef_poly_fmts)
+
+    @property
+    def entries_per_slot(self):
+        """Store entries of one slot: its rows, or its polynomial terms."""
+        return self.coef_terms or self.rows
+
+    @property
     def entries(self):
-        """Coefficient store depth: one entry per (slot, row)."""
-        return self.slots * self.rows
+        """Coefficient store depth: entry ``slot · entries_per_slot + row`` (or
+        ``+ term``)."""
+        return self.slots * self.entries_per_slot
+
+    @property
+    def coef_store_width(self):
+        """Raw width of a stored entry (a run-time write's data)."""
+        return max([self.coef_width] + [f.width for term in self.coef_poly_fmts
+                                        for f in term])
+
+    @property
+    def coef_latency(self):
+        """Clocks from a (slot, row) to its coefficients: the memory read, then for a
+        polynomial store one clock per Horner step and one for the rounding."""
+        return 1 if not self.coef_terms else self.coef_terms + 1
 
     @property
     def slot_bits(self):

@@ -8,7 +8,7 @@ import random
 import pytest
 
 from golden.descriptor import STEREO_MATCH
-from emulator.measurement.router import RouterParams, pose_rows, route, route_row
+from emulator.measurement.router import RouterParams, pose_rows, route, route_row, usable_cues
 from hdl.fixed import SQ, UQ
 from hdl.pose.params import PoseSolverParams
 from hdl.descriptor.params import RowDescriptorParams
@@ -147,3 +147,23 @@ def test_parameter_checks(changes, error, message):
               "solver": SOLVER, **changes}
     with pytest.raises(error, match=message):
         RouterParams(**kwargs)
+
+
+def test_a_failed_stereo_segment_takes_the_fallback_cue():
+    """Depth per segment (issue 16 item 4): where the pair's stereo match of a segment is
+    unusable, the stored cue of the same row (the previous frame's) stands in; a usable
+    stereo measurement wins over the store; without a stored cue the weight stays 0."""
+    temporal, stereo = full_row()
+    for m in stereo:
+        if (m["camera"], m["segment"]) in ((0, 1), (2, 1)):
+            m["confidence"] = 0
+    fallback = {(0, 0): 999, (0, 1): 12345}
+    assert set(usable_cues(PARAMS, stereo)) == {(0, 0), (2, 0)}
+    out = route_row(PARAMS, temporal, stereo, fallback)
+    own = round((20 + 16 / (1 << F)) * (1 << 10))
+    for t in out:
+        camera, segment = divmod(t["slot"], 4)
+        if camera < 2:
+            assert t["cue"] == (own if segment < 2 else 12345) and t["conf"] > 0
+        else:
+            assert (t["cue"], t["conf"] > 0) == ((own, True) if segment < 2 else (0, False))

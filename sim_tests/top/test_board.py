@@ -159,7 +159,7 @@ def test_build_for_a_rig_goes_through_the_configuration_door(tmp_path):
     params, coefficients = build._params(board.board("arty-z7-20"), args)
     config = PipelineConfig.for_rig(load_rig(path), clk_hz=100_000_000)
     assert params == config.top and params.camera.max_width == 320
-    np.testing.assert_array_equal(coefficients, config.coef_raw)
+    np.testing.assert_array_equal(coefficients, config.coef_store)
     assert coefficients.any()
 
 

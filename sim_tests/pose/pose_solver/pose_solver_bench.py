@@ -127,7 +127,7 @@ async def coefficients_rewritten_at_run_time(dut):
             coefficients[slot, rows.row[r], index] = value
             dut.coef_write__addr.value = int(slot) * params.rows + int(rows.row[r])
             dut.coef_write__index.value = index
-            dut.coef_write__data.value = value & ((1 << params.coef_width) - 1)
+            dut.coef_write__data.value = value & ((1 << params.coef_store_width) - 1)
             dut.coef_write__en.value = 1
             await RisingEdge(dut.clk)
     dut.coef_write__en.value = 0

@@ -1,0 +1,165 @@
+"""Benchmark of the hardware path's tracking (issue 16): the bit-accurate emulator's closed
+measurement loop against ground truth and against the golden tracker's reference (b) with
+the same loop delay.
+
+Per rig and motion: the tracker benchmark's noisy sequence (:func:`noisy_sequence`,
+:data:`DURATION` = 12 frames at 120 fps), the first frame's poses given as in the papers
+(the loop starts at the true one-frame motion of the first tracked row), the pipeline of
+:meth:`hdl.pipeline_config.PipelineConfig.for_rig` closed through its forecast
+(:meth:`~hdl.pipeline_config.PipelineConfig.forecast`, the hardware's loop delay), with
+the consistency stage, a disparity per temporal segment and the stereo cue fallback
+(docs/e2e.md, "Closed loop"). The
+quantity is the papers' Table 1 one: each row's one-frame motion ``Y`` against the true
+one from the poses at the same two times, RMS per axis over the rows of frames 1…11: the
+hardware path's estimate is the forecast filter's level after each row (its smoothed
+``Y``, ``rms_*``); the solver's raw steps are reported beside it (``step_rms_*``, NaN rows
+unsolved). The golden (b) run is ``TrackerParams(reference="previous", follow_rows=True,
+motion_gain="scalar", loop_delay_rows=<the same delay>)`` on the same sequence.
+"""
+
+import time
+
+import numpy as np
+
+from emulator.benches.tracker import DURATION, PAPERS, noisy_sequence
+
+#: Rigs measured; the board rig joins once issue 17 defines it.
+RIGS = ("stereo20",)
+#: Motion -> sequence seed (the tracker benchmark's).
+MOTIONS = {"paper": 11, "head": 13}
+#: Targets of issue 16: at most this multiple of golden (b) per axis, at least this
+#: fraction of rows solved, head motion within this multiple of the paper motion's figures.
+GOLDEN_RATIO, SOLVED, HEAD_RATIO = 1.5, 0.95, 1.5
+
+
+def _rms(values):
+    return np.sqrt(np.nanmean(np.square(values), axis=0))
+
+
+def _axes(prefix, t_m, r_rad):
+    out = {f"{prefix}rms_t_cm.{a}": float(100 * v) for a, v in zip("xyz", t_m)}
+    out.update({f"{prefix}rms_r_rad.{a}": float(v) for a, v in zip("xyz", r_rad)})
+    return out
+
+
+def hardware_path(dataset, progress=False):
+    """The emulator's closed loop on ``dataset``: figures (unprefixed) and the delay."""
+    from emulator.e2e import true_steps
+    from emulator.pipeline import run
+    from hdl.pipeline_config import PipelineConfig
+    from hdl.top_params import DEFAULT_SEGMENTS
+    config = PipelineConfig.for_rig(dataset.rig, stereo_segments=DEFAULT_SEGMENTS)
+    forecast = config.forecast()
+    start = time.perf_counter()
+    result = run(config, dataset, forecast=forecast, progress=progress,
+                 initial_motion=true_steps(dataset, [1], [0])[0],
+                 consistency=config.consistency(), cue_fallback=True)
+    loop = result.loop
+    scored = loop["frame"] > 0
+    level = forecast.motion_fmt.to_float(loop["level"][scored])
+    error = _rms(level - true_steps(dataset, loop["frame"][scored], loop["row"][scored]))
+    figures = _axes("", error[:3], error[3:])
+    tracked = result.frame > 0
+    steps = result.steps(config)[tracked]
+    error = _rms(steps - true_steps(dataset, result.frame[tracked],
+                                    result.records["row"][tracked]))
+    figures.update(_axes("step_", error[:3], error[3:]))
+    figures["solved_fraction"] = float(np.mean(np.isfinite(steps[:, 0])))
+    figures["rows"] = int(scored.sum())
+    figures["loop_delay_rows"] = forecast.loop_delay_rows
+    figures["emulator_s"] = time.perf_counter() - start
+    return figures
+
+
+def golden_b(dataset, loop_delay_rows):
+    """Golden reference (b) with the hardware's delay and gain law: figures (unprefixed)."""
+    from golden.metrics import evaluate
+    from golden.tracker import TrackerParams, track
+    params = TrackerParams(reference="previous", follow_rows=True, motion_gain="scalar",
+                           loop_delay_rows=loop_delay_rows)
+    metrics = evaluate(track(dataset, params), dataset)
+    return _axes("golden_b_", np.array(metrics["rms_t_cm"]) / 100, metrics["rms_r_rad"])
+
+
+def measure(rigs=RIGS, motions=tuple(MOTIONS), progress=False):
+    figures = {}
+    for rig in rigs:
+        for motion in motions:
+            dataset = noisy_sequence(rig, motion, MOTIONS[motion])
+            hw = hardware_path(dataset, progress)
+            hw.update(golden_b(dataset, hw["loop_delay_rows"]))
+            figures.update({f"{rig}.{motion}.{key}": value for key, value in hw.items()})
+    return figures
+
+
+# --- report -------------------------------------------------------------------------------
+
+def _row(f, key, label, scale=1.0, digits=4):
+    t = " / ".join(f"{f[f'{key}rms_t_cm.{a}']:.{digits}f}" for a in "xyz")
+    r = " / ".join(f"{f[f'{key}rms_r_rad.{a}'] * scale:.2e}" for a in "xyz")
+    return f"| {label} | {t} | {r} |"
+
+
+def verdicts(f, rig):
+    """The issue's targets for ``rig``, each as (target, measured, met)."""
+    out = []
+    paper = PAPERS.get(rig)
+    for motion in MOTIONS:
+        key = f"{rig}.{motion}."
+        if key + "solved_fraction" not in f:
+            continue
+        solved = f[key + "solved_fraction"]
+        out.append((f"{motion}: rows solved ≥ {SOLVED:.0%}", f"{solved:.1%}", solved >= SOLVED))
+        for unit in ("t_cm", "r_rad"):
+            for a in "xyz":
+                hw, gold = f[f"{key}rms_{unit}.{a}"], f[f"{key}golden_b_rms_{unit}.{a}"]
+                out.append((f"{motion}: {unit[0].upper() if unit == 't_cm' else 'θ'}{a} ≤ "
+                            f"{GOLDEN_RATIO} × golden (b)", f"{hw / gold:.2f} ×",
+                            hw <= GOLDEN_RATIO * gold))
+        if motion == "paper" and paper is not None:
+            bounds = list(paper["t_cm"]) + list(paper["r_rad"])
+            values = [f[f"{key}rms_t_cm.{a}"] for a in "xyz"] + \
+                     [f[f"{key}rms_r_rad.{a}"] for a in "xyz"]
+            for name, value, bound in zip(("Tx", "Ty", "Tz", "θx", "θy", "θz"), values,
+                                          bounds):
+                out.append((f"paper: {name} ≤ {bound:g} ({paper['source']})", f"{value:.4g}",
+                            value <= bound))
+    return out
+
+
+def report(figures):
+    f = figures
+    sections = []
+    for rig in RIGS:
+        rows = []
+        for motion in MOTIONS:
+            key = f"{rig}.{motion}."
+            if key + "rows" not in f:
+                continue
+            rows.append(_row(f, key, f"{motion}, hardware path (emulator), filter level"))
+            rows.append(_row(f, key + "step_", f"{motion}, hardware path, solved steps"))
+            rows.append(_row(f, key + "golden_b_", f"{motion}, golden (b), same delay"))
+        delay = f[f"{rig}.{next(iter(MOTIONS))}.loop_delay_rows"]
+        checks = "\n".join(f"| {target} | {value} | {'met' if met else 'MISSED'} |"
+                           for target, value, met in verdicts(f, rig))
+        sections.append(f"""## {rig}
+
+Loop delay {delay} row(s). Per-row one-frame motion Y against truth, RMS per axis:
+
+| run | Tx / Ty / Tz (cm) | θx / θy / θz (rad) |
+|---|---|---|
+{chr(10).join(rows)}
+
+| target (issue 16) | measured | |
+|---|---|---|
+{checks}
+""")
+    return f"""# Hardware-path tracking (closed measurement loop)
+
+The bit-accurate emulator's closed loop (`emulator.pipeline.run` with the configuration's
+forecast; the HDL equals it bit for bit where the gateware exists, see
+[docs/e2e.md](../e2e.md)) on the tracker benchmark's sequences ({DURATION * 1000:.0f} ms,
+sensor noise, the first frame given), against truth and against the golden tracker's
+reference (b) with the same loop delay and gain law.
+
+{chr(10).join(sections)}"""
