@@ -37,15 +37,18 @@ from .descriptor import describe, match, segment_bounds, strength
 from .depth import StereoDepth, stereo_pairs
 from .pose_lsq import body_step, normal_equations, solve_normal
 from .reference_rows import HomographyReference, PreviousFrameReference
-from .temporal_filter import DelayedForecast, HoltWinters, RobustScale, information_gain
+from .temporal_filter import (DelayedForecast, HoltWinters, RobustScale, huber_weight,
+                              information_gain)
 from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
-from .tracker_params import (DEPTHS, MOTION_GAINS, REFERENCES, SOLVERS, TrackerParams,
-                             TrackResult)
+from .tracker_params import (BOUNDARIES, DEPTHS, MOTION_GAINS, REFERENCES, SOLVERS,
+                             TrackerParams, TrackResult)
+from .tracker_robust import GroupConsistency, depth_weights, partial_solve
 from .tracker_slots import RowSlots
+from .tracking_status import StatusMonitor, TrackingStatus
 
-__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "TrackerParams", "TrackResult", "Tracker",
-           "track"]
+__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "BOUNDARIES", "TrackerParams",
+           "TrackResult", "Tracker", "track"]
 
 #: Gauss–Newton iterations and finite-difference probe (m or rad) of the nonlinear
 #: refinement.
@@ -98,7 +101,29 @@ class Tracker:
         channels = len(self.rig.cameras) * params.segments
         self.scale = RobustScale(channels, initial=params.scale_initial,
                                  floor=params.scale_floor, smoothing=params.scale_smoothing,
-                                 k=params.huber_k)
+                                 k=params.huber_k, ceiling=params.scale_ceiling)
+        self.group, self.inverse_depth_sigma = self._groups()
+        self.consistency = GroupConsistency(int(self.group.max()) + 1,
+                                            params.consistency_k * params.shift_sigma,
+                                            params.consistency_smoothing)
+        window = round(params.status_window * self.slots.period / self.slots.t_r)
+        self.status = StatusMonitor(max(window, 1), params)
+        self.recovering = self.drifted = False
+
+    def _groups(self):
+        """Consistency group of every camera (its stereo pair, else itself) and its
+        inverse-depth error (1/m): ``disparity_sigma / (f · baseline)`` with the baseline
+        to the nearest camera, 0 for the oracle."""
+        cams = self.rig.cameras
+        group = np.arange(len(cams))
+        for k, (left, right, _) in enumerate(stereo_pairs(self.rig)):
+            group[[left, right]] = len(cams) + k
+        centres = np.array([c.c for c in cams])
+        gaps = np.linalg.norm(centres[:, None] - centres[None], axis=-1)
+        np.fill_diagonal(gaps, np.inf)
+        nearest = gaps.min(axis=1) if len(cams) > 1 else np.full(1, np.inf)
+        sigma = self.params.disparity_sigma / (np.array([c.fx for c in cams]) * nearest)
+        return group, (np.zeros(len(cams)) if self.depth_source == "oracle" else sigma)
 
     # --- set-up ----------------------------------------------------------------------
 
@@ -213,6 +238,7 @@ class Tracker:
         """Match the block's rows (grouped by window centre across cameras) and form each
         entry's segment equations (arrays (B, K, ...))."""
         p, width = self.params, self.rig.cameras[0].width
+        matcher = p.recovery_matcher if self.recovering else self.matcher
         centres = np.concatenate([e.centres for e in entries])
         owner = np.concatenate([np.full(len(e.rows), j) for j, e in enumerate(entries)])
         local = np.concatenate([np.arange(len(e.rows)) for e in entries])
@@ -226,9 +252,9 @@ class Tracker:
             e.lo, e.hi = np.zeros((b, p.segments), int), np.zeros((b, p.segments), int)
         for centre in np.unique(centres):
             sel = np.flatnonzero(centres == centre)
-            result = match(cur[sel], ref[sel], self.desc, self.matcher, centre=int(centre),
+            result = match(cur[sel], ref[sel], self.desc, matcher, centre=int(centre),
                            cur_strong=None if strong is None else strong[sel])
-            bounds = np.array(segment_bounds(width, self.desc, self.matcher, int(centre)))
+            bounds = np.array(segment_bounds(width, self.desc, matcher, int(centre)))
             good = ~result.textureless & ~result.edge_hit
             for j in np.unique(owner[sel]):
                 mine = owner[sel] == j
@@ -244,10 +270,13 @@ class Tracker:
         little depth or an unusable reference get no measurement."""
         p, cam = self.params, self.rig.cameras[e.camera]
         usable = np.isfinite(e.inverse_depth) & np.isfinite(e.predicted)
-        design = self.design_tables[e.camera].rows(e.rows, e.inverse_depth)
+        table = self.design_tables[e.camera]
+        design = table.rows(e.rows, e.inverse_depth)
         stride = p.geometry_stride
         lo, hi = -(-e.lo // stride), -(-e.hi // stride)     # strided columns in [lo, hi)
         e.design, share = segment_means(design, usable, lo, hi)
+        unit = table.rows(e.rows, np.ones_like(e.inverse_depth))[..., :3]
+        e.unit_translation, _ = segment_means(unit, usable, lo, hi)   # d shift / d(1/Z)
         e.expected, _ = segment_means(e.predicted, usable, lo, hi)
         margin = self.desc.radius + REFERENCE_MARGIN
         invalid = np.cumsum(np.concatenate([np.zeros((len(e.rows), 1)), ~e.ref.valid],
@@ -274,7 +303,10 @@ class Tracker:
             "camera_confidence": np.full((size, n_cams), np.nan),
             "motion": np.full((size, 6), np.nan), "forecast": np.full((size, 6), np.nan),
             "measured": np.full((size, 6), np.nan), "linear_step": np.full((size, 6), np.nan),
-            "refined_step": np.full((size, 6), np.nan)}
+            "refined_step": np.full((size, 6), np.nan),
+            "status": np.zeros(size, dtype=np.uint8), "drifted": np.zeros(size, dtype=bool),
+            "judged": np.zeros(size, dtype=int), "outliers": np.zeros(size, dtype=int),
+            "dropped_group": np.full(size, -1), "partial": np.zeros(size, dtype=bool)}
         starts = range(slots.first_tracked, size, p.block_rows)
         if progress:
             from tqdm import tqdm
@@ -317,6 +349,8 @@ class Tracker:
             design=np.concatenate([e.design.reshape(-1, 6) for e in entries] or [np.zeros((0, 6))]),
             innovation=np.concatenate([(e.shift - e.expected).ravel() for e in entries] or [[]]),
             ratio=np.concatenate([e.peak_ratio.ravel() for e in entries] or [[]]),
+            unit=np.concatenate([e.unit_translation.reshape(-1, 3) for e in entries]
+                                or [np.zeros((0, 3))]),
             source=[(e, i) for e in entries for i in range(len(e.rows))])
         order = np.argsort(table.slot, kind="stable")
         bounds = np.searchsorted(table.slot[order], np.append(occupied, stop))
@@ -327,44 +361,29 @@ class Tracker:
                        out)
 
     def _step(self, s, linearised_at, table, mine, previous, out):
-        """Robust weighted solve of slot ``s`` from the block's measurements ``mine``."""
+        """Robust weighted solve of slot ``s`` from the block's measurements ``mine``, the
+        slot's status, then the motion filter and the pose."""
         p = self.params
         forecast = self.forecasts.forecast(s)       # what the loop knows when s starts
-        step, gain, condition, used = None, None, np.nan, 0
-        if len(mine):
-            design, ratio = table.design[mine], table.ratio[mine]
-            residual = table.innovation[mine] - design @ (forecast - linearised_at)
-            ok = np.isfinite(residual) & np.all(np.isfinite(design), axis=1) & (ratio > 0)
-            x, weight = self.scale.judge(table.channel[mine][ok], residual[ok])
-            confidence = np.zeros(len(mine))
-            confidence[ok] = ratio[ok] * weight
-            outlier = np.zeros(len(mine), dtype=bool)
-            outlier[ok] = np.abs(x) > p.huber_k
-            cleaned = np.where(outlier | ~ok, 0.0, residual)    # outlier -> the forecast
-            best = np.zeros(len(self.rig.cameras))
-            np.maximum.at(best, table.camera[mine], confidence)
-            present = np.unique(table.camera[mine])
-            out["camera_confidence"][s, present] = best[present]
-            used = int(np.count_nonzero(confidence))
-            cameras = len(np.unique(table.camera[mine][confidence > 0]))
-            if confidence.max() >= p.min_confidence and cameras >= p.min_cameras:
-                normal, rhs = normal_equations(design[ok], cleaned[ok], confidence[ok])
-                solution = solve_normal(normal, rhs, p.max_condition**2)
-                condition = float(np.sqrt(solution.condition))
-                if solution.ok:
-                    step = solution.step
-                    if p.solver == "nonlinear":
-                        parts = [table.source[m // p.segments] for m in mine[::p.segments]]
-                        out["linear_step"][s] = step
-                        step = self._refine(parts, forecast, step, confidence, outlier)
-                        out["refined_step"][s] = step
-                    self.typical = normal if self.typical is None else \
-                        (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
-                    if p.motion_gain == "information":
-                        gain = information_gain(normal, self.typical, p.alpha)
+        solved = self._solve(s, forecast, linearised_at, table, mine, out)
+        step, normal = solved.step, solved.normal
+        status = self.status.update(step is not None, solved.judged, solved.outliers,
+                                    solved.condition, solved.used)
+        gain = None
+        if step is not None and p.motion_gain == "information" and self.typical is not None:
+            gain = information_gain(normal, self.typical, p.alpha)
         current = self.motion.forecast()            # the filter's own state is up to date
         measured = None if step is None else forecast + step
-        level = self.forecasts.update(s, measured, gain)
+        if status == TrackingStatus.LOST and not self.recovering:
+            # lost: hold (no forecast) and re-acquire with a widened search
+            self.recovering = self.drifted = True
+            measured, level = None, self.forecasts.reset(s, np.zeros(6))
+        elif self.recovering and measured is not None:
+            level = self.forecasts.reset(s, measured)          # re-acquired motion
+        else:
+            level = self.forecasts.update(s, measured, gain)
+        if self.recovering and status != TrackingStatus.LOST:
+            self.recovering = False
         # the pose carried on from the latest one at the current rate (Y is the motion
         # over the last frame, i.e. the rate half a frame ago: the trend brings it up to
         # date) ...
@@ -374,18 +393,94 @@ class Tracker:
         rate = (current + half_frame * self.motion.trend) / self.slots.period
         rotation, position = compose(self.track.rotations[last], self.track.positions[last],
                                      rate * dt)
-        if step is not None:  # ... pulled towards the measured one, weighted by information
+        if measured is not None:  # ... pulled towards the measured one, weighted by information
             target = compose(*previous, measured)
-            pull = information_gain(normal, self.typical, p.pose_alpha)
+            pull = p.pose_alpha * np.eye(6) if self.typical is None else \
+                information_gain(normal, self.typical, p.pose_alpha)
             rotation, position = compose(rotation, position,
                                          pull @ body_step(rotation, position, *target))
         self.track.append(self.slots.times[s], rotation, position)
         self.track.set_extrapolation(level / self.slots.period)
-        out["updated"][s], out["condition"][s] = step is not None, condition
-        out["equations"][s], out["motion"][s] = used, level
+        out["updated"][s], out["condition"][s] = step is not None, solved.condition
+        out["equations"][s], out["motion"][s] = solved.used, level
         out["forecast"][s] = forecast
+        out["status"][s], out["drifted"][s] = status, self.drifted
+        out["judged"][s], out["outliers"][s] = solved.judged, solved.outliers
+        out["partial"][s] = solved.partial
         if measured is not None:
             out["measured"][s] = measured
+
+    def _solve(self, s, forecast, linearised_at, table, mine, out):
+        """The slot's robust step: Huber verdicts against the forecast (after a loss:
+        against a first solve, there being no forecast), depth-sensitivity weights, the
+        consistency test between camera groups, the conditioned (or partial) solve."""
+        p = self.params
+        solved = SimpleNamespace(step=None, normal=None, condition=np.nan, used=0, judged=0,
+                                 outliers=0, partial=False)
+        if not len(mine):
+            return solved
+        design, ratio = table.design[mine], table.ratio[mine]
+        camera, channel = table.camera[mine], table.channel[mine]
+        residual = table.innovation[mine] - design @ (forecast - linearised_at)
+        ok = np.isfinite(residual) & np.all(np.isfinite(design), axis=1) & (ratio > 0)
+        weight = np.ones(np.count_nonzero(ok))
+        outlier = np.zeros(len(mine), dtype=bool)
+        if not self.recovering:
+            x, weight = self.scale.judge(channel[ok], residual[ok])
+            outlier[ok] = np.abs(x) > p.huber_k
+        confidence = np.zeros(len(mine))
+        confidence[ok] = ratio[ok] * weight
+        best = np.zeros(len(self.rig.cameras))
+        np.maximum.at(best, camera, confidence)
+        present = np.unique(camera)
+        out["camera_confidence"][s, present] = best[present]
+        cameras = len(np.unique(camera[confidence > 0]))
+        if not (confidence.max() >= p.min_confidence and cameras >= p.min_cameras):
+            solved.used, solved.judged = int(np.count_nonzero(confidence)), int(ok.sum())
+            solved.outliers = int(outlier.sum())
+            return solved
+        confidence[ok] *= depth_weights(table.unit[mine][ok], forecast[:3],
+                                        self.inverse_depth_sigma[camera[ok]], p.shift_sigma)
+        cleaned = np.where(outlier | ~ok, 0.0, residual)    # outlier -> the forecast
+        scale = self.scale.scale[channel]
+        if p.consistency_k > 0:
+            group = self.group[camera]
+            bad = self.consistency.judge(design[ok], cleaned[ok], confidence[ok], group[ok],
+                                         p.max_condition)
+            if bad is not None:
+                confidence[group == bad] = 0.0
+                out["dropped_group"][s] = bad
+        self._system(solved, design[ok], cleaned[ok], confidence[ok])
+        if self.recovering and solved.step is not None:
+            x = (cleaned[ok] - design[ok] @ solved.step) / scale[ok]
+            outlier[ok] = np.abs(x) > p.huber_k
+            confidence[ok] *= huber_weight(x, p.huber_k)
+            self._system(solved, design[ok], cleaned[ok], confidence[ok])
+        solved.used, solved.judged = int(np.count_nonzero(confidence)), int(ok.sum())
+        solved.outliers = int(outlier.sum())
+        if solved.step is not None and not solved.partial and p.solver == "nonlinear":
+            parts = [table.source[m // p.segments] for m in mine[::p.segments]]
+            out["linear_step"][s] = solved.step
+            solved.step = self._refine(parts, forecast, solved.step, confidence, outlier)
+            out["refined_step"][s] = solved.step
+        return solved
+
+    def _system(self, solved, design, residual, confidence):
+        """Solve the weighted system into ``solved``: the full step if it is well
+        conditioned, else (``boundary="partial"``) the step in its determined directions."""
+        p = self.params
+        normal, rhs = normal_equations(design, residual, confidence)
+        solution = solve_normal(normal, rhs, p.max_condition**2)
+        solved.condition = float(np.sqrt(solution.condition))
+        solved.step, solved.normal, solved.partial = None, None, False
+        if solution.ok:
+            solved.step, solved.normal = solution.step, normal
+            self.typical = normal if self.typical is None else \
+                (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
+        elif p.boundary == "partial":
+            solved.step, solved.normal = partial_solve(normal, rhs, p.max_condition,
+                                                       self.typical)
+            solved.partial = solved.step is not None
 
     def _exact_shifts(self, parts, motions):
         """Segment shifts (M, equations) predicted by the full projection model for one-
