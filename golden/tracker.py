@@ -33,7 +33,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .descriptor import describe, match, segment_bounds, strength
+from .descriptor import describe, match, segment_bounds, strength, textureless
 from .depth import StereoDepth, stereo_pairs
 from .pose_lsq import body_step, normal_equations, solve_normal
 from .reference_rows import HomographyReference, PreviousFrameReference
@@ -59,6 +59,10 @@ REFINE_PROBE = 1e-6
 #: columns that must hold scene content (the parabola's neighbours); reference pixels
 #: further out only raise the costs of far shifts.
 REFERENCE_MARGIN = 2
+
+#: Robust scales (pixels) of the reweighted solves of a re-acquisition after a loss,
+#: before the channels' own scales: from a gross start to the matcher's precision.
+RECOVERY_SCALES = (8.0, 4.0, 2.0, 1.0, 0.5)
 
 #: Weight of each new solved system in the running "typical information" that scales
 #: the filter gains (about the last 50 solved slots).
@@ -108,7 +112,8 @@ class Tracker:
                                             params.consistency_smoothing)
         window = round(params.status_window * self.slots.period / self.slots.t_r)
         self.status = StatusMonitor(max(window, 1), params)
-        self.recovering = self.drifted = False
+        self.recovering = self.drifted = self.reacquired = False
+        self.good_motion = self.motion.level.copy()
 
     def _groups(self):
         """Consistency group of every camera (its stereo pair, else itself) and its
@@ -255,7 +260,10 @@ class Tracker:
             result = match(cur[sel], ref[sel], self.desc, matcher, centre=int(centre),
                            cur_strong=None if strong is None else strong[sel])
             bounds = np.array(segment_bounds(width, self.desc, matcher, int(centre)))
-            good = ~result.textureless & ~result.edge_hit
+            # a flat reference (a blank or lost frame) matches anything: no measurement
+            flat_ref = textureless(np.roll(ref[sel], int(centre), axis=1), self.desc, matcher,
+                                   int(centre))
+            good = ~result.textureless & ~result.edge_hit & ~flat_ref
             for j in np.unique(owner[sel]):
                 mine = owner[sel] == j
                 e, rows = entries[j], local[sel][mine]
@@ -375,15 +383,21 @@ class Tracker:
         current = self.motion.forecast()            # the filter's own state is up to date
         measured = None if step is None else forecast + step
         if status == TrackingStatus.LOST and not self.recovering:
-            # lost: hold (no forecast) and re-acquire with a widened search
+            # lost: carry on at the last motion measured while tracking (the poses of the
+            # frames to come keep their rows consistent) and re-acquire with a widened
+            # search, the filter's recent values and trend forgotten
             self.recovering = self.drifted = True
-            measured, level = None, self.forecasts.reset(s, np.zeros(6))
-        elif self.recovering and measured is not None:
-            level = self.forecasts.reset(s, measured)          # re-acquired motion
+            self.reacquired = False
+            measured, level = None, self.forecasts.reset(s, self.good_motion)
+        elif self.recovering and measured is not None and not self.reacquired:
+            level = self.forecasts.reset(s, measured)          # the first motion found
+            self.reacquired = True
         else:
             level = self.forecasts.update(s, measured, gain)
         if self.recovering and status != TrackingStatus.LOST:
             self.recovering = False
+        if status == TrackingStatus.TRACKING:
+            self.good_motion = level
         # the pose carried on from the latest one at the current rate (Y is the motion
         # over the last frame, i.e. the rate half a frame ago: the trend brings it up to
         # date) ...
@@ -395,8 +409,10 @@ class Tracker:
                                      rate * dt)
         if measured is not None:  # ... pulled towards the measured one, weighted by information
             target = compose(*previous, measured)
-            pull = p.pose_alpha * np.eye(6) if self.typical is None else \
-                information_gain(normal, self.typical, p.pose_alpha)
+            if self.typical is None:
+                pull = p.pose_alpha * np.eye(6)
+            else:
+                pull = information_gain(normal, self.typical, p.pose_alpha)
             rotation, position = compose(rotation, position,
                                          pull @ body_step(rotation, position, *target))
         self.track.append(self.slots.times[s], rotation, position)
@@ -451,11 +467,17 @@ class Tracker:
                 confidence[group == bad] = 0.0
                 out["dropped_group"][s] = bad
         self._system(solved, design[ok], cleaned[ok], confidence[ok])
-        if self.recovering and solved.step is not None:
-            x = (cleaned[ok] - design[ok] @ solved.step) / scale[ok]
-            outlier[ok] = np.abs(x) > p.huber_k
-            confidence[ok] *= huber_weight(x, p.huber_k)
-            self._system(solved, design[ok], cleaned[ok], confidence[ok])
+        if self.recovering:     # no forecast to judge against: Huber about the solution,
+            base = confidence[ok]       # the scale shrinking from the widened window's
+            for size in RECOVERY_SCALES:
+                if solved.step is None:
+                    break
+                x = (cleaned[ok] - design[ok] @ solved.step) / size
+                outlier[ok] = np.abs(x) > p.huber_k
+                confidence[ok] = base * huber_weight(x, p.huber_k)
+                self._system(solved, design[ok], cleaned[ok], confidence[ok])
+            if outlier.sum() > p.lost_outlier_fraction * ok.sum():
+                solved.step = None      # most measurements disagree: not re-acquired
         solved.used, solved.judged = int(np.count_nonzero(confidence)), int(ok.sum())
         solved.outliers = int(outlier.sum())
         if solved.step is not None and not solved.partial and p.solver == "nonlinear":
