@@ -19,13 +19,24 @@ rows, which depend only on calibration, pixel position and depth (the hardware's
 precomputed coefficients).
 
 Per-measurement confidence is the matcher's peak ratio times the Huber consistency
-weight of its innovation against the channel's robust scale; an outlier is replaced by
-the forecast. A slot steps if a measurement has confidence ≥ ``min_confidence``,
+weight of its innovation against the channel's robust scale (capped: a persistent bias
+stays an outlier), times a weight for its sensitivity to depth error; an outlier is
+replaced by the forecast, and a camera group (stereo pair) that persistently disagrees
+with the others is dropped (:mod:`golden.tracker_robust`). A segment whose reference is
+flat (a blank frame) gives no measurement. A slot steps if a measurement has confidence ≥ ``min_confidence``,
 ``min_cameras`` cameras contribute and the weighted system is well conditioned
 (``max_condition``). A step moves the motion filter towards ``Ŷ + δ`` and the slot's
 pose — carried on from the previous slot at the current rate — towards the pose the
 measurement gives, both with gains weighted by how much the slot's system tells
-(:func:`golden.temporal_filter.information_gain`). See ``docs/tracker.md``.
+(:func:`golden.temporal_filter.information_gain`). A slot beyond ``max_condition`` steps
+in the directions it determines (``boundary="partial"``, the frame boundary's few cameras).
+
+Never a silent failure: every slot gets a status (:mod:`golden.tracking_status`:
+tracking, degraded, lost) from the recent update fraction, the share of outlier
+innovations, the condition and the confident measurements. On a loss the tracker carries
+on at the last motion measured while tracking and re-acquires with a widened window and
+reweighted solves about each slot's own solution (:mod:`golden.tracker_solve`); poses
+after a loss are flagged drifted. See ``docs/tracker.md``.
 """
 
 from dataclasses import asdict
@@ -35,16 +46,15 @@ import numpy as np
 
 from .descriptor import describe, match, segment_bounds, strength, textureless
 from .depth import StereoDepth, stereo_pairs
-from .pose_lsq import body_step, normal_equations, solve_normal
+from .pose_lsq import body_step
 from .reference_rows import HomographyReference, PreviousFrameReference
-from .temporal_filter import (DelayedForecast, HoltWinters, RobustScale, huber_weight,
-                              information_gain)
+from .temporal_filter import DelayedForecast, HoltWinters, information_gain
 from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
 from .tracker_params import (BOUNDARIES, DEPTHS, MOTION_GAINS, REFERENCES, SOLVERS,
                              TrackerParams, TrackResult)
-from .tracker_robust import GroupConsistency, depth_weights, partial_solve
 from .tracker_slots import RowSlots
+from .tracker_solve import SlotSolver
 from .tracking_status import StatusMonitor, TrackingStatus
 
 __all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "BOUNDARIES", "TrackerParams",
@@ -59,14 +69,6 @@ REFINE_PROBE = 1e-6
 #: columns that must hold scene content (the parabola's neighbours); reference pixels
 #: further out only raise the costs of far shifts.
 REFERENCE_MARGIN = 2
-
-#: Robust scales (pixels) of the reweighted solves of a re-acquisition after a loss,
-#: before the channels' own scales: from a gross start to the matcher's precision.
-RECOVERY_SCALES = (8.0, 4.0, 2.0, 1.0, 0.5)
-
-#: Weight of each new solved system in the running "typical information" that scales
-#: the filter gains (about the last 50 solved slots).
-TYPICAL_SMOOTHING = 0.02
 
 
 def _row_means(values):
@@ -102,33 +104,11 @@ class Tracker:
         else:
             self.reference = PreviousFrameReference(self.rig, self.recordings, self.track,
                                                     self.frame_bits)
-        channels = len(self.rig.cameras) * params.segments
-        self.scale = RobustScale(channels, initial=params.scale_initial,
-                                 floor=params.scale_floor, smoothing=params.scale_smoothing,
-                                 k=params.huber_k, ceiling=params.scale_ceiling)
-        self.group, self.inverse_depth_sigma = self._groups()
-        self.consistency = GroupConsistency(int(self.group.max()) + 1,
-                                            params.consistency_k * params.shift_sigma,
-                                            params.consistency_smoothing)
+        self.solver = SlotSolver(self.rig, params, self.depth_source == "oracle")
         window = round(params.status_window * self.slots.period / self.slots.t_r)
         self.status = StatusMonitor(max(window, 1), params)
         self.recovering = self.drifted = self.reacquired = False
         self.good_motion = self.motion.level.copy()
-
-    def _groups(self):
-        """Consistency group of every camera (its stereo pair, else itself) and its
-        inverse-depth error (1/m): ``disparity_sigma / (f · baseline)`` with the baseline
-        to the nearest camera, 0 for the oracle."""
-        cams = self.rig.cameras
-        group = np.arange(len(cams))
-        for k, (left, right, _) in enumerate(stereo_pairs(self.rig)):
-            group[[left, right]] = len(cams) + k
-        centres = np.array([c.c for c in cams])
-        gaps = np.linalg.norm(centres[:, None] - centres[None], axis=-1)
-        np.fill_diagonal(gaps, np.inf)
-        nearest = gaps.min(axis=1) if len(cams) > 1 else np.full(1, np.inf)
-        sigma = self.params.disparity_sigma / (np.array([c.fx for c in cams]) * nearest)
-        return group, (np.zeros(len(cams)) if self.depth_source == "oracle" else sigma)
 
     # --- set-up ----------------------------------------------------------------------
 
@@ -147,7 +127,6 @@ class Tracker:
         motion *= slots.period / span
         self.motion = HoltWinters(motion, alpha=self.params.alpha, beta=self.params.beta)
         self.forecasts = DelayedForecast(self.motion, self.params.loop_delay_rows)
-        self.typical = None
         self.track.set_extrapolation(motion / slots.period)
 
     def _depth_source(self, dataset):
@@ -369,17 +348,28 @@ class Tracker:
                        out)
 
     def _step(self, s, linearised_at, table, mine, previous, out):
-        """Robust weighted solve of slot ``s`` from the block's measurements ``mine``, the
-        slot's status, then the motion filter and the pose."""
+        """Robust weighted solve of slot ``s`` from the block's measurements ``mine``
+        (:class:`golden.tracker_solve.SlotSolver`), the slot's status, then the motion
+        filter and the pose."""
         p = self.params
         forecast = self.forecasts.forecast(s)       # what the loop knows when s starts
-        solved = self._solve(s, forecast, linearised_at, table, mine, out)
-        step, normal = solved.step, solved.normal
+        design = table.design[mine]
+        solved = self.solver.solve(
+            table.innovation[mine] - design @ (forecast - linearised_at), design,
+            table.ratio[mine], table.camera[mine], table.channel[mine], table.unit[mine],
+            forecast[:3], self.recovering)
+        if solved.step is not None and not solved.partial and p.solver == "nonlinear":
+            parts = [table.source[m // p.segments] for m in mine[::p.segments]]
+            out["linear_step"][s] = solved.step
+            solved.step = self._refine(parts, forecast, solved.step, solved.confidence,
+                                       solved.outlier)
+            out["refined_step"][s] = solved.step
+        step, normal, typical = solved.step, solved.normal, self.solver.typical
         status = self.status.update(step is not None, solved.judged, solved.outliers,
                                     solved.condition, solved.used)
         gain = None
-        if step is not None and p.motion_gain == "information" and self.typical is not None:
-            gain = information_gain(normal, self.typical, p.alpha)
+        if step is not None and p.motion_gain == "information" and typical is not None:
+            gain = information_gain(normal, typical, p.alpha)
         current = self.motion.forecast()            # the filter's own state is up to date
         measured = None if step is None else forecast + step
         if status == TrackingStatus.LOST and not self.recovering:
@@ -409,10 +399,8 @@ class Tracker:
                                      rate * dt)
         if measured is not None:  # ... pulled towards the measured one, weighted by information
             target = compose(*previous, measured)
-            if self.typical is None:
-                pull = p.pose_alpha * np.eye(6)
-            else:
-                pull = information_gain(normal, self.typical, p.pose_alpha)
+            pull = p.pose_alpha * np.eye(6) if typical is None else \
+                information_gain(normal, typical, p.pose_alpha)
             rotation, position = compose(rotation, position,
                                          pull @ body_step(rotation, position, *target))
         self.track.append(self.slots.times[s], rotation, position)
@@ -422,87 +410,10 @@ class Tracker:
         out["forecast"][s] = forecast
         out["status"][s], out["drifted"][s] = status, self.drifted
         out["judged"][s], out["outliers"][s] = solved.judged, solved.outliers
-        out["partial"][s] = solved.partial
+        out["partial"][s], out["dropped_group"][s] = solved.partial, solved.dropped
+        out["camera_confidence"][s] = solved.camera_confidence
         if measured is not None:
             out["measured"][s] = measured
-
-    def _solve(self, s, forecast, linearised_at, table, mine, out):
-        """The slot's robust step: Huber verdicts against the forecast (after a loss:
-        against a first solve, there being no forecast), depth-sensitivity weights, the
-        consistency test between camera groups, the conditioned (or partial) solve."""
-        p = self.params
-        solved = SimpleNamespace(step=None, normal=None, condition=np.nan, used=0, judged=0,
-                                 outliers=0, partial=False)
-        if not len(mine):
-            return solved
-        design, ratio = table.design[mine], table.ratio[mine]
-        camera, channel = table.camera[mine], table.channel[mine]
-        residual = table.innovation[mine] - design @ (forecast - linearised_at)
-        ok = np.isfinite(residual) & np.all(np.isfinite(design), axis=1) & (ratio > 0)
-        weight = np.ones(np.count_nonzero(ok))
-        outlier = np.zeros(len(mine), dtype=bool)
-        if not self.recovering:
-            x, weight = self.scale.judge(channel[ok], residual[ok])
-            outlier[ok] = np.abs(x) > p.huber_k
-        confidence = np.zeros(len(mine))
-        confidence[ok] = ratio[ok] * weight
-        best = np.zeros(len(self.rig.cameras))
-        np.maximum.at(best, camera, confidence)
-        present = np.unique(camera)
-        out["camera_confidence"][s, present] = best[present]
-        cameras = len(np.unique(camera[confidence > 0]))
-        if not (confidence.max() >= p.min_confidence and cameras >= p.min_cameras):
-            solved.used, solved.judged = int(np.count_nonzero(confidence)), int(ok.sum())
-            solved.outliers = int(outlier.sum())
-            return solved
-        confidence[ok] *= depth_weights(table.unit[mine][ok], forecast[:3],
-                                        self.inverse_depth_sigma[camera[ok]], p.shift_sigma)
-        cleaned = np.where(outlier | ~ok, 0.0, residual)    # outlier -> the forecast
-        scale = self.scale.scale[channel]
-        if p.consistency_k > 0:
-            group = self.group[camera]
-            bad = self.consistency.judge(design[ok], cleaned[ok], confidence[ok], group[ok],
-                                         p.max_condition)
-            if bad is not None:
-                confidence[group == bad] = 0.0
-                out["dropped_group"][s] = bad
-        self._system(solved, design[ok], cleaned[ok], confidence[ok])
-        if self.recovering:     # no forecast to judge against: Huber about the solution,
-            base = confidence[ok]       # the scale shrinking from the widened window's
-            for size in RECOVERY_SCALES:
-                if solved.step is None:
-                    break
-                x = (cleaned[ok] - design[ok] @ solved.step) / size
-                outlier[ok] = np.abs(x) > p.huber_k
-                confidence[ok] = base * huber_weight(x, p.huber_k)
-                self._system(solved, design[ok], cleaned[ok], confidence[ok])
-            if outlier.sum() > p.lost_outlier_fraction * ok.sum():
-                solved.step = None      # most measurements disagree: not re-acquired
-        solved.used, solved.judged = int(np.count_nonzero(confidence)), int(ok.sum())
-        solved.outliers = int(outlier.sum())
-        if solved.step is not None and not solved.partial and p.solver == "nonlinear":
-            parts = [table.source[m // p.segments] for m in mine[::p.segments]]
-            out["linear_step"][s] = solved.step
-            solved.step = self._refine(parts, forecast, solved.step, confidence, outlier)
-            out["refined_step"][s] = solved.step
-        return solved
-
-    def _system(self, solved, design, residual, confidence):
-        """Solve the weighted system into ``solved``: the full step if it is well
-        conditioned, else (``boundary="partial"``) the step in its determined directions."""
-        p = self.params
-        normal, rhs = normal_equations(design, residual, confidence)
-        solution = solve_normal(normal, rhs, p.max_condition**2)
-        solved.condition = float(np.sqrt(solution.condition))
-        solved.step, solved.normal, solved.partial = None, None, False
-        if solution.ok:
-            solved.step, solved.normal = solution.step, normal
-            self.typical = normal if self.typical is None else \
-                (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
-        elif p.boundary == "partial":
-            solved.step, solved.normal = partial_solve(normal, rhs, p.max_condition,
-                                                       self.typical)
-            solved.partial = solved.step is not None
 
     def _exact_shifts(self, parts, motions):
         """Segment shifts (M, equations) predicted by the full projection model for one-
