@@ -75,12 +75,14 @@ class SlotSolver:
         Returns a namespace: ``step`` (None: no step), ``normal`` (the information it
         used), ``condition``, ``partial``, ``used`` (confident measurements), ``judged``,
         ``outliers``, ``confidence`` and ``outlier`` (M,), ``camera_confidence`` (best per
-        camera, NaN: no row), ``dropped`` group (-1: none).
+        camera, NaN: no row), ``dropped`` group (-1: none), ``beyond`` (a step refused
+        because it moves some segment further than the search window reaches: the
+        matches cannot have measured it).
         """
         p = self.params
         m = len(residual)
         solved = SimpleNamespace(step=None, normal=None, condition=np.nan, partial=False,
-                                 dropped=-1, confidence=np.zeros(m),
+                                 dropped=-1, beyond=False, confidence=np.zeros(m),
                                  outlier=np.zeros(m, dtype=bool),
                                  camera_confidence=np.full(self.cameras, np.nan))
         ok = np.isfinite(residual) & np.all(np.isfinite(design), axis=1) & (ratio > 0)
@@ -126,6 +128,10 @@ class SlotSolver:
                 self._system(solved, design[ok], cleaned[ok], confidence[ok])
             if outlier.sum() > p.lost_outlier_fraction * ok.sum():
                 solved.step = None      # most measurements disagree: not re-acquired
+        reach = p.recovery_window if recovering else p.window
+        if solved.step is not None and np.abs(design[ok] @ solved.step).max() > reach:
+            solved.step = None          # shifts beyond the search: not what was matched
+            solved.beyond = True
 
     def _system(self, solved, design, residual, confidence):
         """Solve the weighted system into ``solved``: the full step if it is well

@@ -140,3 +140,23 @@ def test_partial_step_moves_only_the_determined_directions(rng):
 
 def test_partial_step_of_an_empty_system_is_none():
     assert partial_solve(np.zeros((6, 6)), np.zeros(6), 100.0) == (None, None)
+
+
+def test_a_step_beyond_the_search_window_is_refused(rng):
+    """Measurements can only have seen shifts within the window; a solve that moves a
+    segment further (a wild re-acquisition, a near-singular system) gives no step."""
+    from golden.rig import preset
+    from golden.tracker_params import TrackerParams
+    from golden.tracker_solve import SlotSolver
+    rig = preset("stereo20")
+    m = 40
+    design = rng.normal(0, 300, (m, 6))
+    camera = np.arange(m) % 20
+    channel = camera * 8
+    for motion, expected in ((np.full(6, 0.004), False), (np.full(6, 0.1), True)):
+        solver = SlotSolver(rig, TrackerParams(scale_initial=1000.0, scale_ceiling=1000.0),
+                            oracle=True)
+        solved = solver.solve(design @ motion, design, np.full(m, 2.0), camera, channel,
+                              np.zeros((m, 3)), np.zeros(3), recovering=False)
+        print(np.abs(design @ motion).max(), solved.beyond)
+        assert solved.beyond == expected and (solved.step is None) == expected
