@@ -405,7 +405,7 @@ class Tracker:
                                          pull @ body_step(rotation, position, *target))
         self.track.append(self.slots.times[s], rotation, position)
         self.track.set_extrapolation(level / self.slots.period)
-        out["updated"][s], out["condition"][s] = step is not None, solved.condition
+        out["updated"][s], out["condition"][s] = measured is not None, solved.condition
         out["equations"][s], out["motion"][s] = solved.used, level
         out["forecast"][s] = forecast
         out["status"][s], out["drifted"][s] = status, self.drifted
