@@ -86,9 +86,11 @@ class TrackerParams:
         A camera group (a stereo pair; a camera on rigs without pairs) whose average
         misfit against the solution of the other groups exceeds ``consistency_k ·
         shift_sigma`` pixels is dropped from the slot (the group with the largest, once
-        per slot; :class:`golden.tracker_robust.GroupConsistency`); 0 (default) disables
-        the test: with k = 4 it dropped sound pairs of the issue's rig in 21 % of the
-        slots with the oracle depth and raised the error (docs/tracker.md).
+        per slot; :class:`golden.tracker_robust.GroupConsistency`); 0 disables the test.
+    consistency_groups : int
+        Fewest groups with measurements in a slot for the test: the leave-one-out solution
+        of three stereo pairs predicted the fourth so poorly that the issue's 4-pair rig
+        had sound pairs dropped in 21 % of its slots (oracle depth; docs/tracker.md).
     consistency_smoothing : float
         Weight of a new slot in that average.
     min_confidence : float
@@ -149,7 +151,8 @@ class TrackerParams:
     scale_ceiling: float = 1.0
     disparity_sigma: float = 1.0
     shift_sigma: float = 0.3
-    consistency_k: float = 0.0
+    consistency_k: float = 4.0
+    consistency_groups: int = 5
     consistency_smoothing: float = 0.05
     min_confidence: float = 1.0
     min_cameras: int = 3
@@ -185,6 +188,7 @@ class TrackerParams:
         check_int("loop_delay_rows", self.loop_delay_rows, 0)
         check_int("geometry_stride", self.geometry_stride, 1)
         check_int("recovery_window", self.recovery_window, 1)
+        check_int("consistency_groups", self.consistency_groups, 3)
         check_number("min_depth_fraction", self.min_depth_fraction, 0, 1,
                low_open=True)
         check_number("alpha", self.alpha, 0, 1, low_open=True)

@@ -36,7 +36,8 @@ def depth_weights(unit_translation, translation, inverse_depth_sigma, shift_sigm
     return 1.0 / (1.0 + ratio**2)
 
 
-def group_misfits(design, residual, weight, group, max_condition, essential=0.1):
+def group_misfits(design, residual, weight, group, max_condition, essential=0.1,
+                  minimum=3):
     """Signed weighted mean misfit (pixels) of each group's measurements against the
     solution of the other groups: ``{group: misfit}`` for the groups that can be judged.
 
@@ -51,10 +52,12 @@ def group_misfits(design, residual, weight, group, max_condition, essential=0.1)
     essential : float
         Nor is one that keeps less than this share of an unknown's information (the
         Jacobi-scaled condition does not see a direction only this group measures).
+    minimum : int
+        Fewest groups with measurements for any group to be judged.
     """
     used = weight > 0
     groups = np.unique(group[used])
-    if len(groups) < 3:
+    if len(groups) < max(minimum, 3):
         return {}
     full, _ = normal_equations(design[used], residual[used], weight[used])
     misfits = {}
@@ -85,16 +88,18 @@ class GroupConsistency:
         Largest average misfit (pixels) of a consistent group.
     smoothing : float
         Weight of a new slot in the average.
+    minimum : int
+        Fewest groups in a slot for the test (:func:`group_misfits`).
     """
 
-    def __init__(self, groups, bound, smoothing):
+    def __init__(self, groups, bound, smoothing, minimum=3):
         self.average = np.zeros(groups)
-        self.bound, self.smoothing = float(bound), float(smoothing)
+        self.bound, self.smoothing, self.minimum = float(bound), float(smoothing), minimum
 
     def judge(self, design, residual, weight, group, max_condition):
         """Update the averages with this slot's misfits; the group to drop, or None."""
-        for g, misfit in group_misfits(design, residual, weight, group,
-                                       max_condition).items():
+        for g, misfit in group_misfits(design, residual, weight, group, max_condition,
+                                       minimum=self.minimum).items():
             self.average[g] += self.smoothing * (misfit - self.average[g])
         present = np.unique(group[weight > 0])
         excess = np.abs(self.average[present])

@@ -64,7 +64,8 @@ class SlotSolver:
         self.group, self.inverse_depth_sigma = camera_groups(rig, params, oracle)
         self.consistency = GroupConsistency(int(self.group.max()) + 1,
                                             params.consistency_k * params.shift_sigma,
-                                            params.consistency_smoothing)
+                                            params.consistency_smoothing,
+                                            params.consistency_groups)
         self.typical = None
 
     def solve(self, residual, design, ratio, camera, channel, unit, translation, recovering):

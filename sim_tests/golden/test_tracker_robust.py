@@ -90,6 +90,12 @@ def test_consistent_groups_are_never_dropped(rng):
         assert consistency.judge(design, residual, weight, group, 100.0) is None
 
 
+def test_too_few_groups_are_not_judged(rng):
+    design, residual, weight, group, _ = _groups_slot(rng, 2.0)
+    assert group_misfits(design, residual, weight, group, 100.0, minimum=5) == {}
+    assert len(group_misfits(design, residual, weight, group, 100.0, minimum=4)) == 4
+
+
 def test_a_group_that_alone_measures_a_direction_is_not_judged(rng):
     """Without group 3 no measurement constrains θz: its leave-one-out system is not a
     reference (the Jacobi-scaled condition would not notice)."""
