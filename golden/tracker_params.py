@@ -87,10 +87,11 @@ class TrackerParams:
         misfit against the solution of the other groups exceeds ``consistency_k ·
         shift_sigma`` pixels is dropped from the slot (the group with the largest, once
         per slot; :class:`golden.tracker_robust.GroupConsistency`); 0 disables the test.
-    consistency_groups : int
-        Fewest groups with measurements in a slot for the test: the leave-one-out solution
-        of three stereo pairs predicted the fourth so poorly that the issue's 4-pair rig
-        had sound pairs dropped in 21 % of its slots (oracle depth; docs/tracker.md).
+    consistency_share : float
+        A group is judged only if the other groups keep this share of every unknown's
+        information: at 0.1 the leave-one-out solution of three stereo pairs predicted
+        the fourth so poorly that the issue's 4-pair rig, whose pairs each carry most of
+        some direction, had sound pairs dropped in 21 % of its slots (oracle depth).
     consistency_smoothing : float
         Weight of a new slot in that average.
     min_confidence : float
@@ -152,7 +153,7 @@ class TrackerParams:
     disparity_sigma: float = 1.0
     shift_sigma: float = 0.3
     consistency_k: float = 4.0
-    consistency_groups: int = 5
+    consistency_share: float = 0.5
     consistency_smoothing: float = 0.05
     min_confidence: float = 1.0
     min_cameras: int = 3
@@ -188,7 +189,7 @@ class TrackerParams:
         check_int("loop_delay_rows", self.loop_delay_rows, 0)
         check_int("geometry_stride", self.geometry_stride, 1)
         check_int("recovery_window", self.recovery_window, 1)
-        check_int("consistency_groups", self.consistency_groups, 3)
+        check_number("consistency_share", self.consistency_share, 0, 1, high_open=True)
         check_number("min_depth_fraction", self.min_depth_fraction, 0, 1,
                low_open=True)
         check_number("alpha", self.alpha, 0, 1, low_open=True)

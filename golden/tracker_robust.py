@@ -88,18 +88,22 @@ class GroupConsistency:
         Largest average misfit (pixels) of a consistent group.
     smoothing : float
         Weight of a new slot in the average.
+    essential : float
+        Share of every unknown's information the other groups must keep
+        (:func:`group_misfits`).
     minimum : int
-        Fewest groups in a slot for the test (:func:`group_misfits`).
+        Fewest groups in a slot for the test.
     """
 
-    def __init__(self, groups, bound, smoothing, minimum=3):
+    def __init__(self, groups, bound, smoothing, essential=0.1, minimum=3):
         self.average = np.zeros(groups)
-        self.bound, self.smoothing, self.minimum = float(bound), float(smoothing), minimum
+        self.bound, self.smoothing = float(bound), float(smoothing)
+        self.essential, self.minimum = float(essential), minimum
 
     def judge(self, design, residual, weight, group, max_condition):
         """Update the averages with this slot's misfits; the group to drop, or None."""
         for g, misfit in group_misfits(design, residual, weight, group, max_condition,
-                                       minimum=self.minimum).items():
+                                       self.essential, self.minimum).items():
             self.average[g] += self.smoothing * (misfit - self.average[g])
         present = np.unique(group[weight > 0])
         excess = np.abs(self.average[present])

@@ -65,7 +65,7 @@ class SlotSolver:
         self.consistency = GroupConsistency(int(self.group.max()) + 1,
                                             params.consistency_k * params.shift_sigma,
                                             params.consistency_smoothing,
-                                            params.consistency_groups)
+                                            params.consistency_share)
         self.typical = None
 
     def solve(self, residual, design, ratio, camera, channel, unit, translation, recovering):
