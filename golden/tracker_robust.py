@@ -101,15 +101,16 @@ class GroupConsistency:
         self.essential, self.minimum = float(essential), minimum
 
     def judge(self, design, residual, weight, group, max_condition):
-        """Update the averages with this slot's misfits; the group to drop, or None."""
-        for g, misfit in group_misfits(design, residual, weight, group, max_condition,
-                                       self.essential, self.minimum).items():
+        """Update the averages with this slot's misfits; the group to drop (one judged in
+        this slot: a group the others cannot stand in for is never dropped), or None."""
+        misfits = group_misfits(design, residual, weight, group, max_condition,
+                                self.essential, self.minimum)
+        for g, misfit in misfits.items():
             self.average[g] += self.smoothing * (misfit - self.average[g])
-        present = np.unique(group[weight > 0])
-        excess = np.abs(self.average[present])
-        if not len(present) or excess.max() <= self.bound:
+        judged = np.array(sorted(misfits), dtype=int)
+        if not len(judged) or np.abs(self.average[judged]).max() <= self.bound:
             return None
-        return int(present[np.argmax(excess)])
+        return int(judged[np.argmax(np.abs(self.average[judged]))])
 
 
 def partial_solve(normal, rhs, max_condition, reference=None):

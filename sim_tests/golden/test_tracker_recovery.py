@@ -2,8 +2,8 @@
 
 Two frames of every camera of the 64-row stereo20 strip (see test_tracker.py) are blanked
 (a covered lens, a failed exposure): the tracker must report the loss, re-acquire the
-motion once two textured frames follow, resume tracking and flag every later pose as
-drifted; no row whose true error is large may be reported ``tracking``. Set SEED to
+motion once textured frames follow, resume tracking within four frames and flag every
+later pose as drifted; no row whose true error is large may be reported ``tracking``. Set SEED to
 replay; the seed is printed.
 """
 
@@ -22,7 +22,7 @@ from golden.tracking_status import TrackingStatus, lost_time
 from golden.trajectory import SpeedProfile, make_trajectory
 
 SEED = int(os.environ.get("SEED", "1"))
-ROWS, FRAMES, BLANK = 64, 9, (3, 5)
+ROWS, FRAMES, BLANK = 64, 10, (3, 5)
 #: The papers' motion accelerating from 0.5 to 2 m/s and 45 to 180°/s over the run: the
 #: motion the tracker carries on through the blank frames is soon wrong.
 LINEAR = SpeedProfile((0.0, FRAMES / 120), (0.5, 2.0))
@@ -67,14 +67,12 @@ def test_the_loss_is_reported_and_tracking_resumes(blanked):
     assert np.all(status[frame == BLANK[1]] == TrackingStatus.LOST)   # flat reference
     last = frame == FRAMES - 1
     print("final frame status counts", np.bincount(status[last], minlength=3))
-    assert np.all(status[last] == TrackingStatus.TRACKING)  # back three frames after
+    assert np.all(status[last] == TrackingStatus.TRACKING)  # back within four frames
     assert not result.drifted[frame < BLANK[0]].any()
     assert result.drifted[np.flatnonzero(status == TrackingStatus.LOST)[0]:].all()
     t_cm, r_rad, _ = _errors(result, dataset)
-    settled = last & (np.cumsum(last) > ROWS // 2)      # the last frame's second half
-    print(f"last frame Y error ≤ {t_cm[last].max():.3f} cm, {r_rad[last].max():.2e} rad; "
-          f"second half ≤ {t_cm[settled].max():.3f} cm, {r_rad[settled].max():.2e} rad")
-    assert t_cm[settled].max() < 0.1 and r_rad[settled].max() < 1e-3
+    print(f"last frame Y error ≤ {t_cm[last].max():.3f} cm, {r_rad[last].max():.2e} rad")
+    assert t_cm[last].max() < 0.1 and r_rad[last].max() < 1e-3
 
 
 def test_a_large_error_is_never_reported_tracking(blanked):
