@@ -92,6 +92,11 @@ class TrackerParams:
         information: at 0.1 the leave-one-out solution of three stereo pairs predicted
         the fourth so poorly that the issue's 4-pair rig, whose pairs each carry most of
         some direction, had sound pairs dropped in 21 % of its slots (oracle depth).
+    consistency_always : bool
+        Apply the test while tracking too; off: only while re-acquiring after a loss
+        (whose reference frames, carried through the loss, are off differently for each
+        pair). While tracking, on the issue's rig with the oracle depth, it dropped sound
+        pairs in 8–45 % of the slots and one of three runs diverged (docs/tracker.md).
     consistency_smoothing : float
         Weight of a new slot in that average.
     min_confidence : float
@@ -154,6 +159,7 @@ class TrackerParams:
     shift_sigma: float = 0.3
     consistency_k: float = 4.0
     consistency_share: float = 0.5
+    consistency_always: bool = False
     consistency_smoothing: float = 0.05
     min_confidence: float = 1.0
     min_cameras: int = 3
@@ -178,7 +184,7 @@ class TrackerParams:
             if getattr(self, name) not in options:
                 raise ValueError(f"{name} must be one of {', '.join(options)}, "
                                  f"not {getattr(self, name)!r}")
-        for name in ("parallax", "follow_rows", "strong_test"):
+        for name in ("parallax", "follow_rows", "strong_test", "consistency_always"):
             if not isinstance(getattr(self, name), bool):
                 raise TypeError(f"{name} must be a bool, not {getattr(self, name)!r}")
         check_number("reselect_angle", self.reselect_angle, 0, low_open=True)

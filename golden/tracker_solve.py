@@ -110,7 +110,7 @@ class SlotSolver:
         confidence[ok] *= depth_weights(unit[ok], translation,
                                         self.inverse_depth_sigma[camera[ok]], p.shift_sigma)
         solved.cleaned = cleaned = np.where(outlier | ~ok, 0.0, residual)  # outlier -> forecast
-        if p.consistency_k > 0:
+        if p.consistency_k > 0 and (recovering or p.consistency_always):
             group = self.group[camera]
             bad = self.consistency.judge(design[ok], cleaned[ok], confidence[ok], group[ok],
                                          p.max_condition)

@@ -79,6 +79,7 @@ def test_the_two_bit_encoding_and_the_proposed_flag_bits():
     (dict(consistency_smoothing=0.0), ValueError, "consistency_smoothing must be a number"),
     (dict(disparity_sigma="1"), TypeError, "disparity_sigma must be a number"),
     (dict(consistency_share=1.0), ValueError, "consistency_share must be a number"),
+    (dict(consistency_always=1), TypeError, "consistency_always must be a bool"),
 ])
 def test_bad_status_and_robustness_parameters_are_named(changes, error, message):
     with pytest.raises(error, match=message):
