@@ -15,8 +15,9 @@ import numpy as np
 
 from golden.metrics import AXES
 from golden.pose_lsq import UNKNOWNS
+from golden.tracking_status import status_summary
 
-__all__ = ["Outcome", "metrics", "cosim_failures", "resources", "write_report", "table",
+__all__ = ["Outcome", "metrics", "golden_failures", "cosim_failures", "resources", "write_report", "table",
            "PHASES", "wall_times", "benchmark_figures", "accuracy_section",
            "tolerance_section", "hardware_section", "FIGURES_JSON"]
 
@@ -42,14 +43,15 @@ class Outcome:
     walls: dict = field(default_factory=dict)
 
     def all_failures(self):
-        return list(self.failures) + cosim_failures(self.cosim)
+        return list(self.failures) + golden_failures(self.golden) + cosim_failures(self.cosim)
 
     def summary(self):
         m = metrics(self)
         lines = [f"{m['rig']}: {m['cameras']} cameras × {m['frames']} frames × {m['rows']} "
                  f"rows in {m['wall_s.total']:.1f} s",
                  f"golden tracker vs truth: per-row Y RMS T "
-                 f"{_triple(m, 'golden.rms_t_cm', 4)} cm, θ {_triple(m, 'golden.rms_r_deg', 4)}°",
+                 f"{_triple(m, 'golden.rms_t_cm', 4)} cm, θ {_triple(m, 'golden.rms_r_deg', 4)}°; "
+                 f"status {m['golden.status']}",
                  f"emulator vs truth: step RMS {_six(m, 'emulator_vs_truth.rms')}; "
                  f"pose RMS {_six(m, 'emulator_pose_vs_truth.rms')}",
                  f"emulator vs golden scheme: step RMS {_six(m, 'emulator_vs_scheme.rms')}; "
@@ -79,6 +81,14 @@ def _six(m, key):
 def _count(records):
     """Number of pose records in a dict of raw arrays."""
     return len(np.asarray(records["row"]))
+
+
+def golden_failures(result):
+    """The golden tracker's failure line: when it lost tracking (none if it never did)."""
+    lost = status_summary(result)["lost_at_ms"]
+    return [] if lost is None else [
+        f"golden tracker: tracking lost at {lost:.1f} ms (its accuracy figures after that "
+        f"are not a tracking result)"]
 
 
 def cosim_failures(cosim):
@@ -116,6 +126,9 @@ def metrics(outcome):
          "emulator_camera_rows": outcome.emulated.camera_rows}
     for name in ACCURACY:
         m.update(_flat(f"golden.{name}", outcome.accuracy[name]))
+    status = status_summary(outcome.golden)
+    m.update({"golden.status": status["status"], "golden.lost_at_ms": status["lost_at_ms"],
+              "golden.tracking_fraction": status["tracking_fraction"]})
     m.update({k: v for k, v in outcome.comparison.items() if k != "emulator_rows_per_s"})
     m.update({f"wall_s.{k}": v for k, v in outcome.walls.items()})
     m["tolerance_failures"] = len(outcome.failures)

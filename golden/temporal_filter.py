@@ -58,19 +58,27 @@ class RobustScale:
     initial, floor : float
         Starting scale and its lower bound (units of the series, here pixels); the floor
         keeps a noiseless series from declaring every later deviation an outlier.
+    ceiling : float
+        Upper bound of the scale. The biweight recursion grows the scale by a factor
+        ``sqrt(1 + 1.52 λ)`` per sample a persistent bias stays beyond ``k`` scales, so
+        without a bound any bias is accepted after a few dozen samples; with it, a bias
+        beyond ``k · ceiling`` stays an outlier.
     smoothing : float
         λ of the scale recursion, in (0, 1].
     k : float
         Huber threshold in scales.
     """
 
-    def __init__(self, channels, *, initial, floor, smoothing=0.1, k=HUBER_K):
+    def __init__(self, channels, *, initial, floor, smoothing=0.1, k=HUBER_K,
+                 ceiling=math.inf):
         check_int("channels", channels, 1)
         for name, value in (("initial", initial), ("floor", floor), ("k", k)):
             check_number(name, value, 0, low_open=True)
+        check_number("ceiling", ceiling, floor, finite=False)
         check_number("smoothing", smoothing, 0, 1, low_open=True)
-        self.scale = np.full(channels, max(float(initial), float(floor)))
-        self.floor, self.smoothing, self.k = float(floor), float(smoothing), float(k)
+        self.floor, self.ceiling = float(floor), float(ceiling)
+        self.scale = np.full(channels, min(max(float(initial), self.floor), self.ceiling))
+        self.smoothing, self.k = float(smoothing), float(k)
 
     def judge(self, channels, innovations):
         """Standardised innovations ``x`` and consistency weights ``ψ(x)/x`` of new values
@@ -83,7 +91,7 @@ class RobustScale:
         seen = np.isfinite(x)
         lam = self.smoothing
         new = scale[seen]**2 * (lam * biweight_rho(x[seen], self.k) + (1 - lam))
-        self.scale[channels[seen]] = np.maximum(np.sqrt(new), self.floor)
+        self.scale[channels[seen]] = np.clip(np.sqrt(new), self.floor, self.ceiling)
         return x, np.where(seen, weight, 0.0)
 
 
@@ -165,6 +173,16 @@ class DelayedForecast:
         """:meth:`HoltWinters.update` of the filter with slot ``slot``'s value (or none);
         returns the new level."""
         level = self.motion.update(value, gain)
+        return self._record(slot, level)
+
+    def reset(self, slot, level):
+        """Restart the filter at ``level`` with no trend as slot ``slot``'s update (a
+        re-acquisition: nothing of the earlier forecast survives); returns the level."""
+        self.motion.level = np.array(level, dtype=float)
+        self.motion.trend = np.zeros_like(self.motion.level)
+        return self._record(slot, self.motion.level)
+
+    def _record(self, slot, level):
         self.count += 1
         self._states.append((slot, self.count, level, self.motion.trend))
         return level

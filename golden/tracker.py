@@ -19,13 +19,24 @@ rows, which depend only on calibration, pixel position and depth (the hardware's
 precomputed coefficients).
 
 Per-measurement confidence is the matcher's peak ratio times the Huber consistency
-weight of its innovation against the channel's robust scale; an outlier is replaced by
-the forecast. A slot steps if a measurement has confidence ≥ ``min_confidence``,
+weight of its innovation against the channel's robust scale (capped: a persistent bias
+stays an outlier), times a weight for its sensitivity to depth error; an outlier is
+replaced by the forecast, and a camera group (stereo pair) that persistently disagrees
+with the others is dropped (:mod:`golden.tracker_robust`). A segment whose reference is
+flat (a blank frame) gives no measurement. A slot steps if a measurement has confidence ≥ ``min_confidence``,
 ``min_cameras`` cameras contribute and the weighted system is well conditioned
 (``max_condition``). A step moves the motion filter towards ``Ŷ + δ`` and the slot's
 pose — carried on from the previous slot at the current rate — towards the pose the
 measurement gives, both with gains weighted by how much the slot's system tells
-(:func:`golden.temporal_filter.information_gain`). See ``docs/tracker.md``.
+(:func:`golden.temporal_filter.information_gain`). A slot beyond ``max_condition`` steps
+in the directions it determines (``boundary="partial"``, the frame boundary's few cameras).
+
+Never a silent failure: every slot gets a status (:mod:`golden.tracking_status`:
+tracking, degraded, lost) from the recent update fraction, the share of outlier
+innovations, the condition and the confident measurements. On a loss the tracker carries
+on at the last motion measured while tracking and re-acquires with a widened window and
+reweighted solves about each slot's own solution (:mod:`golden.tracker_solve`); poses
+after a loss are flagged drifted. See ``docs/tracker.md``.
 """
 
 from dataclasses import asdict
@@ -33,19 +44,21 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .descriptor import describe, match, segment_bounds, strength
+from .descriptor import describe, match, segment_bounds, strength, textureless
 from .depth import StereoDepth, stereo_pairs
-from .pose_lsq import body_step, normal_equations, solve_normal
+from .pose_lsq import body_step
 from .reference_rows import HomographyReference, PreviousFrameReference
-from .temporal_filter import DelayedForecast, HoltWinters, RobustScale, information_gain
+from .temporal_filter import DelayedForecast, HoltWinters, information_gain
 from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
-from .tracker_params import (DEPTHS, MOTION_GAINS, REFERENCES, SOLVERS, TrackerParams,
-                             TrackResult)
+from .tracker_params import (BOUNDARIES, DEPTHS, MOTION_GAINS, REFERENCES, SOLVERS,
+                             TrackerParams, TrackResult)
 from .tracker_slots import RowSlots
+from .tracker_solve import SlotSolver
+from .tracking_status import StatusMonitor, TrackingStatus
 
-__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "TrackerParams", "TrackResult", "Tracker",
-           "track"]
+__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "BOUNDARIES", "TrackerParams",
+           "TrackResult", "Tracker", "track"]
 
 #: Gauss–Newton iterations and finite-difference probe (m or rad) of the nonlinear
 #: refinement.
@@ -56,10 +69,6 @@ REFINE_PROBE = 1e-6
 #: columns that must hold scene content (the parabola's neighbours); reference pixels
 #: further out only raise the costs of far shifts.
 REFERENCE_MARGIN = 2
-
-#: Weight of each new solved system in the running "typical information" that scales
-#: the filter gains (about the last 50 solved slots).
-TYPICAL_SMOOTHING = 0.02
 
 
 def _row_means(values):
@@ -95,10 +104,11 @@ class Tracker:
         else:
             self.reference = PreviousFrameReference(self.rig, self.recordings, self.track,
                                                     self.frame_bits)
-        channels = len(self.rig.cameras) * params.segments
-        self.scale = RobustScale(channels, initial=params.scale_initial,
-                                 floor=params.scale_floor, smoothing=params.scale_smoothing,
-                                 k=params.huber_k)
+        self.solver = SlotSolver(self.rig, params, self.depth_source == "oracle")
+        window = round(params.status_window * self.slots.period / self.slots.t_r)
+        self.status = StatusMonitor(max(window, 1), params)
+        self.recovering = self.drifted = self.reacquired = False
+        self.good_motion = self.motion.level.copy()
 
     # --- set-up ----------------------------------------------------------------------
 
@@ -117,7 +127,6 @@ class Tracker:
         motion *= slots.period / span
         self.motion = HoltWinters(motion, alpha=self.params.alpha, beta=self.params.beta)
         self.forecasts = DelayedForecast(self.motion, self.params.loop_delay_rows)
-        self.typical = None
         self.track.set_extrapolation(motion / slots.period)
 
     def _depth_source(self, dataset):
@@ -213,6 +222,7 @@ class Tracker:
         """Match the block's rows (grouped by window centre across cameras) and form each
         entry's segment equations (arrays (B, K, ...))."""
         p, width = self.params, self.rig.cameras[0].width
+        matcher = p.recovery_matcher if self.recovering else self.matcher
         centres = np.concatenate([e.centres for e in entries])
         owner = np.concatenate([np.full(len(e.rows), j) for j, e in enumerate(entries)])
         local = np.concatenate([np.arange(len(e.rows)) for e in entries])
@@ -226,10 +236,13 @@ class Tracker:
             e.lo, e.hi = np.zeros((b, p.segments), int), np.zeros((b, p.segments), int)
         for centre in np.unique(centres):
             sel = np.flatnonzero(centres == centre)
-            result = match(cur[sel], ref[sel], self.desc, self.matcher, centre=int(centre),
+            result = match(cur[sel], ref[sel], self.desc, matcher, centre=int(centre),
                            cur_strong=None if strong is None else strong[sel])
-            bounds = np.array(segment_bounds(width, self.desc, self.matcher, int(centre)))
-            good = ~result.textureless & ~result.edge_hit
+            bounds = np.array(segment_bounds(width, self.desc, matcher, int(centre)))
+            # a flat reference (a blank or lost frame) matches anything: no measurement
+            flat_ref = textureless(np.roll(ref[sel], int(centre), axis=1), self.desc, matcher,
+                                   int(centre))
+            good = ~result.textureless & ~result.edge_hit & ~flat_ref
             for j in np.unique(owner[sel]):
                 mine = owner[sel] == j
                 e, rows = entries[j], local[sel][mine]
@@ -244,10 +257,13 @@ class Tracker:
         little depth or an unusable reference get no measurement."""
         p, cam = self.params, self.rig.cameras[e.camera]
         usable = np.isfinite(e.inverse_depth) & np.isfinite(e.predicted)
-        design = self.design_tables[e.camera].rows(e.rows, e.inverse_depth)
+        table = self.design_tables[e.camera]
+        design = table.rows(e.rows, e.inverse_depth)
         stride = p.geometry_stride
         lo, hi = -(-e.lo // stride), -(-e.hi // stride)     # strided columns in [lo, hi)
         e.design, share = segment_means(design, usable, lo, hi)
+        unit = table.rows(e.rows, np.ones_like(e.inverse_depth))[..., :3]
+        e.unit_translation, _ = segment_means(unit, usable, lo, hi)   # d shift / d(1/Z)
         e.expected, _ = segment_means(e.predicted, usable, lo, hi)
         margin = self.desc.radius + REFERENCE_MARGIN
         invalid = np.cumsum(np.concatenate([np.zeros((len(e.rows), 1)), ~e.ref.valid],
@@ -274,7 +290,10 @@ class Tracker:
             "camera_confidence": np.full((size, n_cams), np.nan),
             "motion": np.full((size, 6), np.nan), "forecast": np.full((size, 6), np.nan),
             "measured": np.full((size, 6), np.nan), "linear_step": np.full((size, 6), np.nan),
-            "refined_step": np.full((size, 6), np.nan)}
+            "refined_step": np.full((size, 6), np.nan),
+            "status": np.zeros(size, dtype=np.uint8), "drifted": np.zeros(size, dtype=bool),
+            "judged": np.zeros(size, dtype=int), "outliers": np.zeros(size, dtype=int),
+            "dropped_group": np.full(size, -1), "partial": np.zeros(size, dtype=bool)}
         starts = range(slots.first_tracked, size, p.block_rows)
         if progress:
             from tqdm import tqdm
@@ -317,6 +336,8 @@ class Tracker:
             design=np.concatenate([e.design.reshape(-1, 6) for e in entries] or [np.zeros((0, 6))]),
             innovation=np.concatenate([(e.shift - e.expected).ravel() for e in entries] or [[]]),
             ratio=np.concatenate([e.peak_ratio.ravel() for e in entries] or [[]]),
+            unit=np.concatenate([e.unit_translation.reshape(-1, 3) for e in entries]
+                                or [np.zeros((0, 3))]),
             source=[(e, i) for e in entries for i in range(len(e.rows))])
         order = np.argsort(table.slot, kind="stable")
         bounds = np.searchsorted(table.slot[order], np.append(occupied, stop))
@@ -327,44 +348,46 @@ class Tracker:
                        out)
 
     def _step(self, s, linearised_at, table, mine, previous, out):
-        """Robust weighted solve of slot ``s`` from the block's measurements ``mine``."""
+        """Robust weighted solve of slot ``s`` from the block's measurements ``mine``
+        (:class:`golden.tracker_solve.SlotSolver`), the slot's status, then the motion
+        filter and the pose."""
         p = self.params
         forecast = self.forecasts.forecast(s)       # what the loop knows when s starts
-        step, gain, condition, used = None, None, np.nan, 0
-        if len(mine):
-            design, ratio = table.design[mine], table.ratio[mine]
-            residual = table.innovation[mine] - design @ (forecast - linearised_at)
-            ok = np.isfinite(residual) & np.all(np.isfinite(design), axis=1) & (ratio > 0)
-            x, weight = self.scale.judge(table.channel[mine][ok], residual[ok])
-            confidence = np.zeros(len(mine))
-            confidence[ok] = ratio[ok] * weight
-            outlier = np.zeros(len(mine), dtype=bool)
-            outlier[ok] = np.abs(x) > p.huber_k
-            cleaned = np.where(outlier | ~ok, 0.0, residual)    # outlier -> the forecast
-            best = np.zeros(len(self.rig.cameras))
-            np.maximum.at(best, table.camera[mine], confidence)
-            present = np.unique(table.camera[mine])
-            out["camera_confidence"][s, present] = best[present]
-            used = int(np.count_nonzero(confidence))
-            cameras = len(np.unique(table.camera[mine][confidence > 0]))
-            if confidence.max() >= p.min_confidence and cameras >= p.min_cameras:
-                normal, rhs = normal_equations(design[ok], cleaned[ok], confidence[ok])
-                solution = solve_normal(normal, rhs, p.max_condition**2)
-                condition = float(np.sqrt(solution.condition))
-                if solution.ok:
-                    step = solution.step
-                    if p.solver == "nonlinear":
-                        parts = [table.source[m // p.segments] for m in mine[::p.segments]]
-                        out["linear_step"][s] = step
-                        step = self._refine(parts, forecast, step, confidence, outlier)
-                        out["refined_step"][s] = step
-                    self.typical = normal if self.typical is None else \
-                        (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
-                    if p.motion_gain == "information":
-                        gain = information_gain(normal, self.typical, p.alpha)
+        design = table.design[mine]
+        solved = self.solver.solve(
+            table.innovation[mine] - design @ (forecast - linearised_at), design,
+            table.ratio[mine], table.camera[mine], table.channel[mine], table.unit[mine],
+            forecast[:3], self.recovering)
+        if solved.step is not None and not solved.partial and p.solver == "nonlinear":
+            parts = [table.source[m // p.segments] for m in mine[::p.segments]]
+            out["linear_step"][s] = solved.step
+            solved.step = self._refine(parts, forecast, solved.step, solved.confidence,
+                                       solved.outlier)
+            out["refined_step"][s] = solved.step
+        step, normal, typical = solved.step, solved.normal, self.solver.typical
+        status = self.status.update(step is not None, solved.judged, solved.outliers,
+                                    solved.condition, solved.used)
+        gain = None
+        if step is not None and p.motion_gain == "information" and typical is not None:
+            gain = information_gain(normal, typical, p.alpha)
         current = self.motion.forecast()            # the filter's own state is up to date
         measured = None if step is None else forecast + step
-        level = self.forecasts.update(s, measured, gain)
+        if status == TrackingStatus.LOST and not self.recovering:
+            # lost: carry on at the last motion measured while tracking (the poses of the
+            # frames to come keep their rows consistent) and re-acquire with a widened
+            # search, the filter's recent values and trend forgotten
+            self.recovering = self.drifted = True
+            self.reacquired = False
+            measured, level = None, self.forecasts.reset(s, self.good_motion)
+        elif self.recovering and measured is not None and not self.reacquired:
+            level = self.forecasts.reset(s, measured)          # the first motion found
+            self.reacquired = True
+        else:
+            level = self.forecasts.update(s, measured, gain)
+        if self.recovering and status != TrackingStatus.LOST:
+            self.recovering = False
+        if status == TrackingStatus.TRACKING:
+            self.good_motion = level
         # the pose carried on from the latest one at the current rate (Y is the motion
         # over the last frame, i.e. the rate half a frame ago: the trend brings it up to
         # date) ...
@@ -374,16 +397,21 @@ class Tracker:
         rate = (current + half_frame * self.motion.trend) / self.slots.period
         rotation, position = compose(self.track.rotations[last], self.track.positions[last],
                                      rate * dt)
-        if step is not None:  # ... pulled towards the measured one, weighted by information
+        if measured is not None:  # ... pulled towards the measured one, weighted by information
             target = compose(*previous, measured)
-            pull = information_gain(normal, self.typical, p.pose_alpha)
+            pull = p.pose_alpha * np.eye(6) if typical is None else \
+                information_gain(normal, typical, p.pose_alpha)
             rotation, position = compose(rotation, position,
                                          pull @ body_step(rotation, position, *target))
         self.track.append(self.slots.times[s], rotation, position)
         self.track.set_extrapolation(level / self.slots.period)
-        out["updated"][s], out["condition"][s] = step is not None, condition
-        out["equations"][s], out["motion"][s] = used, level
+        out["updated"][s], out["condition"][s] = measured is not None, solved.condition
+        out["equations"][s], out["motion"][s] = solved.used, level
         out["forecast"][s] = forecast
+        out["status"][s], out["drifted"][s] = status, self.drifted
+        out["judged"][s], out["outliers"][s] = solved.judged, solved.outliers
+        out["partial"][s], out["dropped_group"][s] = solved.partial, solved.dropped
+        out["camera_confidence"][s] = solved.camera_confidence
         if measured is not None:
             out["measured"][s] = measured
 

@@ -7,12 +7,14 @@ import numpy as np
 from .checks import check_int, check_number
 from .descriptor import DescriptorParams, MatchParams
 
-__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "TrackerParams", "TrackResult"]
+__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "BOUNDARIES", "TrackerParams",
+           "TrackResult"]
 
 REFERENCES = ("homography", "previous")
 DEPTHS = ("auto", "stereo", "overlap", "oracle")
 SOLVERS = ("linear", "nonlinear")
 MOTION_GAINS = ("information", "scalar")
+BOUNDARIES = ("partial", "none")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -69,6 +71,34 @@ class TrackerParams:
         Robust scale of the shift innovations at the start and its floor (pixels).
     scale_smoothing : float
         λ of the robust scale recursion.
+    scale_ceiling : float
+        Largest robust scale (pixels): a persistent bias raises the scale until it is
+        accepted; capped, it stays an outlier.
+    disparity_sigma : float
+        Disparity error (pixels) assumed for measured depth: the inverse-depth error of a
+        camera is ``disparity_sigma / (f · baseline)`` (baseline to its nearest camera;
+        0 for the oracle).
+    shift_sigma : float
+        Typical matching error (pixels) against which a segment's depth sensitivity
+        (how far that inverse-depth error moves its predicted shift at the forecast
+        translation) is weighed: weight ``1 / (1 + (σ_depth / shift_sigma)²)``.
+    consistency_k : float
+        A camera group (a stereo pair; a camera on rigs without pairs) whose average
+        misfit against the solution of the other groups exceeds ``consistency_k ·
+        shift_sigma`` pixels is dropped from the slot (the group with the largest, once
+        per slot; :class:`golden.tracker_robust.GroupConsistency`); 0 disables the test.
+    consistency_share : float
+        A group is judged only if the other groups keep this share of every unknown's
+        information: at 0.1 the leave-one-out solution of three stereo pairs predicted
+        the fourth so poorly that the issue's 4-pair rig, whose pairs each carry most of
+        some direction, had sound pairs dropped in 21 % of its slots (oracle depth).
+    consistency_always : bool
+        Apply the test while tracking too; off: only while re-acquiring after a loss
+        (whose reference frames, carried through the loss, are off differently for each
+        pair). While tracking, on the issue's rig with the oracle depth, it dropped sound
+        pairs in 8–45 % of the slots and one of three runs diverged (docs/tracker.md).
+    consistency_smoothing : float
+        Weight of a new slot in that average.
     min_confidence : float
         A slot needs one measurement at least this confident to step.
     min_cameras : int
@@ -76,6 +106,25 @@ class TrackerParams:
         directions weakly determined; such a slot carries on from the latest pose).
     max_condition : float
         Largest condition number of the weighted, column-scaled design matrix.
+    boundary : str
+        What a slot does whose system exceeds ``max_condition`` (frame boundaries, where
+        few cameras contribute): ``"partial"`` steps in the directions the system
+        determines (eigen-directions within ``max_condition``) and keeps the forecast in
+        the others; ``"none"`` takes no step.
+    status_window : float
+        Window of the tracking status (:mod:`golden.tracking_status`), in frames.
+    lost_update_fraction, lost_outlier_fraction : float
+        Lost below this share of stepped slots or above this share of outlier
+        innovations over the window.
+    degraded_update_fraction, degraded_outlier_fraction : float
+        Degraded below / above these.
+    degraded_condition : float
+        Degraded when the window's median condition number exceeds this.
+    degraded_measurements : float
+        Degraded with fewer confident measurements per stepped slot (window mean).
+    recovery_window : int
+        Half-width of the shift window (pixels, centred on zero motion) while re-acquiring
+        after a loss.
     block_rows : int
         Slots whose window centres and reference rows are predicted together.
     geometry_stride : int
@@ -105,20 +154,37 @@ class TrackerParams:
     scale_initial: float = 0.5
     scale_floor: float = 0.1
     scale_smoothing: float = 0.1
+    scale_ceiling: float = 1.0
+    disparity_sigma: float = 1.0
+    shift_sigma: float = 0.3
+    consistency_k: float = 4.0
+    consistency_share: float = 0.5
+    consistency_always: bool = False
+    consistency_smoothing: float = 0.05
     min_confidence: float = 1.0
     min_cameras: int = 3
     max_condition: float = 100.0
+    boundary: str = "partial"
+    status_window: float = 0.25
+    lost_update_fraction: float = 0.2
+    lost_outlier_fraction: float = 0.5
+    degraded_update_fraction: float = 0.7
+    degraded_outlier_fraction: float = 0.25
+    degraded_condition: float = 50.0
+    degraded_measurements: float = 6.0
+    recovery_window: int = 40
     block_rows: int = 48
     geometry_stride: int = 4
     solver: str = "linear"
 
     def __post_init__(self):
         for name, options in (("reference", REFERENCES), ("depth", DEPTHS),
-                              ("solver", SOLVERS), ("motion_gain", MOTION_GAINS)):
+                              ("solver", SOLVERS), ("motion_gain", MOTION_GAINS),
+                              ("boundary", BOUNDARIES)):
             if getattr(self, name) not in options:
                 raise ValueError(f"{name} must be one of {', '.join(options)}, "
                                  f"not {getattr(self, name)!r}")
-        for name in ("parallax", "follow_rows", "strong_test"):
+        for name in ("parallax", "follow_rows", "strong_test", "consistency_always"):
             if not isinstance(getattr(self, name), bool):
                 raise TypeError(f"{name} must be a bool, not {getattr(self, name)!r}")
         check_number("reselect_angle", self.reselect_angle, 0, low_open=True)
@@ -128,15 +194,27 @@ class TrackerParams:
         check_int("block_rows", self.block_rows, 1)
         check_int("loop_delay_rows", self.loop_delay_rows, 0)
         check_int("geometry_stride", self.geometry_stride, 1)
+        check_int("recovery_window", self.recovery_window, 1)
+        check_number("consistency_share", self.consistency_share, 0, 1, high_open=True)
         check_number("min_depth_fraction", self.min_depth_fraction, 0, 1,
                low_open=True)
         check_number("alpha", self.alpha, 0, 1, low_open=True)
         check_number("pose_alpha", self.pose_alpha, 0, 1, low_open=True)
         check_number("beta", self.beta, 0, 1)
         for name in ("huber_k", "scale_initial", "scale_floor", "scale_smoothing",
-                     "max_condition"):
+                     "scale_ceiling", "shift_sigma", "max_condition", "status_window",
+                     "degraded_condition"):
             check_number(name, getattr(self, name), 0, low_open=True)
         check_number("min_confidence", self.min_confidence, 0)
+        for name in ("disparity_sigma", "consistency_k", "degraded_measurements"):
+            check_number(name, getattr(self, name), 0)
+        check_number("consistency_smoothing", self.consistency_smoothing, 0, 1, low_open=True)
+        for name in ("lost_update_fraction", "lost_outlier_fraction",
+                     "degraded_update_fraction", "degraded_outlier_fraction"):
+            check_number(name, getattr(self, name), 0, 1)
+        if self.scale_ceiling < self.scale_floor:
+            raise ValueError(f"scale_ceiling must be at least scale_floor "
+                             f"({self.scale_floor}), not {self.scale_ceiling}")
         check_int("min_cameras", self.min_cameras, 1)
         DescriptorParams(sigma=self.sigma)
 
@@ -149,6 +227,12 @@ class TrackerParams:
     @property
     def matcher(self):
         return MatchParams(shift_min=-self.window, shift_max=self.window,
+                           segments=self.segments)
+
+    @property
+    def recovery_matcher(self):
+        """The widened search of a re-acquisition after a loss."""
+        return MatchParams(shift_min=-self.recovery_window, shift_max=self.recovery_window,
                            segments=self.segments)
 
 
@@ -170,6 +254,11 @@ class TrackResult:
     measured : (S, 6) the value ``Ŷ + δ`` the motion filter took (NaN where no step)
     linear_step, refined_step : (S, 6) with ``solver="nonlinear"``: the linear and the
         refined δ (NaN where no step)
+    status : (S,) uint8 :class:`golden.tracking_status.TrackingStatus` code of each slot
+    drifted : (S,) bool, the slot comes after a loss (absolute pose drifted)
+    judged, outliers : (S,) innovations judged and those beyond the Huber threshold
+    dropped_group : (S,) camera group the consistency test dropped (-1: none)
+    partial : (S,) bool, the slot stepped only in its determined directions
     period : frame period (s) over which Y is defined
     params : dict of the TrackerParams used, plus ``depth_source``
     """
@@ -186,5 +275,11 @@ class TrackResult:
     measured: np.ndarray
     linear_step: np.ndarray
     refined_step: np.ndarray
+    status: np.ndarray
+    drifted: np.ndarray
+    judged: np.ndarray
+    outliers: np.ndarray
+    dropped_group: np.ndarray
+    partial: np.ndarray
     period: float
     params: dict

@@ -1,4 +1,8 @@
-"""``rowtrack track``: run the golden per-row tracker on a simulated dataset."""
+"""``rowtrack track``: run the golden per-row tracker on a simulated dataset.
+
+Exit status 1 (with one line on stderr saying when) if tracking was lost: the trajectory
+is still written, with each row's status and the rows after the loss marked, and the
+table says so first (:mod:`golden.tracking_status`)."""
 
 import json
 import math
@@ -102,6 +106,7 @@ def save_trajectory(path, result, dataset, metrics):
              true_position=true_pos, tracked=result.tracked, updated=result.updated,
              condition=result.condition, equations=result.equations,
              camera_confidence=result.camera_confidence, motion=result.motion,
+             status=result.status, drifted=result.drifted,
              params=np.array(json.dumps(result.params)),
              metrics=np.array(json.dumps(_json_safe(metrics))))
 
@@ -115,6 +120,7 @@ def plot_trajectory(path, result, dataset, metrics):
 
     from golden.pose_lsq import body_step
     from golden.tracker_motion import ground_truth_track
+    from golden.tracking_status import TrackingStatus
     true_rot, true_pos = ground_truth_track(dataset).at(result.times)
     ms = 1000 * (result.times - result.times[0])
     start = (true_rot[0], true_pos[0])
@@ -137,13 +143,18 @@ def plot_trajectory(path, result, dataset, metrics):
     axes[1, 0].set_ylabel("position error, cm (world)")
     axes[1, 1].set_ylabel("rotation error, deg (rig frame)")
     first = ms[np.argmax(result.tracked)]
+    lost = result.status == TrackingStatus.LOST
     for ax in axes.ravel():
         ax.axvspan(0, first, color="0.9", lw=0)        # initialisation: poses given
+        ax.fill_between(ms, 0, 1, where=lost, color="tab:red", alpha=0.15, lw=0,
+                        transform=ax.get_xaxis_transform())
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", fontsize=8)
     for ax in axes[1]:
         ax.set_xlabel("time since the first row, ms")
-    fig.suptitle(f"{dataset.rig.name}: estimate (thin) vs ground truth (wide); per-row Y "
+    lost_note = "" if metrics["lost_at_ms"] is None else \
+        f"TRACKING LOST at {metrics['lost_at_ms']:.1f} ms (red: lost); "
+    fig.suptitle(f"{lost_note}{dataset.rig.name}: estimate (thin) vs ground truth (wide); per-row Y "
                  f"RMS {_triple(metrics['rms_t_cm'])} cm, {_triple(metrics['rms_r_deg'])}°; "
                  f"render {metrics['render_px']:.2f} px", fontsize=10)
     fig.tight_layout()
@@ -164,9 +175,19 @@ def _json_safe(metrics):
     return {key: clean(value) for key, value in metrics.items()}
 
 
+def lost_line(metrics):
+    """The one line of a lost run (None if tracking was never lost)."""
+    if metrics["lost_at_ms"] is None:
+        return None
+    return (f"tracking lost at {metrics['lost_at_ms']:.1f} ms; final status "
+            f"{metrics['final_status']}; rows after it are marked drifted in the trajectory, "
+            f"their accuracy is not a tracking result")
+
+
 def format_metrics(metrics):
-    """The metrics as a short human-readable table."""
-    return "\n".join([
+    """The metrics as a short human-readable table (a lost run says so first)."""
+    lost = lost_line(metrics)
+    return "\n".join(([f"TRACKING LOST: {lost}"] if lost else []) + [
         f"rows tracked          {metrics['rows']} ({metrics['seconds'] * 1000:.1f} ms)",
         f"per-row Y RMS (x/y/z) T {_triple(metrics['rms_t_cm'], 4)} cm   "
         f"θ {_triple(metrics['rms_r_rad'], 6)} rad = {_triple(metrics['rms_r_deg'], 4)}°",
@@ -178,19 +199,25 @@ def format_metrics(metrics):
         f"{metrics['render_px_max']:.2f} px (1080×1200 per eye, 100° horizontal FoV)",
         f"rows with an update   {metrics['update_fraction']:.1%}",
         f"condition number      median {metrics['cond_median']:.3g}, max "
-        f"{metrics['cond_max']:.3g}"])
+        f"{metrics['cond_max']:.3g}",
+        f"status                {metrics['status']} (tracking "
+        f"{metrics['tracking_fraction']:.1%}, degraded {metrics['degraded_fraction']:.1%}, "
+        f"lost {metrics['lost_fraction']:.1%} of rows)"])
 
 
 def run(args):
+    import sys
+
     from golden.metrics import evaluate
     from golden.tracker import track
+    from golden.tracking_status import status_summary
     params = _params(args)
     dataset = _load(args.data)
     _check(dataset, params)
     out = _output(args.out, args.data, ".track.npz")
     plot = None if args.no_plot else _output(args.plot, args.data, ".track.png")
     result = track(dataset, params, progress=not args.no_progress)
-    metrics = evaluate(result, dataset)
+    metrics = {**evaluate(result, dataset), **status_summary(result)}
     save_trajectory(out, result, dataset, metrics)
     if plot is not None:
         plot_trajectory(plot, result, dataset, metrics)
@@ -199,4 +226,8 @@ def run(args):
     else:
         print(format_metrics(metrics))
         print(f"wrote {out}" + (f" and {plot}" if plot else ""))
+    lost = lost_line(metrics)
+    if lost:
+        print(f"rowtrack track: {lost}", file=sys.stderr)
+        return 1
     return 0

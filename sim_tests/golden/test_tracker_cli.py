@@ -36,12 +36,15 @@ def test_json_metrics_trajectory_and_plot(data_file, capsys):
     for key in ("render_px", "update_fraction", "cond_median", "cond_max"):
         assert isinstance(metrics[key], float)
     assert metrics["update_fraction"] > 0.9 and metrics["rows"] == 128
+    assert metrics["status"] in ("tracking", "degraded") and metrics["lost_at_ms"] is None
+    assert metrics["tracking_fraction"] + metrics["degraded_fraction"] == 1.0
     with np.load(data_file.with_suffix(".track.npz")) as out:
         assert out["quaternion"].shape == (192, 4) and out["position"].shape == (192, 3)
         assert np.allclose(np.linalg.norm(out["quaternion"], axis=1), 1)
         assert out["tracked"].sum() == 128
         assert json.loads(str(out["metrics"]))["rms_t_cm"] == metrics["rms_t_cm"]
         assert json.loads(str(out["params"]))["reference"] == "homography"
+        assert out["status"].shape == (192,) and not out["drifted"].any()
     png = data_file.with_suffix(".track.png").read_bytes()
     assert png.startswith(b"\x89PNG") and len(png) > 20000
 
@@ -52,6 +55,7 @@ def test_table_output_and_chosen_paths(data_file, tmp_path, capsys):
                  str(out), "--no-progress"]) == 0
     text = capsys.readouterr().out
     assert "per-row Y RMS" in text and "render error" in text and str(out) in text
+    assert "TRACKING LOST" not in text and "\nstatus " in text
     assert out.exists() and not (tmp_path / "t.png").exists()
 
 
@@ -82,3 +86,29 @@ def test_stereo_depth_needs_pairs(tmp_path, capsys):
     dataset.save(tmp_path / "r.npz")
     assert main(["track", str(tmp_path / "r.npz"), "--depth", "stereo"]) == 2
     assert "needs rectified stereo pairs" in capsys.readouterr().err
+
+
+def test_a_lost_run_exits_non_zero_and_marks_its_trajectory(tmp_path, capsys):
+    """The last of three frames of the 32-row strip blanked (a covered lens): the run
+    says when tracking was lost, in one stderr line, exits 1, and the trajectory file
+    marks the rows as lost and drifted."""
+    rig = preset("stereo20").replace_cameras(height=32, cy=15.5, t_r=1 / (120 * 32))
+    dataset = simulate(rig, default_scene_spec(SEED), make_trajectory("paper"), 3 / 120,
+                       seed=SEED)
+    for recording in dataset.cameras:
+        recording.rows[2] = 128
+    path = tmp_path / "blank.npz"
+    dataset.save(path)
+    assert main(["track", str(path), "--no-plot", "--no-progress"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out.startswith("TRACKING LOST: tracking lost at ")
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("rowtrack track: tracking lost at ")
+    lost_ms = float(lines[0].split("lost at ")[1].split(" ms")[0])
+    assert 2000 / 120 <= lost_ms < 3000 / 120
+    with np.load(path.with_suffix(".track.npz")) as out:
+        assert out["status"].max() == 2 and out["drifted"][-1]
+        assert json.loads(str(out["metrics"]))["status"] == "lost"
+    assert main(["track", str(path), "--no-plot", "--no-progress", "--json"]) == 1
+    metrics = json.loads(capsys.readouterr().out)
+    assert metrics["status"] == "lost" and abs(metrics["lost_at_ms"] - lost_ms) <= 0.05

@@ -266,3 +266,25 @@ def test_malformed_options_are_argparse_errors(arguments, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["run", *arguments])
     assert exc.value.code == 2
+
+
+def test_a_golden_loss_fails_the_run(outcome):
+    """The golden tracker's status reaches the run: a lost golden tracker is a failure
+    line (so `rowtrack run` exits 1 and the report says FAILED), and metrics.json says
+    when."""
+    from golden.tracking_status import TrackingStatus
+    assert not any("golden tracker" in f for f in outcome.all_failures())
+    assert metrics(outcome)["golden.status"] in ("tracking", "degraded")
+    assert metrics(outcome)["golden.lost_at_ms"] is None
+    status = outcome.golden.status.copy()
+    lost_from = np.flatnonzero(outcome.golden.tracked)[10]
+    status[lost_from:] = TrackingStatus.LOST
+    lost = dataclasses.replace(outcome, golden=dataclasses.replace(outcome.golden,
+                                                                   status=status))
+    failures = [f for f in lost.all_failures() if f.startswith("golden tracker: tracking lost")]
+    assert len(failures) == 1
+    m = metrics(lost)
+    assert m["golden.status"] == "lost"
+    assert m["golden.lost_at_ms"] == pytest.approx(
+        1000 * (outcome.golden.times[lost_from] - outcome.golden.times[0]))
+    assert "status lost" in lost.summary()
