@@ -122,6 +122,31 @@ def _stereo20(lens):
     return Rig(name="stereo20", cameras=tuple(cameras), row_points=1)
 
 
+#: stereo8 pairs (yaw, pitch, roll in degrees) facing front, left, back and right
+#: (issue 18's rig): the side pairs rolled 90° so that their rows run vertically, the
+#: front pair tilted 30° up and the back pair 30° down.
+STEREO8_PAIRS = ((0, 30, 0), (-90, 0, 90), (180, -30, 0), (90, 0, 90))
+
+#: stereo8 trigger offset per pair index (s).
+STEREO8_TRIGGER_STEP = 0.5e-3
+
+
+def _stereo8(lens, fps, name):
+    """4 stereo pairs, 8 cm baseline along each camera's x axis, pair centres 10 cm out,
+    640×480, 60° vertical FoV, readout 80 % of the frame period, pair k triggered
+    k × 0.5 ms after pair 0."""
+    cameras = []
+    for k, (yaw, pitch, roll) in enumerate(STEREO8_PAIRS):
+        rotation = orientation_ypr(yaw, pitch, roll)
+        centre = 0.10 * rotation[:, 2]
+        for side, sign in (("L", -1), ("R", 1)):
+            cameras.append(Camera.from_fov(
+                name=f"pair{k}{side}", lens=lens, rotation=rotation, fps=fps,
+                t_f=0.2 / fps, trigger_offset=k * STEREO8_TRIGGER_STEP,
+                position=centre + sign * 0.04 * rotation[:, 0]))
+    return Rig(name=name, cameras=tuple(cameras), row_points=8)
+
+
 def _radial(count, lens):
     cameras = tuple(
         Camera.from_fov(name=f"cam{k + 1}", lens=lens, position=position,
@@ -135,6 +160,8 @@ PRESETS = {
     "stereo20": (_stereo20, "Pinhole"),
     "radial4": (lambda lens: _radial(4, lens), "GoPro4"),
     "radial6": (lambda lens: _radial(6, lens), "GoPro4"),
+    "stereo8": (lambda lens: _stereo8(lens, 100.0, "stereo8"), "Pinhole"),
+    "stereo8-board": (lambda lens: _stereo8(lens, 120.0, "stereo8-board"), "Pinhole"),
 }
 
 
