@@ -17,7 +17,7 @@ from .lens import LENS_PRESETS
 from .observability import Observability, analyze
 from .rotations import orientation_ypr
 
-__all__ = ["Rig", "PRESETS", "preset", "load_rig", "rig_from_config"]
+__all__ = ["Rig", "PRESETS", "preset", "load_rig", "rig_from_config", "scaled_rig"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -175,6 +175,23 @@ def preset(name, lens=None):
     if lens not in LENS_PRESETS:
         raise ValueError(f"lens must be one of {', '.join(LENS_PRESETS)}, not {lens!r}")
     return builder(lens)
+
+
+def scaled_rig(rig, factor):
+    """``rig`` with every image scaled by ``factor`` (same field of view, frame rate,
+    blanking share and trigger offsets; rows ``round(H·factor)``), for fast runs."""
+    check_number("factor", factor, 0, 1, low_open=True)
+    cameras = []
+    for cam in rig.cameras:
+        width, height = round(cam.width * factor), round(cam.height * factor)
+        sx, sy = width / cam.width, height / cam.height
+        cameras.append(cam.replace(
+            width=width, height=height, fx=cam.fx * sx, fy=cam.fy * sy,
+            cx=(cam.cx + 0.5) * sx - 0.5, cy=(cam.cy + 0.5) * sy - 0.5,
+            t_r=(1 / cam.fps - cam.t_f - cam.t_e) / height))
+    name = rig.name if factor == 1 else f"{rig.name}@{factor:g}"
+    return Rig(name=name, cameras=tuple(cameras), row_points=rig.row_points,
+               nominal_depth=rig.nominal_depth, allow_unobservable=rig.allow_unobservable)
 
 
 # --- config files ----------------------------------------------------------------------
