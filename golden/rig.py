@@ -14,10 +14,13 @@ from .checks import check_int, check_number
 from .camera import Camera, focal_for_vfov
 from .config_files import check_keys, read_config_file
 from .lens import LENS_PRESETS
-from .observability import Observability, analyze
+import numpy as np
+
+from .observability import Observability, analyze, row_constraints
 from .rotations import orientation_ypr
 
-__all__ = ["Rig", "PRESETS", "preset", "load_rig", "rig_from_config", "scaled_rig"]
+__all__ = ["Rig", "PRESETS", "preset", "load_rig", "rig_from_config", "scaled_rig",
+           "slot_conditions"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -192,6 +195,28 @@ def scaled_rig(rig, factor):
     name = rig.name if factor == 1 else f"{rig.name}@{factor:g}"
     return Rig(name=name, cameras=tuple(cameras), row_points=rig.row_points,
                nominal_depth=rig.nominal_depth, allow_unobservable=rig.allow_unobservable)
+
+
+def slot_conditions(rig, row_points=None, depth=None):
+    """Condition number of the stacked constraints of every row slot of one frame, with
+    each camera at the row its trigger offset puts in the slot (:func:`analyze` assumes
+    synchronized cameras); returns (conditions, cameras reading) per slot, slots with
+    no camera reading left out. Needs cameras of one row time."""
+    row_points = rig.row_points if row_points is None else row_points
+    depth = rig.nominal_depth if depth is None else depth
+    cams = rig.cameras
+    offsets = [round(c.trigger_offset / cams[0].t_r) for c in cams]
+    conditions, reading = [], []
+    for slot in range(max(c.height + o for c, o in zip(cams, offsets))):
+        rows = [(c, slot - o) for c, o in zip(cams, offsets) if 0 <= slot - o < c.height]
+        if not rows:
+            continue
+        sigma = np.linalg.svd(np.concatenate([row_constraints(c, y, row_points, depth)
+                                              for c, y in rows]), compute_uv=False)
+        conditions.append(sigma[0] / sigma[-1] if len(sigma) == 6 and sigma[-1] > 0
+                          else np.inf)
+        reading.append(len(rows))
+    return np.array(conditions), np.array(reading)
 
 
 # --- config files ----------------------------------------------------------------------

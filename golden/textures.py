@@ -120,7 +120,7 @@ def family_texture(rng, shape, texel, family):
     """A gray texture of ``family`` (see :data:`FAMILIES`), float32 in [8, 247]."""
     h, w = shape
     if family == "noise":
-        high = np.exp(rng.uniform(np.log(0.08), np.log(0.4))) / texel
+        high = max(2.0, np.exp(rng.uniform(np.log(0.08), np.log(0.4))) / texel)
         image = 128.0 + 45.0 * _band_noise(rng, shape, max(2.0, high / 8), high)
     elif family == "shapes":
         image = _shapes(rng, shape, texel, 10.0, float(rng.uniform(60, 200)))
