@@ -225,3 +225,33 @@ def test_reference_pixels_without_depth_are_not_infinitely_far():
     assert errors["true"] < 0.3
     assert errors["infinitely far"] > 1.0                      # the test can tell
     assert errors["missing"] < 0.3 * errors["infinitely far"]
+
+
+# --- the measurement tool -------------------------------------------------------------------
+
+def test_depth_check_counts_gross_errors_against_the_truth(tmp_path):
+    """On a short stereo8 clip at 1/4 size (f·b = 8.3 px·m) the counts are consistent;
+    the old fixed [10, 70] window finds no depth at all there (every surface is beyond
+    0.83 m), the range-derived one does; and the trajectory errors are read back."""
+    from golden.depth_check import block_errors, track_errors
+    from golden.rig import scaled_rig
+    rig = scaled_rig(preset("stereo8"), 0.25).replace_cameras(noise_sigma=2.0)
+    dataset = simulate(rig, default_scene_spec(SEED), make_trajectory("head", seed=SEED),
+                       2 / 100, seed=SEED)
+    for rule in ("before", "after"):
+        counts = block_errors(dataset, rule, row_step=4, blocks=4)   # 30-px blocks
+        print(rule, counts)
+        assert 0 <= counts["gross"] <= counts["accepted"] <= counts["blocks"]
+        assert 0 <= counts["pixel_depth_share"] <= 1 and 0 <= counts["pixel_gross_share"] <= 1
+        assert (counts["accepted"] > 0.2 * counts["blocks"]) == (rule == "after")
+    # a trajectory file 0.3 s long, 2 cm off in x from 0.1 s on
+    time = np.linspace(0, 0.3, 301)
+    position = np.zeros((301, 3))
+    true = position.copy()
+    position[time >= 0.1, 0] = 0.02
+    quaternion = np.tile([1.0, 0, 0, 0], (301, 1))
+    np.savez(tmp_path / "run.track.npz", time=time, position=position, true_position=true,
+             quaternion=quaternion, true_quaternion=quaternion, tracked=np.ones(301, bool))
+    errors = track_errors(tmp_path / "run.track.npz")
+    assert errors["t_cm"] == pytest.approx([2.0, 0, 0]) and errors["at_s"] == pytest.approx(0.2)
+    assert errors["over_1cm_s"] == pytest.approx(0.1) and errors["over_5cm_s"] is None
