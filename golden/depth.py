@@ -177,11 +177,6 @@ class StereoDepth:
     def has_depth(self, camera):
         return camera in self.pair_of
 
-    def centres(self, pair):
-        """Block centre columns of pair ``pair`` (the left camera's)."""
-        lo, hi = self.bounds[pair].T
-        return (lo + hi - 1) / 2
-
     def block_disparity(self, pair, left_bits, right_bits, left_strong=None):
         """Match the left rows against the right ones block by block (see
         :class:`BlockDisparity`)."""
