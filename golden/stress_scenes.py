@@ -3,9 +3,11 @@
 Every scene comes from one seed (the same seed gives the same scene, texture for
 texture): a room 3–10 m on a side whose longer side keeps one wall beyond the stereo
 range (``far_wall`` from the start), 3–5 pieces of furniture, 2–5 pieces of clutter
-close to the rig, and faces textured from every family of
+close to the rig, and boxes textured with every family of
 :data:`golden.textures.FAMILIES` (band-limited noise, rectangles and lines, low
-contrast, repetitive patterns, large blank areas) with a contrast drawn per face. The
+contrast, repetitive patterns, large blank areas), the room with any family but
+``blank`` (six blank faces leave nothing to track rather than stress the tracker),
+and a contrast drawn per face. The
 rig starts at a random height (1.1–1.9 m) and heading, clear of every surface by
 ``keep_clear`` so that the simulator's clearance check passes for short runs.
 
@@ -90,9 +92,9 @@ class StressParams:
                              f"and 0.4 m do not fit in rooms of at most {self.room[1]} m")
         object.__setattr__(self, "furniture", _pair("furniture", self.furniture, 0, True))
         object.__setattr__(self, "clutter", _pair("clutter", self.clutter, 0, True))
-        if self.furniture[0] + self.clutter[0] + 1 < len(FAMILIES):
-            raise ValueError(f"furniture[0] + clutter[0] + 1 (the room) must be at least "
-                             f"{len(FAMILIES)} so that every texture family appears")
+        if self.furniture[0] + self.clutter[0] < len(FAMILIES):
+            raise ValueError(f"furniture[0] + clutter[0] must be at least {len(FAMILIES)} "
+                             f"so that every texture family appears on a box")
         object.__setattr__(self, "clutter_distance",
                            _pair("clutter_distance", self.clutter_distance, self.keep_clear))
         object.__setattr__(self, "contrast_range",
@@ -173,9 +175,11 @@ def stress_scene(seed, params=StressParams(), max_tries=200):
             if trial.clearance(start[None])[0] >= p.keep_clear:
                 boxes.append((lo, hi))
                 break
-    surfaces = 1 + len(boxes)
-    families = [FAMILIES[k % len(FAMILIES)] for k in range(surfaces)]
-    rng.shuffle(families)
+    # every family on some box; the room (all six faces) never blank, which would leave
+    # no tracker anything to see rather than stress it
+    boxes_families = [FAMILIES[k % len(FAMILIES)] for k in range(len(boxes))]
+    rng.shuffle(boxes_families)
+    families = [str(rng.choice([f for f in FAMILIES if f != "blank"]))] + boxes_families
     spec = SceneSpec(room=(float(sides[0]), float(sides[1]), float(height)),
                      boxes=tuple(Box(lo=tuple(lo), hi=tuple(hi),
                                      texture=FAMILY_PREFIX + family)
