@@ -31,7 +31,7 @@ from .descriptor import describe
 from .rotations import rotation_angle
 from .tracker_geometry import camera_poses, project, rotate
 
-__all__ = ["Reference", "HomographyReference", "PreviousFrameReference"]
+__all__ = ["Reference", "HomographyReference", "PreviousFrameReference", "fill_row_gaps"]
 
 #: Fixed-point iterations that find, for a pixel of F_GS, the previous-frame row it is
 #: read from (each row has its own rotation).
@@ -51,6 +51,21 @@ class Reference(NamedTuple):
     valid: np.ndarray           # (B, W) reference pixel holds scene content
     view_rotation: np.ndarray   # (B, 3, 3) rig rotation the row is seen with
     source_centre: np.ndarray   # (B, C, 3) or (B, 1, 3) camera centre (world) per pixel
+
+
+def fill_row_gaps(values):
+    """``values`` (B, W) with each NaN replaced by the nearest finite value of its row
+    (the left one on a tie); rows without any finite value stay NaN."""
+    values = np.asarray(values, dtype=float)
+    columns = np.arange(values.shape[-1])
+    finite = np.isfinite(values)
+    left = np.maximum.accumulate(np.where(finite, columns, -1), axis=-1)
+    right = np.minimum.accumulate(np.where(finite, columns, values.shape[-1])[..., ::-1],
+                                  axis=-1)[..., ::-1]
+    use_right = (left < 0) | ((right < values.shape[-1]) & (right - columns < columns - left))
+    source = np.where(use_right, right, left)
+    picked = np.take_along_axis(values, np.clip(source, 0, values.shape[-1] - 1), axis=-1)
+    return np.where(finite.any(axis=-1, keepdims=True), picked, np.nan)
 
 
 def _interpolate_columns(values, grid, width):
@@ -136,8 +151,11 @@ class HomographyReference:
         predicted rotation (rotation-only compensation; source centres at ``columns``).
         With ``inverse_depth`` (B, W) the parallax is compensated too: each pixel is read
         along the direction from its source row's camera centre to the point it sees at
-        the predicted pose, so the reference shows the current row as predicted (pixels
-        without depth fall back to their direction).
+        the predicted pose, so the reference shows the current row as predicted. A pixel
+        without depth takes the depth of the nearest pixel of its row that has one
+        (:func:`fill_row_gaps`), never "infinitely far" (which would show it shifted by
+        the whole frame's parallax); a row without any depth is read along its
+        directions and marked not valid.
         """
         state = self._frames.get(n)
         if state is None or state["frame"] != frame - 1 or np.any(
@@ -151,7 +169,9 @@ class HomographyReference:
         if inverse_depth is None:
             directions, centres = rotate(rotations, rays @ cam.R.T), None
         else:
-            w = np.nan_to_num(inverse_depth[:, grid])[..., None]
+            filled = fill_row_gaps(inverse_depth[:, grid])
+            depthless = np.isnan(filled[:, 0])
+            w = np.nan_to_num(filled)[..., None]
             point = rotate(rotations, rays @ cam.R.T + w * cam.c) + w * positions[:, None, :]
             centres = self._centres(state, np.broadcast_to(rows[:, None], w.shape[:2]))
             for _ in range(PARALLAX_ITERATIONS):
@@ -165,6 +185,7 @@ class HomographyReference:
         bits = describe(_sample(state["image"], x, y), self.desc)
         valid = _sample(state["valid"], x, y) > 0.999
         if inverse_depth is not None:     # the reference now shows the predicted row
+            valid &= ~depthless[:, None]
             return Reference(bits=bits, valid=valid, view_rotation=rotations,
                              source_centre=camera_poses(cam, rotations, positions)[1][:, None])
         source_row = _sample(state["source_row"], x[:, columns], y[:, columns])

@@ -14,10 +14,13 @@ from .checks import check_int, check_number
 from .camera import Camera, focal_for_vfov
 from .config_files import check_keys, read_config_file
 from .lens import LENS_PRESETS
-from .observability import Observability, analyze
+import numpy as np
+
+from .observability import Observability, analyze, row_constraints
 from .rotations import orientation_ypr
 
-__all__ = ["Rig", "PRESETS", "preset", "load_rig", "rig_from_config"]
+__all__ = ["Rig", "PRESETS", "preset", "load_rig", "rig_from_config", "scaled_rig",
+           "slot_conditions"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -122,6 +125,31 @@ def _stereo20(lens):
     return Rig(name="stereo20", cameras=tuple(cameras), row_points=1)
 
 
+#: stereo8 pairs (yaw, pitch, roll in degrees) facing front, left, back and right
+#: (issue 18's rig): the side pairs rolled 90° so that their rows run vertically, the
+#: front pair tilted 30° up and the back pair 30° down.
+STEREO8_PAIRS = ((0, 30, 0), (-90, 0, 90), (180, -30, 0), (90, 0, 90))
+
+#: stereo8 trigger offset per pair index (s).
+STEREO8_TRIGGER_STEP = 0.5e-3
+
+
+def _stereo8(lens, fps, name):
+    """4 stereo pairs, 8 cm baseline along each camera's x axis, pair centres 10 cm out,
+    640×480, 60° vertical FoV, readout 80 % of the frame period, pair k triggered
+    k × 0.5 ms after pair 0."""
+    cameras = []
+    for k, (yaw, pitch, roll) in enumerate(STEREO8_PAIRS):
+        rotation = orientation_ypr(yaw, pitch, roll)
+        centre = 0.10 * rotation[:, 2]
+        for side, sign in (("L", -1), ("R", 1)):
+            cameras.append(Camera.from_fov(
+                name=f"pair{k}{side}", lens=lens, rotation=rotation, fps=fps,
+                t_f=0.2 / fps, trigger_offset=k * STEREO8_TRIGGER_STEP,
+                position=centre + sign * 0.04 * rotation[:, 0]))
+    return Rig(name=name, cameras=tuple(cameras), row_points=8)
+
+
 def _radial(count, lens):
     cameras = tuple(
         Camera.from_fov(name=f"cam{k + 1}", lens=lens, position=position,
@@ -135,6 +163,8 @@ PRESETS = {
     "stereo20": (_stereo20, "Pinhole"),
     "radial4": (lambda lens: _radial(4, lens), "GoPro4"),
     "radial6": (lambda lens: _radial(6, lens), "GoPro4"),
+    "stereo8": (lambda lens: _stereo8(lens, 100.0, "stereo8"), "Pinhole"),
+    "stereo8-board": (lambda lens: _stereo8(lens, 120.0, "stereo8-board"), "Pinhole"),
 }
 
 
@@ -148,6 +178,45 @@ def preset(name, lens=None):
     if lens not in LENS_PRESETS:
         raise ValueError(f"lens must be one of {', '.join(LENS_PRESETS)}, not {lens!r}")
     return builder(lens)
+
+
+def scaled_rig(rig, factor):
+    """``rig`` with every image scaled by ``factor`` (same field of view, frame rate,
+    blanking share and trigger offsets; rows ``round(H·factor)``), for fast runs."""
+    check_number("factor", factor, 0, 1, low_open=True)
+    cameras = []
+    for cam in rig.cameras:
+        width, height = round(cam.width * factor), round(cam.height * factor)
+        sx, sy = width / cam.width, height / cam.height
+        cameras.append(cam.replace(
+            width=width, height=height, fx=cam.fx * sx, fy=cam.fy * sy,
+            cx=(cam.cx + 0.5) * sx - 0.5, cy=(cam.cy + 0.5) * sy - 0.5,
+            t_r=(1 / cam.fps - cam.t_f - cam.t_e) / height))
+    name = rig.name if factor == 1 else f"{rig.name}@{factor:g}"
+    return Rig(name=name, cameras=tuple(cameras), row_points=rig.row_points,
+               nominal_depth=rig.nominal_depth, allow_unobservable=rig.allow_unobservable)
+
+
+def slot_conditions(rig, row_points=None, depth=None):
+    """Condition number of the stacked constraints of every row slot of one frame, with
+    each camera at the row its trigger offset puts in the slot (:func:`analyze` assumes
+    synchronized cameras); returns (conditions, cameras reading) per slot, slots with
+    no camera reading left out. Needs cameras of one row time."""
+    row_points = rig.row_points if row_points is None else row_points
+    depth = rig.nominal_depth if depth is None else depth
+    cams = rig.cameras
+    offsets = [round(c.trigger_offset / cams[0].t_r) for c in cams]
+    conditions, reading = [], []
+    for slot in range(max(c.height + o for c, o in zip(cams, offsets))):
+        rows = [(c, slot - o) for c, o in zip(cams, offsets) if 0 <= slot - o < c.height]
+        if not rows:
+            continue
+        sigma = np.linalg.svd(np.concatenate([row_constraints(c, y, row_points, depth)
+                                              for c, y in rows]), compute_uv=False)
+        conditions.append(sigma[0] / sigma[-1] if len(sigma) == 6 and sigma[-1] > 0
+                          else np.inf)
+        reading.append(len(rows))
+    return np.array(conditions), np.array(reading)
 
 
 # --- config files ----------------------------------------------------------------------

@@ -15,7 +15,8 @@ import numpy as np
 
 from .checks import check_int, check_number
 from .config_files import check_keys, read_config_file
-from .textures import TextureAtlas, image_texture, procedural_texture
+from .textures import (TextureAtlas, family_of, family_texture, image_texture,
+                       procedural_texture, with_contrast)
 
 __all__ = ["Box", "SceneSpec", "Scene", "default_scene_spec", "scene_from_config",
            "load_scene_spec", "build_scene"]
@@ -34,7 +35,10 @@ def _vector3(name, value):
 
 @dataclass(frozen=True, kw_only=True)
 class Box:
-    """An axis-aligned box (or, with one zero extent, a two-sided panel) in world metres."""
+    """An axis-aligned box (or, with one zero extent, a two-sided panel) in world metres.
+
+    ``texture``: None (procedural from the scene seed), an image path, or
+    ``"family:<name>"`` (a procedural family of :data:`golden.textures.FAMILIES`)."""
     lo: tuple
     hi: tuple
     texture: str | None = None
@@ -47,6 +51,7 @@ class Box:
                              f"the others, not lo={lo}, hi={hi}")
         object.__setattr__(self, "lo", lo)
         object.__setattr__(self, "hi", hi)
+        family_of(self.texture)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -64,9 +69,12 @@ class SceneSpec:
     seed : int
         Seed of the procedural textures.
     room_texture : str or None
-        Image for all six room faces (procedural if None).
+        Image (or ``"family:<name>"``) for all six room faces (procedural if None).
     mip_levels : int
         Mip levels above the base texture.
+    contrast_range : 2-tuple
+        Each face's contrast is scaled by a factor drawn log-uniformly in this range
+        from the seed ((1, 1): unchanged).
     """
     room: tuple = (7.0, 6.0, 3.0)
     boxes: tuple = ()
@@ -74,6 +82,7 @@ class SceneSpec:
     seed: int = 0
     room_texture: str | None = None
     mip_levels: int = 5
+    contrast_range: tuple = (1.0, 1.0)
 
     def __post_init__(self):
         room = _vector3("room", self.room)
@@ -92,6 +101,13 @@ class SceneSpec:
         check_number("texel", self.texel, 0, low_open=True)
         check_int("seed", self.seed, 0)
         check_int("mip_levels", self.mip_levels, 0, 8)
+        family_of(self.room_texture)
+        contrast = tuple(self.contrast_range)
+        if len(contrast) != 2:
+            raise ValueError(f"contrast_range must be two numbers, not {self.contrast_range!r}")
+        check_number("contrast_range[0]", contrast[0], 0, low_open=True)
+        check_number("contrast_range[1]", contrast[1], contrast[0])
+        object.__setattr__(self, "contrast_range", tuple(float(c) for c in contrast))
 
     @property
     def room_lo(self):
@@ -119,11 +135,13 @@ class SceneSpec:
         boxes = tuple(Box(lo=b.lo, hi=b.hi, texture=paths[(k + 1) % len(paths)])
                       for k, b in enumerate(self.boxes))
         return SceneSpec(room=self.room, boxes=boxes, texel=self.texel, seed=self.seed,
-                         room_texture=paths[0], mip_levels=self.mip_levels)
+                         room_texture=paths[0], mip_levels=self.mip_levels,
+                         contrast_range=self.contrast_range)
 
     def to_dict(self):
         return {"room": list(self.room), "texel": self.texel, "seed": self.seed,
                 "room_texture": self.room_texture, "mip_levels": self.mip_levels,
+                "contrast_range": list(self.contrast_range),
                 "boxes": [{"lo": list(b.lo), "hi": list(b.hi), "texture": b.texture}
                           for b in self.boxes]}
 
@@ -146,7 +164,8 @@ def default_scene_spec(seed=0, **changes):
     return SceneSpec(boxes=DEFAULT_BOXES, seed=seed, **changes)
 
 
-_SCENE_KEYS = {"room", "boxes", "texel", "seed", "room_texture", "mip_levels"}
+_SCENE_KEYS = {"room", "boxes", "texel", "seed", "room_texture", "mip_levels",
+               "contrast_range"}
 
 
 def scene_from_config(config, source="scene config", base_dir=None):
@@ -154,7 +173,7 @@ def scene_from_config(config, source="scene config", base_dir=None):
     check_keys(config, _SCENE_KEYS, source)
 
     def resolve(path):
-        if path is None or base_dir is None:
+        if path is None or base_dir is None or family_of(path):
             return path
         return str((Path(base_dir) / path)) if not Path(path).is_absolute() else path
 
@@ -165,7 +184,8 @@ def scene_from_config(config, source="scene config", base_dir=None):
             raise ValueError(f"box {k} of {source} must have lo, hi and optionally texture, "
                              f"not {entry!r}")
         boxes.append(Box(lo=entry["lo"], hi=entry["hi"], texture=resolve(entry.get("texture"))))
-    kwargs = {k: config[k] for k in ("room", "texel", "seed", "mip_levels") if k in config}
+    kwargs = {k: config[k] for k in ("room", "texel", "seed", "mip_levels", "contrast_range")
+              if k in config}
     return SceneSpec(boxes=tuple(boxes), room_texture=resolve(config.get("room_texture")),
                      **kwargs)
 
@@ -223,13 +243,21 @@ def build_scene(spec):
                 w = max(1, int(np.ceil((hi[u] - lo[u]) / spec.texel)))
                 h = max(1, int(np.ceil((hi[v] - lo[v]) / spec.texel)))
                 shape = (-(-(h + 2 * pad) // step) * step, -(-(w + 2 * pad) // step) * step)
+                rng = np.random.default_rng([spec.seed, face_index])
                 if texture is None:
-                    rng = np.random.default_rng([spec.seed, face_index])
-                    tiles.append(procedural_texture(rng, shape, spec.texel))
+                    tile = procedural_texture(rng, shape, spec.texel)
+                elif family_of(texture):
+                    tile = family_texture(rng, shape, spec.texel, family_of(texture))
                 else:
                     inner = image_texture(texture, (h, w))
-                    tiles.append(np.pad(inner, ((pad, shape[0] - h - pad),
-                                                (pad, shape[1] - w - pad)), mode="reflect"))
+                    tile = np.pad(inner, ((pad, shape[0] - h - pad),
+                                          (pad, shape[1] - w - pad)), mode="reflect")
+                if spec.contrast_range != (1.0, 1.0):
+                    low, high = np.log(spec.contrast_range)
+                    factor = np.exp(np.random.default_rng([spec.seed, face_index, 1])
+                                    .uniform(low, high))
+                    tile = with_contrast(tile, factor)
+                tiles.append(tile)
                 face_x.append(-0.5 - lo[u] / spec.texel)
                 face_y.append(-0.5 + hi[v] / spec.texel)
                 face_index += 1

@@ -12,7 +12,8 @@ aliasing, which a row matcher would otherwise see as spurious shifts.
 import cv2
 import numpy as np
 
-__all__ = ["procedural_texture", "image_texture", "TextureAtlas"]
+__all__ = ["procedural_texture", "FAMILIES", "FAMILY_PREFIX", "family_of", "family_texture",
+           "with_contrast", "image_texture", "TextureAtlas"]
 
 #: Widest atlas row in texels (OpenCV's remap needs both sides < 32767).
 ATLAS_WIDTH = 8192
@@ -56,6 +57,97 @@ def procedural_texture(rng, shape, texel):
     image = 128.0 + noise * (1 - 0.6 * alpha) + paint
     image = cv2.GaussianBlur(image, (0, 0), 0.6)
     return np.clip(image, 8, 247).astype(np.float32)
+
+
+#: Texture families of the stress scenes (:mod:`golden.stress_scenes`), named in a scene
+#: as ``"family:<name>"`` instead of an image path:
+#:
+#: * ``noise``: band-limited value noise only (one random band of 2–40 cm cells);
+#: * ``shapes``: rectangles and lines (2–60 cm, sharp edges) on a flat background;
+#: * ``low_contrast``: the default mixed texture at a tenth of its contrast;
+#: * ``repetitive``: stripes or a grid with one period (4–25 cm), which aliases in a
+#:   disparity or shift window;
+#: * ``blank``: a flat face with a few small marks (at least 85 % blank).
+FAMILIES = ("noise", "shapes", "low_contrast", "repetitive", "blank")
+FAMILY_PREFIX = "family:"
+
+
+def family_of(texture):
+    """The family named by a face texture ``"family:<name>"``; None for an image path
+    or None. Raises ValueError for an unknown family."""
+    if texture is None or not str(texture).startswith(FAMILY_PREFIX):
+        return None
+    name = str(texture)[len(FAMILY_PREFIX):]
+    if name not in FAMILIES:
+        raise ValueError(f"texture family must be one of {', '.join(FAMILIES)}, not {name!r}")
+    return name
+
+
+def _band_noise(rng, shape, low, high):
+    """Value noise with cells from ``high`` down to ``low`` texels (unit std)."""
+    h, w = shape
+    noise = np.zeros(shape, np.float32)
+    cell = float(high)
+    while cell >= low:
+        grid = rng.standard_normal((int(h / cell) + 3, int(w / cell) + 3)).astype(np.float32)
+        up = cv2.resize(grid, (int(grid.shape[1] * cell), int(grid.shape[0] * cell)),
+                        interpolation=cv2.INTER_CUBIC)
+        oy, ox = rng.integers(0, int(cell) + 1, 2)
+        noise += up[oy:oy + h, ox:ox + w]
+        cell /= 2
+    return noise / max(float(noise.std()), 1e-6)
+
+
+def _shapes(rng, shape, texel, count_per_m2, background):
+    """Rectangles and lines on a flat ``background``."""
+    h, w = shape
+    image = np.full(shape, background, np.float32)
+    for _ in range(int(rng.poisson(count_per_m2 * h * w * texel * texel)) + 1):
+        size = np.exp(rng.uniform(np.log(0.02), np.log(0.6), 2)) / texel
+        cx, cy = rng.uniform(0, w), rng.uniform(0, h)
+        value = float(rng.uniform(20, 235))
+        if rng.random() < 0.5:
+            cv2.rectangle(image, (int(cx - size[0] / 2), int(cy - size[1] / 2)),
+                          (int(cx + size[0] / 2), int(cy + size[1] / 2)), value, -1)
+        else:
+            end = (int(cx + size[0] * np.cos(rng.uniform(0, np.pi))),
+                   int(cy + size[0] * np.sin(rng.uniform(0, np.pi))))
+            cv2.line(image, (int(cx), int(cy)), end, value, max(1, int(0.01 / texel)))
+    return image
+
+
+def family_texture(rng, shape, texel, family):
+    """A gray texture of ``family`` (see :data:`FAMILIES`), float32 in [8, 247]."""
+    h, w = shape
+    if family == "noise":
+        high = max(2.0, np.exp(rng.uniform(np.log(0.08), np.log(0.4))) / texel)
+        image = 128.0 + 45.0 * _band_noise(rng, shape, max(2.0, high / 8), high)
+    elif family == "shapes":
+        image = _shapes(rng, shape, texel, 10.0, float(rng.uniform(60, 200)))
+    elif family == "low_contrast":
+        image = 128.0 + 0.1 * (procedural_texture(rng, shape, texel) - 128.0)
+    elif family == "repetitive":
+        period = np.exp(rng.uniform(np.log(0.04), np.log(0.25))) / texel
+        angle = rng.uniform(0, np.pi)
+        y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+        phase = 2 * np.pi * (x * np.cos(angle) + y * np.sin(angle)) / period
+        image = np.sign(np.sin(phase))
+        if rng.random() < 0.5:                              # a grid: both directions
+            across = 2 * np.pi * (-x * np.sin(angle) + y * np.cos(angle)) / period
+            image = image * np.sign(np.sin(across))
+        image = 128.0 + 70.0 * image
+    elif family == "blank":
+        image = _shapes(rng, shape, texel, 0.5, float(rng.uniform(60, 200)))
+    else:
+        raise ValueError(f"family must be one of {', '.join(FAMILIES)}, not {family!r}")
+    image = cv2.GaussianBlur(np.asarray(image, np.float32), (0, 0), 0.6)
+    return np.clip(image, 8, 247).astype(np.float32)
+
+
+def with_contrast(texture, factor):
+    """``texture`` with its contrast about its mean scaled by ``factor``, in [8, 247]."""
+    mean = float(texture.mean())
+    return np.clip(mean + factor * (texture - mean), 8, 247).astype(np.float32)
 
 
 def image_texture(path, shape):

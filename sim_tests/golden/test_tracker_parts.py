@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from golden.camera import Camera
-from golden.depth import StereoDepth, stereo_pairs
+from golden.depth import DepthRange, StereoDepth, stereo_pairs
 from golden.depth_maps import OracleDepth, OverlapDepth
 from golden.descriptor import DescriptorParams, MatchParams, describe, match, segment_bounds
 from golden.reference_rows import HomographyReference
@@ -126,7 +126,10 @@ def test_stereo20_pairs_and_disparity_depth():
     assert len(pairs) == 10 and all(abs(fb - rig.cameras[0].fx * 0.1) < 1e-9
                                     for _, _, fb in pairs)
     desc = DescriptorParams()
-    depth = StereoDepth(rig, desc)
+    fb = pairs[0][2]
+    # the scene of this test: disparities of 10 to 70 px (the range is the scene's, not
+    # the matcher's; a wider one admits more aliases of this fine texture)
+    depth = StereoDepth(rig, desc, depth_range=DepthRange(near=fb / 70, far=fb / 10))
     from scipy.ndimage import gaussian_filter1d
     rng = np.random.default_rng(SEED)
     base = gaussian_filter1d(rng.uniform(0, 255, 900), 2.0)
@@ -134,13 +137,21 @@ def test_stereo20_pairs_and_disparity_depth():
     left = np.interp(np.arange(640) + 100, np.arange(900), base)[None]
     right = np.interp(np.arange(640) + 100 + disparity, np.arange(900), base)[None]
     inv_left, inv_right = depth.inverse_depth(0, describe(left, desc), describe(right, desc))
-    fb = pairs[0][2]
     known = np.isfinite(inv_left[0])
-    assert known.mean() > 0.7 and np.isnan(inv_left[0, :60]).all()   # no depth guessed
-    # sub-pixel disparity of a 35-px block: within 0.4 px, typically 0.15 px
+    # depth exactly on the accepted blocks (nothing spread across a rejected one; issue
+    # 18), and no depth guessed left of the first block
+    blocks = depth.block_disparity(0, describe(left, desc), describe(right, desc))
+    spans = np.zeros(640, dtype=bool)
+    for (lo, hi), ok in zip(depth.bounds[0], blocks.accepted[0]):
+        spans[lo:hi] |= ok
+    assert blocks.accepted.sum() >= 6 and np.array_equal(known, spans)
+    assert np.isnan(inv_left[0, :60]).all()
+    # sub-pixel disparity of a 35-px block: within 0.4 px, median 0.1-0.27 px over seeds
+    # 0-9 (0.15 px before issue 18, when interpolation across rejected blocks averaged
+    # neighbouring blocks' errors into the median)
     assert np.allclose(inv_left[0, known], disparity / fb, atol=0.4 / fb)
-    assert np.nanmedian(np.abs(inv_left - disparity / fb)) < 0.15 / fb
-    assert np.nanmedian(np.abs(inv_right - disparity / fb)) < 0.15 / fb
+    assert np.nanmedian(np.abs(inv_left - disparity / fb)) < 0.3 / fb
+    assert np.nanmedian(np.abs(inv_right - disparity / fb)) < 0.3 / fb
 
 
 @pytest.fixture(scope="module")
