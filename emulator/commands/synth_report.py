@@ -28,6 +28,9 @@ def add_arguments(parser):
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     parser.add_argument("--write-docs", type=Path, metavar="DIR",
                         help="also write DIR/resources.md")
+    parser.add_argument("--deep-paths", action="store_true",
+                        help="also list each block's paths over 8 LUT levels by their ends "
+                             "(the deepest per pair of end scopes)")
     parser.add_argument("--pnr", action="store_true",
                         help="also place and route each block with nextpnr-ecp5 (--85k, "
                              "CABGA381, out of context) and report its routed Fmax "
@@ -122,4 +125,12 @@ def run(args):
         if args.pnr:
             print()
             print(pnr_table(report))
+    if args.deep_paths:
+        from emulator.lut_paths import LEVEL_TARGET, block_deep_paths
+        for name in names:
+            paths = block_deep_paths(name)
+            print(f"\n{name}: {len(paths)} path groups over {LEVEL_TARGET} LUT levels")
+            for path in paths:
+                print(f"  {path['levels']:3d}  {path['start']} -> {path['end']}  "
+                      f"(through {', '.join(path['through'])})")
     return 0
