@@ -98,6 +98,19 @@ def lut_levels(module):
     Works on a synthesized Yosys JSON module; carry chains and wide muxes are passed
     through without counting as a level (they are dedicated, fast routing).
     """
+    return max(lut_depths(module)[0].values(), default=0)
+
+
+def _input_bits(cell):
+    return [bit for port, bits in cell["connections"].items()
+            if cell["port_directions"].get(port) == "input" for bit in bits]
+
+
+def lut_depths(module):
+    """``(depth, deepest_input, driver)``: per combinational cell the LUT levels of the
+    deepest path ending at its output and the input cell that path comes through (None
+    at a path's start); ``driver`` maps a net bit to the combinational cell driving it.
+    :mod:`emulator.lut_paths` follows ``deepest_input`` back to name a path's ends."""
     cells = module["cells"]
     driver = {}
     for name, cell in cells.items():
@@ -106,16 +119,15 @@ def lut_levels(module):
                 if cell["port_directions"].get(port) == "output":
                     for bit in bits:
                         driver[bit] = name
+
     def inputs(name):
-        cell = cells[name]
-        return {driver[bit] for port, bits in cell["connections"].items()
-                if cell["port_directions"].get(port) == "input"
-                for bit in bits if bit in driver}
+        return {driver[bit] for bit in _input_bits(cells[name]) if bit in driver}
 
-    depth = {}
+    depth, deepest = {}, {}
     on_stack = set()
-
-    def visit(root):
+    for root in cells:
+        if cells[root]["type"] not in _PATH_WEIGHT or root in depth:
+            continue
         # Iterative post-order DFS; a (never expected) combinational loop is cut where
         # it closes rather than recursing forever.
         stack = [(root, False)]
@@ -123,15 +135,15 @@ def lut_levels(module):
             node, expanded = stack.pop()
             if expanded:
                 on_stack.discard(node)
-                depth[node] = _PATH_WEIGHT[cells[node]["type"]] + max(
-                    (depth.get(i, 0) for i in inputs(node)), default=0)
+                before = max(inputs(node), key=lambda i: depth.get(i, 0), default=None)
+                deepest[node] = before
+                depth[node] = _PATH_WEIGHT[cells[node]["type"]] + (
+                    depth.get(before, 0) if before is not None else 0)
             elif node not in depth and node not in on_stack:
                 on_stack.add(node)
                 stack.append((node, True))
                 stack.extend((i, False) for i in inputs(node) if i not in depth)
-        return depth[root]
-
-    return max((visit(name) for name in cells if cells[name]["type"] in _PATH_WEIGHT), default=0)
+    return depth, deepest, driver
 
 
 def synth_report(component, name):

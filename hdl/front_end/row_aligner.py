@@ -88,8 +88,11 @@ class RowAligner(wiring.Component):
         streaming = Signal()
         target_valid = Signal()
         target = Signal(key_bits)
-        last_valid = Signal()
-        last_key = Signal(key_bits)
+        # The floor: the target of the last commit (the set streaming now, or the last
+        # set sent or given up). A register rather than Mux(streaming, target, last key)
+        # keeps a multiplexer off the stale test (issue 17, LUT levels).
+        floor_valid = Signal()
+        floor_key = Signal(key_bits)
         timer = Signal(p.timer_bits)
         active = Signal(n)
         done = Signal(n)
@@ -100,16 +103,18 @@ class RowAligner(wiring.Component):
         keys = [Cat(lane.p.row, lane.p.frame) for lane in self.i]
         head = wire(m, Cat(lane.valid & enable[k] for k, lane in enumerate(self.i)), "head")
         first = Cat(lane.p.first for lane in self.i)
-        # While a set streams, its own key is the floor too: a camera showing it now
-        # has missed the set.
-        floor_valid = streaming | last_valid
-        floor_key = wire(m, Mux(streaming, target, last_key), "floor_key")
+        # While a set streams, its own key is the floor: a camera showing it now has
+        # missed the set.
+        in_frame = Cat(lane.p.row < self.height for lane in self.i)
         stale = wire(m, Cat(head[k] & first[k] & (
-            (lane.p.row >= self.height) | (floor_valid & ~_older(floor_key, keys[k], key_bits)))
-            for k, lane in enumerate(self.i)), "stale")
+            ~in_frame[k] | (floor_valid & ~_older(floor_key, keys[k], key_bits)))
+            for k in range(n)), "stale")
         usable = wire(m, head & first & ~stale, "usable")
-        same = wire(m, Cat(usable[k] & target_valid & (keys[k] == target) for k in range(n)),
-                    "same")
+        # ``same`` counts only while waiting, when the target is newer than the floor:
+        # a row showing the target is then never stale for its key, so the floor test
+        # (a subtraction) need not sit in front of the equality.
+        same = wire(m, Cat(head[k] & first[k] & in_frame[k] & target_valid &
+                           (keys[k] == target) for k in range(n)), "same")
         older = wire(m, Cat(usable[k] & target_valid & _older(keys[k], target, key_bits)
                             for k in range(n)), "older")
         newer = wire(m, Cat(usable[k] & target_valid & _older(target, keys[k], key_bits)
@@ -147,14 +152,13 @@ class RowAligner(wiring.Component):
             with m.If(transfer):
                 m.d.sync += done.eq(done | finished)
                 with m.If((live & ~finished) == 0):
-                    m.d.sync += [streaming.eq(0), target_valid.eq(0),
-                                 last_valid.eq(1), last_key.eq(target)]
+                    m.d.sync += [streaming.eq(0), target_valid.eq(0)]
         with m.Elif(~target_valid):
             with m.If(usable.any()):
                 new_target = wire(m, _lowest(usable, keys), "new_target")
                 m.d.sync += [target_valid.eq(1), target.eq(new_target), timer.eq(0)]
                 # The trigger brings every camera back in step at each frame.
-                with m.If(~last_valid | (new_target[p.row_bits:] != last_key[p.row_bits:])):
+                with m.If(~floor_valid | (new_target[p.row_bits:] != floor_key[p.row_bits:])):
                     m.d.sync += absent.eq(0)
         with m.Elif(older.any()):
             m.d.sync += target.eq(_lowest(older, keys))
@@ -164,10 +168,10 @@ class RowAligner(wiring.Component):
                 m.d.sync += [
                     active.eq(same), done.eq(0), missing.eq(enable & ~same),
                     absent.eq(enable & ~same & ~newer),
-                    streaming.eq(same.any()),
+                    streaming.eq(same.any()), floor_valid.eq(1), floor_key.eq(target),
                 ]
                 with m.If(same == 0):
-                    m.d.sync += [target_valid.eq(0), last_valid.eq(1), last_key.eq(target)]
+                    m.d.sync += target_valid.eq(0)
                 for k in range(n):
                     with m.If(enable[k] & ~same[k]):
                         m.d.sync += status.missing_count[k].eq(status.missing_count[k] + 1)

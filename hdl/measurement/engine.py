@@ -4,6 +4,11 @@ Between the camera front end (:class:`hdl.front_end.camera_sync.CameraFrontEnd`,
 delivers row ``y`` of every camera as one stream) and the pose solver
 (:class:`hdl.pose_solver.PoseSolver`) sit
 
+* :class:`hdl.register_slice.RegisterSlice` on ``rows``: the fork's ``ready`` is
+  combinational from every lane's, so without a register the lanes' ready logic would
+  run on into the row aligner and the camera inputs (14 LUT levels in the top, issue 17),
+  and one on each stereo lane input, whose ``ready`` comes through two framers and the
+  join's key comparison;
 * :class:`hdl.measurement.row_set_fork.RowSetFork`: each camera's beats to its lanes, one ticket per
   row set;
 * one temporal lane per camera (:class:`hdl.row_descriptor.RowDescriptor`: the row
@@ -29,6 +34,7 @@ from hdl.pose.params import PoseSolverParams
 from hdl.pose_solver import measurement_layout
 from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor
 from hdl.measurement.row_set_fork import RowSetFork
+from hdl.register_slice import RegisterSlice
 
 __all__ = ["EngineParams", "MeasurementEngine", "default_engine_params", "engine_config_layout",
            "engine_status_layout"]
@@ -65,7 +71,7 @@ class MeasurementEngine(wiring.Component):
         (the router's counters); all wrap.
 
     Latency :attr:`latency` clocks from a row set's last column to its first solver
-    transfer (64 for 640-pixel rows; checked in the cocotb bench). Throughput: one column per clock while the lanes and ``o`` keep up (the
+    transfer (66 for 640-pixel rows; checked in the cocotb bench). Throughput: one column per clock while the lanes and ``o`` keep up (the
     router needs K · cameras + a few clocks per row, far fewer than the row width).
     Backpressure on ``o`` fills the router's lane FIFOs, then stalls the lanes, the
     fork and ``rows``. Reset empties the pipeline; every reference row is invalid until
@@ -77,9 +83,14 @@ class MeasurementEngine(wiring.Component):
         if not isinstance(params, EngineParams):
             raise TypeError(f"params must be an EngineParams, not {params!r}")
         self.params = params
+        self.rows_slice = RegisterSlice(params.aligned_layout())
         self.fork = RowSetFork(params)
         self.temporal_lanes = [RowDescriptor(params.temporal) for _ in range(params.cameras)]
         self.stereo_lanes = [StereoRowDescriptor(params.stereo) for _ in params.pairs]
+        # A stereo lane's ``ready`` runs through both framers and the join (which
+        # compares the two rows' keys); registered here so it stops at the lane.
+        beat = params.pixel_layout()
+        self.stereo_slices = [(RegisterSlice(beat), RegisterSlice(beat)) for _ in params.pairs]
         self.router = MeasurementRouter(params.router)
         super().__init__({
             "rows": In(stream.Signature(params.aligned_layout())),
@@ -91,19 +102,24 @@ class MeasurementEngine(wiring.Component):
     @property
     def latency(self):
         """Clocks from a row set's last column to its row's first solver transfer when
-        nothing stalls: the later of the lanes' last measurements (temporal segment
-        K − 1, stereo segment K_s − 1), then the router, whose count from a ticket
-        includes the clock a measurement takes into its lane FIFO."""
+        nothing stalls: the register slice on ``rows``, the later of the lanes' last
+        measurements (temporal segment K − 1; stereo segment K_s − 1 after the stereo
+        lanes' input slices), then the router,
+        whose count from a ticket includes the clock a measurement takes into its lane
+        FIFO."""
         t, s = self.params.temporal, self.params.stereo
         lanes = max(self.temporal_lanes[0].latency + t.segments - 1,
-                    self.stereo_lanes[0].latency + s.segments - 1)
-        return lanes + self.router.latency - 1
+                    self.stereo_slices[0][0].latency + self.stereo_lanes[0].latency
+                    + s.segments - 1)
+        return self.rows_slice.latency + lanes + self.router.latency - 1
 
     def elaborate(self, platform):
         m = Module()
+        m.submodules.rows_slice = rows_slice = self.rows_slice
         m.submodules.fork = fork = self.fork
         m.submodules.router = router = self.router
-        wiring.connect(m, wiring.flipped(self.rows), fork.i)
+        wiring.connect(m, wiring.flipped(self.rows), rows_slice.i)
+        wiring.connect(m, rows_slice.o, fork.i)
         m.d.comb += fork.enable.eq(self.cfg.enable)
         for k, lane in enumerate(self.temporal_lanes):
             m.submodules[f"temporal{k}"] = lane
@@ -112,8 +128,13 @@ class MeasurementEngine(wiring.Component):
             m.d.comb += lane.centre.eq(self.cfg.temporal[k])
         for j, lane in enumerate(self.stereo_lanes):
             m.submodules[f"stereo{j}"] = lane
-            wiring.connect(m, fork.stereo_a[j], lane.a)
-            wiring.connect(m, fork.stereo_b[j], lane.b)
+            slice_a, slice_b = self.stereo_slices[j]
+            m.submodules[f"stereo{j}_slice_a"] = slice_a
+            m.submodules[f"stereo{j}_slice_b"] = slice_b
+            wiring.connect(m, fork.stereo_a[j], slice_a.i)
+            wiring.connect(m, slice_a.o, lane.a)
+            wiring.connect(m, fork.stereo_b[j], slice_b.i)
+            wiring.connect(m, slice_b.o, lane.b)
             wiring.connect(m, lane.o, router.stereo[j])
             m.d.comb += lane.centre.eq(self.cfg.stereo[j])
         wiring.connect(m, fork.tickets, router.tickets)

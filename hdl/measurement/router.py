@@ -82,8 +82,12 @@ def _exact_shift(m, lane):
 def _order(params, entry, ticket):
     """(same, older) of a buffered measurement against the ticket, frames modulo
     ``2**frame_bits`` as in :func:`emulator.measurement.router.stream_order`."""
-    gap = (entry.frame - ticket.frame)[:params.temporal.frame_bits]
-    same_frame = gap == 0
+    bits = params.temporal.frame_bits
+    gap = (entry.frame - ticket.frame)[:bits]
+    # gap == 0 is the same test, but as a subtraction it put the difference's full
+    # carry in front of the zero test (issue 17: 12 LUT levels to the empty counter);
+    # an equality is a flat XOR tree.
+    same_frame = entry.frame[:bits] == ticket.frame[:bits]
     same = same_frame & (entry.row == ticket.row)
     older = gap[-1] | (same_frame & (entry.row < ticket.row))
     return same, older
