@@ -90,7 +90,8 @@ class RowPredictor(wiring.Component):
     o : Out(stream.Signature(output_layout(params)))
 
     Timing: a camera takes ``6K`` issue clocks, its result appears :attr:`drain` clocks
-    after its last term, and the next camera starts the clock after its transfer.
+    after its last term, and the next camera starts the clock after its transfer
+    (:attr:`camera_clocks` per camera).
     """
 
     #: Clocks from a camera's last issued term to its output: store read, coef × cue,
@@ -119,8 +120,9 @@ class RowPredictor(wiring.Component):
 
     @property
     def camera_clocks(self):
-        """Clocks per camera when its output is taken at once."""
-        return 6 * self.params.segments + self.drain + 1
+        """Clocks per camera when its output is taken at once (the next camera's first
+        term issues the clock after the transfer)."""
+        return 6 * self.params.segments + self.drain
 
     def elaborate(self, platform):
         p = self.params
