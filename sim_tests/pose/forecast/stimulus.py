@@ -65,11 +65,11 @@ def _finish(case):
 
 
 def small_params(**changes):
-    """Two cameras of two segments, eight rows."""
-    solver = PoseSolverParams(slots=4, rows=8)
-    return ForecastParams(solver=solver, row_coef_t_fmt=SQ(4, 14), row_coef_c_fmt=SQ(2, 16),
-                          row_coef_r_fmt=SQ(9, 9), segments=2, height=8,
-                          **{"centre_range": 6, **changes})
+    """Two cameras of two segments, eight rows; ``changes`` to any field."""
+    fields = dict(solver=PoseSolverParams(slots=4, rows=8), row_coef_t_fmt=SQ(4, 14),
+                  row_coef_c_fmt=SQ(2, 16), row_coef_r_fmt=SQ(9, 9), segments=2, height=8,
+                  centre_range=6)
+    return ForecastParams(**{**fields, **changes})
 
 
 def _store(rng, solver):
@@ -82,13 +82,13 @@ def _store(rng, solver):
     return out
 
 
-def random_case(seed, rows=40, params=None, scale=1e-2):
-    """Random rows (slots with gaps, cues, steps, some flagged) on random stores;
-    ``scale`` is the motion's size (m, rad; 0.5 saturates the shifts)."""
+def random_case(seed, rows=40, params=None, scale=1e-2, slot_gaps=(1, 1, 1, 2, 5)):
+    """Random rows (slots ``slot_gaps`` apart, cues, steps, some flagged) on random
+    stores; ``scale`` is the motion's size (m, rad)."""
     rng = np.random.default_rng(seed)
     params = small_params() if params is None else params
     s = params.solver
-    slots = np.cumsum(rng.choice([1, 1, 1, 2, 5], size=rows))
+    slots = np.cumsum(rng.choice(slot_gaps, size=rows))
     requests = [{"slot": int(slot), "row": int(slot % params.height),
                  "cue": [int(v) for v in rng.integers(0, s.cue_fmt.max_raw + 1, s.slots)
                          >> rng.integers(0, 8)]} for slot in slots]

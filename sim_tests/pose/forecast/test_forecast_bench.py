@@ -1,8 +1,9 @@
-"""Runs the forecast's cocotb bench on a real closed loop (``emulator.pipeline.run``,
-stereo20 cut to 32 rows, the papers' motion, delay 1 row): on Verilator its three
-frames (96 rows, 1,920 camera transfers), on Icarus its first 12 rows; with RUN_SLOW=1
-also six frames of 64 rows at delay 2 on Verilator. The case is built once (about 20 s)
-and kept under build/forecast_stimulus."""
+"""Runs the forecast's cocotb bench. On Verilator: a real closed loop
+(``emulator.pipeline.run``, stereo20 cut to 32 rows, the papers' motion, delay 1 row),
+its three frames (96 rows, 1,920 camera transfers); with RUN_SLOW=1 also six frames of
+64 rows at delay 2. On Icarus (which simulates the 20-camera block at about 30 clocks
+per second): the small random case of two cameras, 12 rows. The closed loop is built
+once (about 20 s) and kept under build/forecast_stimulus."""
 
 import os
 import pickle
@@ -12,34 +13,36 @@ import pytest
 from hdl.pose.forecast import Forecast
 from emulator.hdl_sim.runner import run_cocotb
 
-from sim_tests.pose.forecast.stimulus import CACHE, closed_loop_case
+from sim_tests.pose.forecast.stimulus import CACHE, closed_loop_case, random_case
 
 SLOW = bool(os.environ.get("RUN_SLOW"))
 
 
-def _run(sim, rows, frames=3, count=None, delay=1):
-    case = closed_loop_case(rows=rows, frames=frames, delay=delay)
-    path = CACHE / f"bench_r{rows}_f{frames}_d{delay}.pkl"
+def _run(sim, case, tag):
+    path = CACHE / f"bench_{tag}.pkl"
+    CACHE.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
         pickle.dump(case, f)
     dut = Forecast(case["params"], case["coefficients"], case["row_coefficients"])
-    count = len(case["requests"]) if count is None else count
-    print(f"forecast bench: {count} rows of stereo20 cut to {rows} rows, delay {delay}, "
+    count = len(case["requests"])
+    print(f"forecast bench {tag}: {count} rows, delay {case['params'].loop_delay_rows}, "
           f"latency {dut.latency} clocks, row {dut.row_clocks} clocks")
-    run_cocotb(dut, name="forecast", tag=f"r{rows}_d{delay}", sim=sim,
+    run_cocotb(dut, name="forecast", tag=tag, sim=sim,
                test_module="sim_tests.pose.forecast.forecast_bench",
                extra_env={"FORECAST_CASE": str(path), "FORECAST_ROWS": str(count),
                           "FORECAST_ROW_CLOCKS": str(dut.row_clocks)})
 
 
 def test_forecast_verilator_closed_loop():
-    _run("verilator", 32)
+    _run("verilator", closed_loop_case(rows=32), "stereo20_r32")
 
 
-def test_forecast_icarus_closed_loop():
-    _run("icarus", 32, count=12)
+def test_forecast_icarus_small_random():
+    seed = int(os.environ.get("SEED", "7"))
+    print(f"SEED={seed}")
+    _run("icarus", random_case(seed, rows=12), "small")
 
 
 @pytest.mark.skipif(not SLOW, reason="the longer closed loop runs with RUN_SLOW=1")
 def test_forecast_verilator_long_closed_loop():
-    _run("verilator", 64, frames=6, delay=2)
+    _run("verilator", closed_loop_case(rows=64, frames=6, delay=2), "stereo20_r64_d2")
