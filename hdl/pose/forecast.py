@@ -17,7 +17,7 @@ from amaranth.lib.wiring import In, Out, connect, flipped
 from hdl.pose.forecast_filter import DEFAULT_SLOT_BITS, MotionFilter
 from hdl.pose.forecast_predictor import RowPredictor, output_layout
 
-__all__ = ["Forecast", "request_layout", "output_layout"]
+__all__ = ["Forecast", "request_layout", "output_layout", "default_forecast"]
 
 
 def request_layout(params, slot_bits=DEFAULT_SLOT_BITS):
@@ -62,6 +62,8 @@ class Forecast(wiring.Component):
     motion : Out(ArrayLayout(motion_fmt, 6))
         The forecast ``Ŷ`` of the row in progress (from its first output until the
         next request's).
+    counters : Out(counters_layout(params))
+        Saturations counted (:func:`hdl.pose.forecast_predictor.counters_layout`).
     alpha, beta, initial, restart : In
         The filter's run-time gains and restart (see :class:`MotionFilter`).
 
@@ -80,6 +82,7 @@ class Forecast(wiring.Component):
             "records": f["records"],
             "o": Out(stream.Signature(output_layout(params))),
             "motion": Out(f["motion"].shape),
+            "counters": self._predictor.signature.members["counters"],
             "alpha": f["alpha"], "beta": f["beta"], "initial": f["initial"],
             "restart": f["restart"],
         })
@@ -109,10 +112,29 @@ class Forecast(wiring.Component):
             predictor.start.eq(request.valid & request.ready),
             predictor.row.eq(request.payload.row), predictor.cue.eq(request.payload.cue),
             predictor.motion.eq(motion.motion), predictor.motion_valid.eq(motion.motion_valid),
-            self.motion.eq(motion.motion),
+            self.motion.eq(motion.motion), self.counters.eq(predictor.counters),
             motion.alpha.eq(self.alpha), motion.beta.eq(self.beta),
             motion.initial.eq(self.initial), motion.restart.eq(self.restart),
         ]
         connect(m, flipped(self.records), motion.records)
         connect(m, predictor.o, flipped(self.o))
         return m
+
+
+def default_forecast():
+    """The forecast of the default top (:class:`hdl.top_params.TopParams`: its solver,
+    four cameras of K = 4 segments, 480 rows, the lanes' centre range), the across-rows
+    store in the solver's formats, both stores zero: the catalog's build, for Verilog
+    and synthesis."""
+    import numpy as np
+
+    from hdl.pose.forecast_params import ForecastParams
+    from hdl.top_params import TopParams
+    top = TopParams()
+    solver, lane = top.solver, top.engine.router.temporal
+    params = ForecastParams(solver=solver, row_coef_t_fmt=solver.coef_t_fmt,
+                            row_coef_c_fmt=solver.coef_c_fmt, row_coef_r_fmt=solver.coef_r_fmt,
+                            segments=top.segments, height=lane.height,
+                            centre_range=lane.centre_range)
+    zeros = np.zeros((solver.slots, solver.rows, 9), dtype=np.int64)
+    return Forecast(params, zeros, zeros)

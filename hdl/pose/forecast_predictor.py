@@ -24,7 +24,14 @@ from amaranth.lib.wiring import In, Out
 from hdl.fixed import SQ, Overflow, QFormat, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
 from hdl.pose.forecast_params import ForecastParams
 
-__all__ = ["RowPredictor", "output_layout", "check_store"]
+__all__ = ["RowPredictor", "output_layout", "counters_layout", "check_store"]
+
+
+def counters_layout(params):
+    """Saturations since reset (wrapping, ``solver.counter_bits`` each): window centres,
+    row addresses, and segment values (shift or across-rows displacement, each counted)."""
+    bits = params.solver.counter_bits
+    return data.StructLayout({"centre": bits, "row": bits, "segment": bits})
 
 
 def output_layout(params):
@@ -88,6 +95,7 @@ class RowPredictor(wiring.Component):
         The forecast ``Ŷ`` for the row.
     idle : Out(1)
     o : Out(stream.Signature(output_layout(params)))
+    counters : Out(counters_layout(params))
 
     Timing: a camera takes ``6K`` issue clocks, its result appears :attr:`drain` clocks
     after its last term, and the next camera starts the clock after its transfer
@@ -116,6 +124,7 @@ class RowPredictor(wiring.Component):
             "motion_valid": In(1),
             "idle": Out(1),
             "o": Out(stream.Signature(output_layout(params))),
+            "counters": Out(counters_layout(params)),
         })
 
     @property
@@ -175,15 +184,22 @@ class RowPredictor(wiring.Component):
 
         # --- the camera's result: saturate, hold until taken
         centre, source = means[0], row - means[1]
+        centre_over = (centre < -p.centre_range) | (centre > p.centre_range)
+        row_over = (source < 0) | (source > p.height - 1)
+        segments_over = sum(flag[n] for flag in flags for n in range(k))
         last_camera = camera == cameras - 1
+        counters = self.counters
         with m.If(tags[6].valid & tags[6].end):
             m.d.sync += [
                 self.o.valid.eq(1), self.o.p.camera.eq(camera), self.o.p.last.eq(last_camera),
                 self.o.p.centre.eq(_clamp(centre, -p.centre_range, p.centre_range)),
-                self.o.p.centre_saturated.eq((centre < -p.centre_range) | (centre > p.centre_range)),
+                self.o.p.centre_saturated.eq(centre_over),
                 self.o.p.source_row.eq(_clamp(source, 0, p.height - 1)),
-                self.o.p.row_saturated.eq((source < 0) | (source > p.height - 1)),
+                self.o.p.row_saturated.eq(row_over),
                 self.o.p.shift_saturated.eq(flags[0]), self.o.p.across_saturated.eq(flags[1]),
+                counters.centre.eq(counters.centre + centre_over),
+                counters.row.eq(counters.row + row_over),
+                counters.segment.eq(counters.segment + segments_over),
             ]
         with m.If(self.o.valid & self.o.ready):
             m.d.sync += [self.o.valid.eq(0), camera.eq(camera + 1)]

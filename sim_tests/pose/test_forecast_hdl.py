@@ -30,10 +30,10 @@ def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_
     ``gaps``, and ready backpressure on ``o``; the records start ``record_wait`` clocks
     late); ``setup(ctx)`` runs with the restart. Returns the outputs per request (payload
     dicts), the Ŷ seen at each request's first output, the cycles of the request and
-    record transfers and of the outputs."""
+    record transfers and of the outputs, and the saturation counters at the end."""
     rng = random.Random(seed)
     cameras = case["params"].cameras
-    outputs, motions, starts = [], [], []
+    outputs, motions, starts, counters = [], [], [], {}
 
     async def sink(ctx):
         cycle = 0
@@ -50,6 +50,8 @@ def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_
                                          "across_saturated", "last")}))
             await ctx.tick()
             cycle += 1
+        counters.update({name: ctx.get(getattr(dut.counters, name))
+                         for name in ("centre", "row", "segment")})
 
     def driver(port, items, cycles, wait=0):
         async def run(ctx):
@@ -89,7 +91,7 @@ def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_
     sim.run()
     grouped = [[p for _, p in outputs[n * cameras:(n + 1) * cameras]]
                for n in range(len(outputs) // cameras)]
-    return grouped, motions, starts, taken, [c for c, _ in outputs]
+    return grouped, motions, starts, taken, [c for c, _ in outputs], counters
 
 
 def _build(case):
@@ -117,7 +119,7 @@ def test_latency_and_row_time_are_the_properties():
     clocks after its transfer, its last ``row_clocks``; records take ``record_clocks``."""
     case = random_case(SEED)
     dut = _build(case)
-    got, motions, starts, taken, cycles = simulate(dut, case)
+    got, motions, starts, taken, cycles, _ = simulate(dut, case)
     _check(case, got, motions)
     cameras = case["params"].cameras
     firsts, lasts = cycles[::cameras], cycles[cameras - 1::cameras]
@@ -141,7 +143,7 @@ def test_late_records_hold_the_requests_that_need_them():
     case = random_case(SEED, params=small_params(loop_delay_rows=2), slot_gaps=(1,))
     delay = case["params"].loop_delay_rows
     dut = _build(case)
-    got, motions, starts, taken, _ = simulate(dut, case, record_wait=500)
+    got, motions, starts, taken, *_ = simulate(dut, case, record_wait=500)
     _check(case, got, motions)
     assert min(b - a for a, b in zip(taken, taken[1:])) == dut.record_clocks == 32
     early = [n for n, cycle in enumerate(starts) if cycle < taken[0]]
@@ -185,7 +187,7 @@ def test_gains_are_run_time_inputs():
 def test_saturation_at_the_extremes_is_flagged(sign):
     """Ŷ at the ends of motion_fmt (every record flagged, so it stays there): shifts and
     displacements beyond displacement_fmt, centres beyond ±centre_range and rows beyond
-    the frame, each flagged as the model flags it."""
+    the frame, each flagged as the model flags it and counted."""
     case = random_case(SEED)
     params = case["params"]
     fmt = params.motion_fmt
@@ -194,9 +196,14 @@ def test_saturation_at_the_extremes_is_flagged(sign):
     expected, motion = expected_outputs(params, case["coefficients"], case["row_coefficients"],
                                         initial, case["requests"], records)
     case = dict(case, initial=initial, records=records, expected=expected, motion=motion)
-    got, motions, *_ = simulate(_build(case), case, gaps=True, seed=SEED)
+    got, motions, *_, counters = simulate(_build(case), case, gaps=True, seed=SEED)
     _check(case, got, motions)
     flat = [o for outs in expected for o in outs]
+    assert counters == {
+        "centre": sum(o["centre_saturated"] for o in flat),
+        "row": sum(o["row_saturated"] for o in flat),
+        "segment": sum(bin(o["shift_saturated"]).count("1") + bin(o["across_saturated"]).count("1")
+                       for o in flat)}
     r = params.centre_range
     assert {o["centre"] for o in flat if o["centre_saturated"]} == {-r, r}
     assert {o["source_row"] for o in flat if o["row_saturated"]} == {0, params.height - 1}

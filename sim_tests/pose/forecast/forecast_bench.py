@@ -1,6 +1,6 @@
 """cocotb bench for hdl.pose.forecast.Forecast: every output transfer and every row's
-forecast Ŷ against emulator.pose.forecast.ForecastModel, in order and bit for bit, plus
-the latency.
+forecast Ŷ against emulator.pose.forecast.ForecastModel, in order and bit for bit, the
+saturation counters, the latency and the time per row.
 
 Environment: FORECAST_CASE (path of a pickled stimulus case, see
 ``sim_tests.pose.forecast.stimulus``), FORECAST_ROWS (rows of it to run),
@@ -16,7 +16,7 @@ from amaranth.lib import data
 from cocotb.triggers import ReadOnly, RisingEdge
 
 from hdl.pose.forecast import request_layout
-from hdl.pose.forecast_predictor import output_layout
+from hdl.pose.forecast_predictor import counters_layout, output_layout
 from hdl.pose.params import solver_source
 from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
 from emulator.hdl_sim.clocking import reset, start_clock
@@ -93,6 +93,12 @@ async def forecast_matches_model(dut, traffic):
         assert g == e, f"transfer {n} (row {n // cameras}): hardware {g} != model {e}"
     assert len(got) == len(flat)
     assert seen == motions, "forecast Ŷ differs from the model"
+    counters = unpack(counters_layout(params), dut.counters.value)
+    assert counters == {
+        "centre": sum(o["centre_saturated"] for o in flat),
+        "row": sum(o["row_saturated"] for o in flat),
+        "segment": sum(bin(o["shift_saturated"]).count("1") + bin(o["across_saturated"]).count("1")
+                       for o in flat)}, counters
     saturated = sum(o["centre_saturated"] + o["row_saturated"] for o in flat)
     dut._log.info(f"{traffic}: {len(requests)} rows, {len(got)} transfers bit-exact; "
                   f"{saturated} saturation flags; clocks {sink.received[-1][0]}")
