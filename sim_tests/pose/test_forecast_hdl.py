@@ -20,7 +20,7 @@ from hdl.pose.forecast_predictor import RowPredictor
 from hdl.pose.params import PoseFlag, PoseSolverParams
 
 from sim_tests.pose.forecast.stimulus import (expected_outputs, random_case, record,
-                                              small_params)
+                                              saturations, small_params)
 
 SEED = int(os.environ.get("SEED", "5"))
 
@@ -199,11 +199,7 @@ def test_saturation_at_the_extremes_is_flagged(sign):
     got, motions, *_, counters = simulate(_build(case), case, gaps=True, seed=SEED)
     _check(case, got, motions)
     flat = [o for outs in expected for o in outs]
-    assert counters == {
-        "centre": sum(o["centre_saturated"] for o in flat),
-        "row": sum(o["row_saturated"] for o in flat),
-        "segment": sum(bin(o["shift_saturated"]).count("1") + bin(o["across_saturated"]).count("1")
-                       for o in flat)}
+    assert counters == saturations(flat)
     r = params.centre_range
     assert {o["centre"] for o in flat if o["centre_saturated"]} == {-r, r}
     assert {o["source_row"] for o in flat if o["row_saturated"]} == {0, params.height - 1}

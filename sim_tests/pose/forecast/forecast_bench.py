@@ -23,6 +23,8 @@ from emulator.hdl_sim.clocking import reset, start_clock
 from emulator.hdl_sim.payload import pack, unpack
 from emulator.hdl_sim.streams import StreamSink, StreamSource
 
+from sim_tests.pose.forecast.stimulus import saturations
+
 
 def _indexed(payload):
     """Lists of a payload as the index dicts ``pack`` takes for array layouts."""
@@ -94,11 +96,7 @@ async def forecast_matches_model(dut, traffic):
     assert len(got) == len(flat)
     assert seen == motions, "forecast Ŷ differs from the model"
     counters = unpack(counters_layout(params), dut.counters.value)
-    assert counters == {
-        "centre": sum(o["centre_saturated"] for o in flat),
-        "row": sum(o["row_saturated"] for o in flat),
-        "segment": sum(bin(o["shift_saturated"]).count("1") + bin(o["across_saturated"]).count("1")
-                       for o in flat)}, counters
+    assert counters == saturations(flat), counters
     saturated = sum(o["centre_saturated"] + o["row_saturated"] for o in flat)
     dut._log.info(f"{traffic}: {len(requests)} rows, {len(got)} transfers bit-exact; "
                   f"{saturated} saturation flags; clocks {sink.received[-1][0]}")

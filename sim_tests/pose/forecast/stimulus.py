@@ -21,7 +21,8 @@ from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import PoseFlag, PoseSolverParams
 from emulator.pose.forecast import ForecastModel
 
-__all__ = ["random_case", "closed_loop_case", "expected_outputs", "record", "CACHE"]
+__all__ = ["random_case", "closed_loop_case", "expected_outputs", "record", "saturations",
+           "CACHE"]
 
 CACHE = Path(__file__).resolve().parents[3] / "build" / "forecast_stimulus"
 
@@ -51,6 +52,14 @@ def expected_outputs(params, coefficients, row_coefficients, initial, requests, 
         motions.append([int(v) for v in out["motion"]])
         model.take(request["slot"], np.array(rec["step"]) if rec["flags"] == 0 else None)
     return outputs, motions
+
+
+def saturations(outputs):
+    """The block's saturation counters after ``outputs`` (per-camera output dicts)."""
+    return {"centre": sum(o["centre_saturated"] for o in outputs),
+            "row": sum(o["row_saturated"] for o in outputs),
+            "segment": sum(bin(o["shift_saturated"]).count("1")
+                           + bin(o["across_saturated"]).count("1") for o in outputs)}
 
 
 def _bits(flags):
