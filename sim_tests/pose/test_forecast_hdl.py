@@ -17,8 +17,6 @@ from amaranth.hdl import UnusedElaboratable
 from amaranth.sim import Simulator
 
 from hdl.pose.forecast import Forecast
-from hdl.pose.forecast_filter import MotionFilter
-from hdl.pose.forecast_predictor import RowPredictor
 
 from hdl.pose.params import PoseFlag, PoseSolverParams
 
