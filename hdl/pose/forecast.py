@@ -124,8 +124,9 @@ class Forecast(wiring.Component):
 def default_forecast():
     """The forecast of the default top (:class:`hdl.top_params.TopParams`: its solver,
     four cameras of K = 4 segments, 480 rows, the lanes' centre range), the across-rows
-    store in the solver's formats, both stores zero: the catalog's build, for Verilog
-    and synthesis."""
+    store in the solver's formats: the catalog's build, for Verilog and synthesis. The
+    stores hold seeded pseudo-random coefficients: with constant (zero) contents Yosys
+    would remove them and the datapath they feed."""
     import numpy as np
 
     from hdl.pose.forecast_params import ForecastParams
@@ -136,5 +137,7 @@ def default_forecast():
                             row_coef_c_fmt=solver.coef_c_fmt, row_coef_r_fmt=solver.coef_r_fmt,
                             segments=top.segments, height=lane.height,
                             centre_range=lane.centre_range)
-    zeros = np.zeros((solver.slots, solver.rows, 9), dtype=np.int64)
-    return Forecast(params, zeros, zeros)
+    rng = np.random.default_rng(0)
+    store = rng.integers(-(1 << (solver.coef_width - 1)), 1 << (solver.coef_width - 1),
+                         size=(solver.slots, solver.rows, 9))
+    return Forecast(params, store, store)
