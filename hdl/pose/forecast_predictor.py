@@ -214,7 +214,10 @@ class RowPredictor(wiring.Component):
         half-up to pixels; the per-segment saturation flags)."""
         p, a_fmt, k = self.params, self.params.solver.a_fmt, self.params.segments
         width = store.coef_width
-        memory = Memory(shape=data.ArrayLayout(signed(width), 9), depth=store.entries,
+        # one entry per slot and row (the solver's ``entries`` may count a compressed
+        # store's terms instead)
+        memory = Memory(shape=data.ArrayLayout(signed(width), 9),
+                        depth=store.slots * store.rows,
                         init=[[int(v) for v in entry] for entry in contents.reshape(-1, 9)])
         m.submodules[f"store{lane}"] = memory
         read = memory.read_port()
