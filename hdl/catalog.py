@@ -22,6 +22,7 @@ BLOCKS = {
     "row_aligner": "hdl.front_end.row_aligner:RowAligner",
     "camera_front": "hdl.front_end.camera_sync:CameraFrontEnd",
     "pose_solver": "hdl.pose_solver:PoseSolver",
+    "forecast": "hdl.pose.forecast:default_forecast",
     "row_descriptor": "hdl.row_descriptor:RowDescriptor",
     "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",
     "measurement_engine": "hdl.measurement.engine:MeasurementEngine",

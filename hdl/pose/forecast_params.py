@@ -1,5 +1,5 @@
 """Parameters and number formats of the motion forecast after the pose solver (no
-Amaranth here: the emulator's model reads them; the gateware is not built yet).
+Amaranth here: the emulator's model and the gateware, hdl/pose/forecast.py, read them).
 
 The forecast closes the measurement loop (issue 16): a Holt–Winters filter with scalar
 gains on the solver's one-frame motion ``Y`` gives, for every camera row about to be read,

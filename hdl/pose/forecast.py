@@ -1,0 +1,143 @@
+"""The motion forecast after the pose solver (issue 16): the solver's pose records in,
+for every camera row about to be read each camera's window centre and the previous
+frame's row to compare against out. Bit-accurate model:
+:class:`emulator.pose.forecast.ForecastModel`; formats and parameters:
+:class:`hdl.pose.forecast_params.ForecastParams`; ``docs/pose/forecast.md``.
+
+Two blocks: :class:`hdl.pose.forecast_filter.MotionFilter` (Holt–Winters on the steps,
+the loop delay) and :class:`hdl.pose.forecast_predictor.RowPredictor` (the two
+coefficient stores and the per-camera means). This component only joins them: a request
+is taken when the predictor is idle and the filter may answer its slot.
+"""
+
+from amaranth.hdl import Module
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out, connect, flipped
+
+from hdl.pose.forecast_filter import DEFAULT_SLOT_BITS, MotionFilter
+from hdl.pose.forecast_predictor import RowPredictor, output_layout
+
+__all__ = ["Forecast", "request_layout", "output_layout", "default_forecast"]
+
+
+def request_layout(params, slot_bits=DEFAULT_SLOT_BITS):
+    """A camera row about to be read.
+
+    Fields
+    ------
+    slot : unsigned(slot_bits)
+        Its row slot: the count of row periods (``ForecastModel``'s ``slot``), modulo
+        ``2**slot_bits``; one request per row slot, in increasing order.
+    row : unsigned(row_bits)
+        The camera row (addresses the coefficient stores).
+    cue : ArrayLayout(cue_fmt, slots)
+        The depth cue of every segment (camera-major), raw ``solver.cue_fmt``.
+    """
+    s = params.solver
+    return data.StructLayout({"slot": slot_bits, "row": s.row_bits,
+                              "cue": data.ArrayLayout(s.cue_fmt.shape(), s.slots)})
+
+
+class Forecast(wiring.Component):
+    """The motion forecast of one pipeline.
+
+    Parameters
+    ----------
+    params : ForecastParams
+    coefficients, row_coefficients : ndarray (slots, rows, 9)
+        The solver's coefficient store and the across-rows store (raw;
+        ``PipelineConfig.coef_raw`` and ``.row_coef_raw``).
+    slot_bits : int
+        Width of the row slot (see :class:`MotionFilter`).
+
+    Members
+    -------
+    requests : In(stream.Signature(request_layout(params, slot_bits)))
+    records : In(stream.Signature(PoseSource.layout()))
+        One pose record per requested row slot, in order, after that slot's request
+        (a row without measurements: any record with a flag). The record of slot ``j``
+        must come for a request of a slot ``> j + loop_delay_rows`` to be taken.
+    o : Out(stream.Signature(output_layout(params)))
+        Per request, one transfer per camera.
+    motion : Out(ArrayLayout(motion_fmt, 6))
+        The forecast ``Ŷ`` of the row in progress (from its first output until the
+        next request's).
+    counters : Out(counters_layout(params))
+        Saturations counted (:func:`hdl.pose.forecast_predictor.counters_layout`).
+    alpha, beta, initial, restart : In
+        The filter's run-time gains and restart (see :class:`MotionFilter`).
+
+    Latency: :attr:`latency` clocks from a request's transfer to its first output
+    when idle; the row's last output :attr:`row_clocks` clocks after the request when
+    outputs are taken at once. Records take :attr:`record_clocks` clocks each.
+    """
+
+    def __init__(self, params, coefficients, row_coefficients, *, slot_bits=DEFAULT_SLOT_BITS):
+        self._filter = MotionFilter(params, slot_bits=slot_bits)
+        self._predictor = RowPredictor(params, coefficients, row_coefficients)
+        self.params, self.slot_bits = params, slot_bits
+        f = self._filter.signature.members
+        super().__init__({
+            "requests": In(stream.Signature(request_layout(params, slot_bits))),
+            "records": f["records"],
+            "o": Out(stream.Signature(output_layout(params))),
+            "motion": Out(f["motion"].shape),
+            "counters": self._predictor.signature.members["counters"],
+            "alpha": f["alpha"], "beta": f["beta"], "initial": f["initial"],
+            "restart": f["restart"],
+        })
+
+    @property
+    def latency(self):
+        return (self._filter.query_latency + 1 + 6 * self.params.segments - 1
+                + self._predictor.drain)
+
+    @property
+    def row_clocks(self):
+        return self.latency + (self.params.cameras - 1) * self._predictor.camera_clocks
+
+    @property
+    def record_clocks(self):
+        return self._filter.update_clocks
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.filter = motion = self._filter
+        m.submodules.predictor = predictor = self._predictor
+        request = self.requests
+        m.d.comb += [
+            motion.query.valid.eq(request.valid & predictor.idle),
+            motion.query.payload.eq(request.payload.slot),
+            request.ready.eq(motion.query.ready & predictor.idle),
+            predictor.start.eq(request.valid & request.ready),
+            predictor.row.eq(request.payload.row), predictor.cue.eq(request.payload.cue),
+            predictor.motion.eq(motion.motion), predictor.motion_valid.eq(motion.motion_valid),
+            self.motion.eq(motion.motion), self.counters.eq(predictor.counters),
+            motion.alpha.eq(self.alpha), motion.beta.eq(self.beta),
+            motion.initial.eq(self.initial), motion.restart.eq(self.restart),
+        ]
+        connect(m, flipped(self.records), motion.records)
+        connect(m, predictor.o, flipped(self.o))
+        return m
+
+
+def default_forecast():
+    """The forecast of the default top (:class:`hdl.top_params.TopParams`: its solver,
+    four cameras of K = 4 segments, 480 rows, the lanes' centre range), the across-rows
+    store in the solver's formats: the catalog's build, for Verilog and synthesis. The
+    stores hold seeded pseudo-random coefficients: with constant (zero) contents Yosys
+    would remove them and the datapath they feed."""
+    import numpy as np
+
+    from hdl.pose.forecast_params import ForecastParams
+    from hdl.top_params import TopParams
+    top = TopParams()
+    solver, lane = top.solver, top.engine.router.temporal
+    params = ForecastParams(solver=solver, row_coef_t_fmt=solver.coef_t_fmt,
+                            row_coef_c_fmt=solver.coef_c_fmt, row_coef_r_fmt=solver.coef_r_fmt,
+                            segments=top.segments, height=lane.height,
+                            centre_range=lane.centre_range)
+    rng = np.random.default_rng(0)
+    store = rng.integers(-(1 << (solver.coef_width - 1)), 1 << (solver.coef_width - 1),
+                         size=(solver.slots, solver.rows, 9))
+    return Forecast(params, store, store)

@@ -1,0 +1,227 @@
+"""The forecast's motion filter: Holt–Winters with scalar gains on the solver's steps,
+and the loop delay (:class:`emulator.pose.forecast.MotionFilter` and
+:class:`golden.temporal_filter.DelayedForecast` in gateware, bit for bit).
+
+One pose record per row slot updates the filter (a row without measurements is given a
+record with a flag, as the model's ``take(slot, None)``); one query per row slot reads
+the forecast ``Ŷ = L_j + k·B_j`` from the newest state ``j`` of a slot at most
+``slot − 1 − loop_delay_rows``. Records and queries are paired in order: the ``n``-th
+record belongs to the ``n``-th query's slot (a FIFO of the slots queried and not yet
+updated). The filter keeps its newest ``loop_delay_rows + 1`` states, the model's
+``deque``; ``k`` is one plus the number of rows queried since state ``j``.
+
+Why the pairing: the solver's record does not know the row slot (the row period count
+the delay is measured in), the row sequencer that queries does. A query waits while a
+record it needs (of a slot at most ``slot − 1 − loop_delay_rows``) is outstanding, so a
+solver later than the loop delay stalls the rows instead of forecasting from old states.
+"""
+
+from amaranth.hdl import Array, Module, Mux, Signal, unsigned
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from hdl.fixed import SQ, UQ, Overflow, Rounding, hdl_mul, hdl_resize
+from hdl.pose.forecast_params import ForecastParams
+from hdl.pose.params import solver_source
+
+__all__ = ["MotionFilter", "DEFAULT_SLOT_BITS"]
+
+#: Width of the row slot counter (wraps; slots are compared modulo ``2**slot_bits``).
+DEFAULT_SLOT_BITS = 16
+
+
+class MotionFilter(wiring.Component):
+    """Scalar-gain Holt–Winters on the solved steps, with the loop delay.
+
+    Parameters
+    ----------
+    params : ForecastParams
+    slot_bits : int
+        Width of a row slot (the slots of rows in flight must differ by less than
+        ``2**(slot_bits − 1)``).
+
+    Members
+    -------
+    records : In(stream.Signature(PoseSource.layout()))
+        The solver's pose records (``step``, ``flags``; the other fields are not read),
+        one per queried row slot, in order; a flagged record leaves ``L' = L + B``.
+    query : In(stream.Signature(unsigned(slot_bits)))
+        The row slot whose forecast is wanted, once per row slot, in increasing order.
+    motion : Out(ArrayLayout(motion_fmt, 6))
+        The forecast ``Ŷ`` of the last query, valid from :attr:`query_latency` clocks
+        after its transfer (``motion_valid`` strobes then) until the next query.
+    motion_valid : Out(1)
+    alpha, beta : In(unsigned(gain_fmt.width))
+        Raw gains (``gain_fmt``); reset values ``params.alpha_raw``/``beta_raw``. A
+        change applies from the next record.
+    initial : In(ArrayLayout(motion_fmt, 6))
+        Level loaded by ``restart``.
+    restart : In(1)
+        Level ← ``initial``, trend 0, no record outstanding, no state but this one (the
+        model's construction). Reset does the same with ``initial`` = 0.
+    busy : Out(1)
+        A record's update is in progress.
+
+    Timing: a record takes :attr:`update_clocks` clocks (one multiplier, shared by the
+    six axes and both gains); queries wait while an update runs.
+    """
+
+    #: Clocks per axis: p and d; α·d; L' and e; β·e; B'.
+    PHASES = 5
+    #: Clocks from a query's transfer to ``motion_valid``: state selection, L + k·B.
+    query_latency = 2
+
+    def __init__(self, params, *, slot_bits=DEFAULT_SLOT_BITS):
+        if not isinstance(params, ForecastParams):
+            raise TypeError(f"params must be a ForecastParams, not {params!r}")
+        if not isinstance(slot_bits, int) or isinstance(slot_bits, bool) or not 2 <= slot_bits <= 32:
+            raise ValueError(f"slot_bits must be an integer from 2 to 32, not {slot_bits!r}")
+        self.params, self.slot_bits = params, slot_bits
+        self.depth = params.loop_delay_rows + 1
+        self.source = solver_source(params.solver)
+        motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
+        gain = unsigned(params.gain_fmt.width)
+        super().__init__({
+            "records": In(stream.Signature(self.source.layout())),
+            "query": In(stream.Signature(unsigned(slot_bits))),
+            "motion": Out(motion),
+            "motion_valid": Out(1),
+            "alpha": In(gain, init=params.alpha_raw),
+            "beta": In(gain, init=params.beta_raw),
+            "initial": In(motion),
+            "restart": In(1),
+            "busy": Out(1),
+        })
+
+    @property
+    def update_clocks(self):
+        """Clocks from a record's transfer until the next record or query is taken."""
+        return 6 * self.PHASES + 2
+
+    def elaborate(self, platform):
+        p = self.params
+        m = Module()
+        fmt, depth, bits = p.motion_fmt, self.depth, self.slot_bits
+        count_bits = (depth + 1).bit_length() + 1     # k ≤ depth, compared modulo 2**bits
+
+        # --- states, newest last: kind 0 empty, 1 the initial state (slot −∞), 2 a slot
+        state = data.StructLayout({"kind": 2, "slot": bits, "count": count_bits,
+                                   "level": data.ArrayLayout(fmt.shape(), 6),
+                                   "trend": data.ArrayLayout(fmt.shape(), 6)})
+        states = [Signal(state, name=f"state{k}", init={"kind": int(k == depth - 1)})
+                  for k in range(depth)]
+        newest = states[-1]
+        staged = Signal(state)                     # the state being computed
+        updates = Signal(count_bits)               # records taken (the model's count)
+        queries = Signal(count_bits)               # queries taken
+
+        # --- slots queried and not yet updated, oldest first
+        pending = [Signal(bits, name=f"pending{k}") for k in range(depth)]
+        level = Signal(range(depth + 1))
+        head_is_old = Signal()                     # pending[0] ≤ query slot − 1 − delay
+        limit = Signal(bits)
+        m.d.comb += [limit.eq(self.query.payload - 1 - p.loop_delay_rows),
+                     head_is_old.eq((limit - pending[0])[bits - 1] == 0)]
+
+        # --- acceptance: restart first, then a record, then a query
+        running, push = Signal(), Signal()    # an update runs; its state is pushed
+        idle = Signal()
+        take_record, take_query = Signal(), Signal()
+        m.d.comb += [
+            idle.eq(~running & ~push),
+            self.records.ready.eq(~self.restart & idle & (level != 0)),
+            take_record.eq(self.records.valid & self.records.ready),
+            self.query.ready.eq(~self.restart & idle & ~take_record
+                                & (level != depth) & ((level == 0) | ~head_is_old)),
+            take_query.eq(self.query.valid & self.query.ready),
+            self.busy.eq(~idle),
+        ]
+        with m.If(take_query):
+            m.d.sync += [Array(pending)[level].eq(self.query.payload), level.eq(level + 1),
+                         queries.eq(queries + 1)]
+        with m.If(take_record):
+            m.d.sync += [pending[k].eq(pending[k + 1]) for k in range(depth - 1)]
+            m.d.sync += level.eq(level - 1)
+
+        # --- query: the newest state of a slot ≤ limit, then L + k·B
+        chosen = states[0].as_value()
+        for s in states[1:]:
+            fits = (s.kind == 1) | ((s.kind == 2) & ((limit - s.slot)[bits - 1] == 0))
+            chosen = Mux(fits, s.as_value(), chosen)
+        chosen = state(chosen)
+        sel_level = Signal(data.ArrayLayout(fmt.shape(), 6))
+        sel_trend = Signal(data.ArrayLayout(fmt.shape(), 6))
+        ahead = Signal(count_bits)
+        selected = Signal()
+        m.d.sync += [selected.eq(take_query), self.motion_valid.eq(selected)]
+        with m.If(take_query):
+            m.d.sync += [sel_level.eq(chosen.level), sel_trend.eq(chosen.trend),
+                         ahead.eq(queries + 1 - chosen.count)]
+        with m.If(selected):
+            for i in range(6):
+                scaled, scaled_fmt = hdl_mul(sel_trend[i], fmt, ahead, UQ(count_bits, 0))
+                total = sel_level[i] + scaled
+                m.d.sync += self.motion[i].eq(hdl_resize(total, SQ(scaled_fmt.int_bits + 1,
+                                                                   fmt.frac_bits),
+                                                         fmt, Rounding.FLOOR, Overflow.WRAP))
+
+        # --- update: axis by axis, one multiplier for both gains
+        axis = Signal(range(6))
+        phase = Signal(range(self.PHASES))
+        solved = Signal()
+        step = Signal(data.ArrayLayout(self.source.step_fmt.shape(), 6))
+        gain = Signal(p.gain_fmt.shape())
+        operand = Signal(SQ(fmt.int_bits + 2, fmt.frac_bits).shape())
+        product, product_fmt = hdl_mul(gain, p.gain_fmt, operand,
+                                       SQ(fmt.int_bits + 2, fmt.frac_bits))
+        product_reg = Signal(product_fmt.shape())
+        gained = hdl_resize(product_reg, product_fmt, fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+        predicted = Signal(fmt.shape())
+        new_level = Signal(fmt.shape())
+
+        level_i, trend_i = newest.level[axis], newest.trend[axis]
+        y = hdl_resize(step[axis], self.source.step_fmt, fmt, Rounding.HALF_EVEN,
+                       Overflow.ERROR)
+        sum_fmt = SQ(fmt.int_bits + 1, fmt.frac_bits)
+
+        def wrap(value):
+            return hdl_resize(value, sum_fmt, fmt, Rounding.FLOOR, Overflow.WRAP)
+
+        m.d.sync += product_reg.eq(product)
+        m.d.sync += push.eq(0)
+        with m.If(take_record):
+            m.d.sync += [running.eq(1), axis.eq(0), phase.eq(0),
+                         solved.eq(self.records.payload.flags == 0),
+                         step.eq(self.records.payload.step), updates.eq(updates + 1),
+                         staged.kind.eq(2), staged.slot.eq(pending[0]),
+                         staged.count.eq(updates + 1)]
+        with m.Elif(running & ~push):
+            m.d.sync += phase.eq(Mux(phase == self.PHASES - 1, 0, phase + 1))
+            with m.Switch(phase):
+                with m.Case(0):                    # p = L + B, d = y − p (0 if unsolved)
+                    p_value = wrap(level_i + trend_i)
+                    m.d.sync += [predicted.eq(p_value), gain.eq(self.alpha),
+                                 operand.eq(Mux(solved, y - p_value, 0))]
+                with m.Case(2):                    # L' = p + α d, e = L' − p
+                    level_new = wrap(predicted + gained)
+                    m.d.sync += [new_level.eq(level_new), gain.eq(self.beta),
+                                 operand.eq(level_new - predicted)]
+                with m.Case(4):                    # B' = B + β e
+                    m.d.sync += [staged.level[axis].eq(new_level),
+                                 staged.trend[axis].eq(wrap(trend_i + gained)),
+                                 axis.eq(axis + 1)]
+                    with m.If(axis == 5):
+                        m.d.sync += push.eq(1)
+        # the staged state becomes the newest one clock after its last axis
+        with m.If(push):
+            m.d.sync += running.eq(0)
+            m.d.sync += [states[k].eq(states[k + 1]) for k in range(depth - 1)]
+            m.d.sync += states[-1].eq(staged)
+
+        with m.If(self.restart):
+            m.d.sync += [level.eq(0), running.eq(0), push.eq(0), updates.eq(0),
+                         queries.eq(0), selected.eq(0)]
+            m.d.sync += [states[k].kind.eq(0) for k in range(depth - 1)]
+            m.d.sync += [newest.kind.eq(1), newest.count.eq(0), newest.level.eq(self.initial),
+                         newest.trend.eq(0)]
+        return m

@@ -1,0 +1,273 @@
+"""The forecast's per-row predictor: from the forecast ``Ŷ``, a camera row and the depth
+cue of each of its segments, each camera's window centre and source row address
+(:meth:`emulator.pose.forecast.ForecastModel.predict` in gateware, bit for bit).
+
+Two lanes run side by side, one per coefficient store: the solver's store (the shift
+along the row) and the across-rows store (the displacement across rows). Per segment and
+lane, six terms, one per clock: the design entry ``a_i`` of the solver's arithmetic
+(``w·a_T`` or ``a_R + w·a_C``, rounded half-even into ``a_fmt``, saturated), then
+``a_i·Ŷ_i`` summed exactly and rounded once into ``displacement_fmt`` (saturation
+flagged per segment). Per camera the K segment values are summed; the mean is rounded
+half-up (a shift: K must be a power of two) and saturated with a flag.
+
+Each lane has two multipliers: ``coef × cue`` (18 × 18 bits, one DSP48) and
+``a × Ŷ`` (``a_fmt`` × ``motion_fmt``, 25 × 40 bits, two DSP48 and an adder), each
+with registered operands and product.
+"""
+
+import numpy as np
+from amaranth.hdl import Array, Module, Mux, Signal, signed
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from hdl.fixed import SQ, Overflow, QFormat, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
+from hdl.pose.forecast_params import ForecastParams
+
+__all__ = ["RowPredictor", "output_layout", "counters_layout", "check_store"]
+
+
+def counters_layout(params):
+    """Saturations since reset (wrapping, ``solver.counter_bits`` each): window centres,
+    row addresses, and segment values (shift or across-rows displacement, each counted)."""
+    bits = params.solver.counter_bits
+    return data.StructLayout({"centre": bits, "row": bits, "segment": bits})
+
+
+def output_layout(params):
+    """One camera's forecast for the row; a row is ``cameras`` transfers, camera 0
+    first, ``last`` on the final one.
+
+    Fields
+    ------
+    camera : unsigned
+    centre : signed
+        Window centre (pixels), saturated to ``±centre_range``.
+    source_row : unsigned(row_bits)
+        The previous frame's row to compare against, saturated to ``[0, height − 1]``.
+    centre_saturated, row_saturated : 1
+        The centre or the row address was saturated.
+    shift_saturated, across_saturated : K bits
+        Segment ``k``'s predicted shift or across-rows displacement left
+        ``displacement_fmt`` (bit ``k``; saturated before the mean).
+    last : 1
+    """
+    return data.StructLayout({
+        "camera": range(params.cameras), "centre": signed(params.centre_range.bit_length() + 1),
+        "source_row": params.solver.row_bits, "centre_saturated": 1, "row_saturated": 1,
+        "shift_saturated": params.segments, "across_saturated": params.segments, "last": 1,
+    })
+
+
+def check_store(name, solver, coefficients):
+    """``coefficients`` as an int array (slots, rows, 9) that fits ``solver``'s formats;
+    a ValueError naming ``name`` otherwise."""
+    coefficients = np.asarray(coefficients)
+    shape = (solver.slots, solver.rows, 9)
+    if coefficients.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, not {coefficients.shape}")
+    fmts = [solver.coef_t_fmt] * 3 + [solver.coef_c_fmt] * 3 + [solver.coef_r_fmt] * 3
+    for k, fmt in enumerate(fmts):
+        try:
+            fmt.raw(coefficients[..., k])
+        except (OverflowError, TypeError) as exc:
+            raise ValueError(f"{name} coefficient {k} does not fit {fmt}: {exc}") from None
+    return coefficients
+
+
+class RowPredictor(wiring.Component):
+    """Window centres and source rows of one camera row.
+
+    Parameters
+    ----------
+    params : ForecastParams
+    coefficients, row_coefficients : ndarray (slots, rows, 9)
+        Raw contents of the solver's store and of the across-rows store (each in a
+        ``slots · rows`` × 9 × ``coef_width`` memory, entry ``slot · rows + row``).
+
+    Members
+    -------
+    start : In(1)
+        Take ``row`` and ``cue`` (when ``idle``); the row runs once ``motion_valid``.
+    row : In(row_bits)
+    cue : In(ArrayLayout(cue_fmt, slots))
+    motion : In(ArrayLayout(motion_fmt, 6)); motion_valid : In(1)
+        The forecast ``Ŷ`` for the row.
+    idle : Out(1)
+    o : Out(stream.Signature(output_layout(params)))
+    counters : Out(counters_layout(params))
+
+    Timing: a camera takes ``6K`` issue clocks, its result appears :attr:`drain` clocks
+    after its last term, and the next camera starts the clock after its transfer
+    (:attr:`camera_clocks` per camera).
+    """
+
+    #: Clocks from a camera's last issued term to its output: store read, coef × cue,
+    #: a, a × Ŷ, exact sum, rounding and camera sum, mean and saturation.
+    drain = 7
+
+    def __init__(self, params, coefficients, row_coefficients):
+        if not isinstance(params, ForecastParams):
+            raise TypeError(f"params must be a ForecastParams, not {params!r}")
+        k = params.segments
+        if k & (k - 1):
+            raise ValueError(f"segments must be a power of two in the gateware (the "
+                             f"camera mean is a shift), not {k}")
+        self.params = params
+        self.stores = (check_store("coefficients", params.solver, coefficients),
+                       check_store("row_coefficients", params.row_store, row_coefficients))
+        s = params.solver
+        super().__init__({
+            "start": In(1), "row": In(s.row_bits),
+            "cue": In(data.ArrayLayout(s.cue_fmt.shape(), s.slots)),
+            "motion": In(data.ArrayLayout(params.motion_fmt.shape(), 6)),
+            "motion_valid": In(1),
+            "idle": Out(1),
+            "o": Out(stream.Signature(output_layout(params))),
+            "counters": Out(counters_layout(params)),
+        })
+
+    @property
+    def camera_clocks(self):
+        """Clocks per camera when its output is taken at once (the next camera's first
+        term issues the clock after the transfer)."""
+        return 6 * self.params.segments + self.drain
+
+    def elaborate(self, platform):
+        p = self.params
+        s = p.solver
+        m = Module()
+        k, cameras = p.segments, p.cameras
+
+        # --- the row: taken at start, run once the forecast arrives
+        row = Signal(s.row_bits)
+        cue = Signal(data.ArrayLayout(s.cue_fmt.shape(), s.slots))
+        motion = Signal(data.ArrayLayout(p.motion_fmt.shape(), 6))
+        waiting, active = Signal(), Signal()     # for Ŷ; a row is in progress
+        m.d.comb += self.idle.eq(~active)
+        with m.If(self.start & ~active):
+            m.d.sync += [row.eq(self.row), cue.eq(self.cue), waiting.eq(1), active.eq(1)]
+
+        # --- issue: camera by camera, segment by segment, six terms each
+        camera, segment, term = Signal(range(cameras)), Signal(range(k)), Signal(range(6))
+        issuing = Signal()
+        with m.If(waiting & self.motion_valid):
+            m.d.sync += [motion.eq(self.motion), waiting.eq(0), issuing.eq(1),
+                         camera.eq(0), segment.eq(0), term.eq(0)]
+        channel = camera * k + segment
+        end_of_camera = (segment == k - 1) & (term == 5)
+        with m.If(issuing):
+            m.d.sync += term.eq(term + 1)
+            with m.If(term == 5):
+                m.d.sync += [term.eq(0), segment.eq(segment + 1)]
+            with m.If(end_of_camera):
+                m.d.sync += [segment.eq(0), issuing.eq(0)]
+
+        # stage tags: valid, term, segment, end of camera (stages 1..6)
+        tag = data.StructLayout({"valid": 1, "term": range(6), "segment": range(k),
+                                 "end": 1})
+        tags = [Signal(tag, name=f"tag{n}") for n in range(7)]
+        m.d.comb += [tags[0].valid.eq(issuing), tags[0].term.eq(term),
+                     tags[0].segment.eq(segment), tags[0].end.eq(end_of_camera)]
+        m.d.sync += [tags[n + 1].eq(tags[n]) for n in range(6)]
+        cue1 = Signal(s.cue_fmt.shape())
+        m.d.sync += cue1.eq(Array(cue)[channel])
+        y2 = Signal(p.motion_fmt.shape())
+        m.d.sync += y2.eq(motion[tags[1].term])
+
+        means, flags = [], []
+        for lane, (store, contents) in enumerate(zip((s, p.row_store), self.stores)):
+            mean, flag = self._lane(m, lane, store, contents, tags, cue1, y2,
+                                    channel * s.rows + row)
+            means.append(mean)
+            flags.append(flag)
+
+        # --- the camera's result: saturate, hold until taken
+        centre, source = means[0], row - means[1]
+        centre_over = (centre < -p.centre_range) | (centre > p.centre_range)
+        row_over = (source < 0) | (source > p.height - 1)
+        segments_over = sum(flag[n] for flag in flags for n in range(k))
+        last_camera = camera == cameras - 1
+        counters = self.counters
+        with m.If(tags[6].valid & tags[6].end):
+            m.d.sync += [
+                self.o.valid.eq(1), self.o.p.camera.eq(camera), self.o.p.last.eq(last_camera),
+                self.o.p.centre.eq(_clamp(centre, -p.centre_range, p.centre_range)),
+                self.o.p.centre_saturated.eq(centre_over),
+                self.o.p.source_row.eq(_clamp(source, 0, p.height - 1)),
+                self.o.p.row_saturated.eq(row_over),
+                self.o.p.shift_saturated.eq(flags[0]), self.o.p.across_saturated.eq(flags[1]),
+                counters.centre.eq(counters.centre + centre_over),
+                counters.row.eq(counters.row + row_over),
+                counters.segment.eq(counters.segment + segments_over),
+            ]
+        with m.If(self.o.valid & self.o.ready):
+            m.d.sync += [self.o.valid.eq(0), camera.eq(camera + 1)]
+            with m.If(last_camera):
+                m.d.sync += active.eq(0)
+            with m.Else():
+                m.d.sync += issuing.eq(1)
+        return m
+
+    def _lane(self, m, lane, store, contents, tags, cue1, y2, addr):
+        """One store's datapath; returns (the camera mean of its displacements, rounded
+        half-up to pixels; the per-segment saturation flags)."""
+        p, a_fmt, k = self.params, self.params.solver.a_fmt, self.params.segments
+        width = store.coef_width
+        # one entry per slot and row (the solver's ``entries`` may count a compressed
+        # store's terms instead)
+        memory = Memory(shape=data.ArrayLayout(signed(width), 9),
+                        depth=store.slots * store.rows,
+                        init=[[int(v) for v in entry] for entry in contents.reshape(-1, 9)])
+        m.submodules[f"store{lane}"] = memory
+        read = memory.read_port()
+        m.d.comb += read.addr.eq(addr)
+
+        # stage 1 → 2: coef × cue, and a_R for the rotation terms
+        t_fmt = mul_format(store.coef_t_fmt, store.cue_fmt)
+        c_fmt = mul_format(store.coef_c_fmt, store.cue_fmt)    # the same raw width
+        product = Signal(t_fmt.shape(), name=f"coef_cue{lane}")
+        rotation = Signal(signed(width), name=f"coef_r{lane}")
+        m.d.sync += [product.eq(hdl_mul(read.data[tags[1].term], store.coef_t_fmt, cue1,
+                                        store.cue_fmt)[0]),
+                     rotation.eq(read.data[tags[1].term + 3])]
+        # stage 2 → 3: the design entry a (the solver's rounding and saturation)
+        total, total_fmt = hdl_add(rotation, store.coef_r_fmt, product, c_fmt)
+        a = Signal(a_fmt.shape(), name=f"a{lane}")
+        y3 = Signal(p.motion_fmt.shape(), name=f"y3_{lane}")
+        m.d.sync += [a.eq(Mux(tags[2].term < 3,
+                               hdl_resize(product, t_fmt, a_fmt, Rounding.HALF_EVEN,
+                                          Overflow.SATURATE),
+                               hdl_resize(total, total_fmt, a_fmt, Rounding.HALF_EVEN,
+                                          Overflow.SATURATE))),
+                     y3.eq(y2)]
+        # stage 3 → 4: a × Ŷ; 4 → 5: exact sum of the six terms
+        term_value, term_fmt = hdl_mul(a, a_fmt, y3, p.motion_fmt)
+        term = Signal(term_fmt.shape(), name=f"term{lane}")
+        m.d.sync += term.eq(term_value)
+        sum_fmt = QFormat(True, term_fmt.int_bits + 4, term_fmt.frac_bits)
+        acc = Signal(sum_fmt.shape(), name=f"sum{lane}")
+        with m.If(tags[4].valid):
+            m.d.sync += acc.eq(Mux(tags[4].term == 0, 0, acc) + term)
+        # stage 5 → 6: one half-even rounding into displacement_fmt, flagged; camera sum
+        dst = p.displacement_fmt
+        wide_fmt = SQ(max(sum_fmt.int_bits, dst.int_bits) + 2, dst.frac_bits)
+        wide = hdl_resize(acc, sum_fmt, wide_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+        over = (wide > dst.max_raw) | (wide < dst.min_raw)
+        value = hdl_resize(wide, wide_fmt, dst, Rounding.FLOOR, Overflow.SATURATE)
+        shift = (k - 1).bit_length()
+        camera_fmt = QFormat(True, dst.int_bits + shift + 1, dst.frac_bits + shift)
+        camera_sum = Signal(camera_fmt.shape(), name=f"camera_sum{lane}")
+        flags = Signal(k, name=f"saturated{lane}")
+        first = tags[5].segment == 0
+        with m.If(tags[5].valid & (tags[5].term == 5)):
+            m.d.sync += [camera_sum.eq(Mux(first, 0, camera_sum) + value),
+                         flags.eq(Mux(first, 0, flags) | (over << tags[5].segment))]
+        # the mean: ⌊sum / (K·2**frac) + 1/2⌋
+        mean = hdl_resize(camera_sum, camera_fmt, SQ(camera_fmt.int_bits, 0), Rounding.HALF_UP,
+                          Overflow.ERROR)
+        return mean, flags
+
+
+def _clamp(value, low, high):
+    return Mux(value < low, low, Mux(value > high, high, value))

@@ -1,0 +1,184 @@
+"""Stimulus and expected outputs of the forecast's tests: a small random case with
+coefficients up to their formats' extremes, and a real closed loop (stereo20 cut to 32
+rows, three frames of the papers' motion, ``emulator.pipeline.run`` with the forecast at
+delay 1): its rows' slots, cues and solver records, replayed through
+:class:`emulator.pose.forecast.ForecastModel` for the expected outputs.
+
+A case is a dict: ``params``, ``coefficients``, ``row_coefficients``, ``initial`` (raw
+``motion_fmt``), ``requests`` and ``records`` (payload dicts, one each per row, in
+order), ``expected`` (per row the list of per-camera output dicts) and ``motion`` (per
+row the forecast ``Ŷ``, raw).
+"""
+
+import pickle
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from hdl.fixed import SQ
+from hdl.pose.forecast_params import ForecastParams
+from hdl.pose.params import PoseFlag, PoseSolverParams
+from emulator.pose.forecast import ForecastModel
+
+__all__ = ["random_case", "closed_loop_case", "expected_outputs", "record", "saturations",
+           "CACHE"]
+
+CACHE = Path(__file__).resolve().parents[3] / "build" / "forecast_stimulus"
+
+
+def record(params, step=None, row=0, time=0, flags=0):
+    """A pose record payload with ``step`` (raw (6,), zero if None) and ``flags``."""
+    step = np.zeros(6, dtype=np.int64) if step is None else np.asarray(step)
+    return {"row": int(row), "time": int(time), "flags": int(flags), "q": [0, 0, 0, 0],
+            "p": [0, 0, 0], "step": [int(v) for v in step]}
+
+
+def expected_outputs(params, coefficients, row_coefficients, initial, requests, records):
+    """Per request, the per-camera outputs and Ŷ of the model in its order (predict the
+    row, then take its record)."""
+    model = ForecastModel(params, coefficients, row_coefficients, initial)
+    k = params.segments
+    outputs, motions = [], []
+    for request, rec in zip(requests, records):
+        out = model.predict(request["slot"], request["row"], np.array(request["cue"]))
+        outputs.append([{
+            "camera": c, "centre": int(out["centre"][c]), "source_row": int(out["source_row"][c]),
+            "centre_saturated": int(out["centre_saturated"][c]),
+            "row_saturated": int(out["row_saturated"][c]),
+            "shift_saturated": _bits(out["shift_saturated"][c * k:(c + 1) * k]),
+            "across_saturated": _bits(out["across_saturated"][c * k:(c + 1) * k]),
+            "last": int(c == params.cameras - 1)} for c in range(params.cameras)])
+        motions.append([int(v) for v in out["motion"]])
+        model.take(request["slot"], np.array(rec["step"]) if rec["flags"] == 0 else None)
+    return outputs, motions
+
+
+def saturations(outputs):
+    """The block's saturation counters after ``outputs`` (per-camera output dicts)."""
+    return {"centre": sum(o["centre_saturated"] for o in outputs),
+            "row": sum(o["row_saturated"] for o in outputs),
+            "segment": sum(bin(o["shift_saturated"]).count("1")
+                           + bin(o["across_saturated"]).count("1") for o in outputs)}
+
+
+def _bits(flags):
+    return sum(int(bool(f)) << n for n, f in enumerate(flags))
+
+
+def _finish(case):
+    case["expected"], case["motion"] = expected_outputs(
+        case["params"], case["coefficients"], case["row_coefficients"], case["initial"],
+        case["requests"], case["records"])
+    return case
+
+
+def small_params(**changes):
+    """Two cameras of two segments, eight rows; ``changes`` to any field."""
+    fields = dict(solver=PoseSolverParams(slots=4, rows=8), row_coef_t_fmt=SQ(4, 14),
+                  row_coef_c_fmt=SQ(2, 16), row_coef_r_fmt=SQ(9, 9), segments=2, height=8,
+                  centre_range=6)
+    return ForecastParams(**{**fields, **changes})
+
+
+def _store(rng, solver):
+    """Random coefficients: mostly a few pixels per unit motion, some at the extremes."""
+    fmts = [solver.coef_t_fmt] * 3 + [solver.coef_c_fmt] * 3 + [solver.coef_r_fmt] * 3
+    out = np.empty((solver.slots, solver.rows, 9), dtype=np.int64)
+    for k, fmt in enumerate(fmts):
+        shift = rng.integers(0, fmt.width - 1, size=out.shape[:2])
+        out[..., k] = rng.integers(fmt.min_raw, fmt.max_raw + 1, size=out.shape[:2]) >> shift
+    return out
+
+
+def random_case(seed, rows=40, params=None, scale=1e-2, slot_gaps=(1, 1, 1, 2, 5)):
+    """Random rows (slots ``slot_gaps`` apart, cues, steps, some flagged) on random
+    stores; ``scale`` is the motion's size (m, rad)."""
+    rng = np.random.default_rng(seed)
+    params = small_params() if params is None else params
+    s = params.solver
+    slots = np.cumsum(rng.choice(slot_gaps, size=rows))
+    requests = [{"slot": int(slot), "row": int(slot % params.height),
+                 "cue": [int(v) for v in rng.integers(0, s.cue_fmt.max_raw + 1, s.slots)
+                         >> rng.integers(0, 8)]} for slot in slots]
+    step_fmt = s.step_fmt
+    records = [record(params, step_fmt.quantize(np.clip(rng.normal(scale=scale, size=6),
+                                                        -0.99, 0.99)),
+                      flags=int(rng.choice([0, 0, 0, PoseFlag.ILL, PoseFlag.EMPTY])))
+               for _ in slots]
+    for r in records:
+        if r["flags"]:
+            r["step"] = [0] * 6
+    initial = params.motion_fmt.quantize(np.clip(rng.normal(scale=scale, size=6), -0.9, 0.9))
+    return _finish({"params": params, "coefficients": _store(rng, s),
+                    "row_coefficients": _store(rng, params.row_store), "initial": initial,
+                    "requests": requests, "records": records})
+
+
+@lru_cache(maxsize=None)
+def closed_loop_case(rows=32, frames=3, seed=1, delay=1):
+    """The closed loop of ``emulator.pipeline.run`` on stereo20 cut to ``rows`` rows:
+    per row set in order its slot, row, the cues the loop's forecast used and the
+    solver's record (flag EMPTY for a row without measurements). Cached under build/."""
+    path = CACHE / f"stereo20_r{rows}_f{frames}_s{seed}_d{delay}.pkl"
+    if path.exists():
+        with open(path, "rb") as f:
+            return pickle.load(f)
+    case = _closed_loop(rows, frames, seed, delay)
+    CACHE.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as f:
+        pickle.dump(case, f)
+    return case
+
+
+def _closed_loop(rows, frames, seed, delay):
+    from emulator.e2e import true_steps
+    from emulator.pipeline import run
+    from golden.rig import preset
+    from golden.scene import default_scene_spec
+    from golden.simulator import simulate
+    from golden.trajectory import make_trajectory
+    from hdl.pipeline_config import PipelineConfig
+
+    rig = preset("stereo20").replace_cameras(height=rows, cy=(rows - 1) / 2,
+                                             t_r=1 / (120 * rows))
+    dataset = simulate(rig, default_scene_spec(seed), make_trajectory("paper"), frames / 120,
+                       seed=seed)
+    config = PipelineConfig.for_rig(rig)
+    params = config.forecast(loop_delay_rows=delay)
+    initial = true_steps(dataset, [1], [0])[0]
+    out = run(config, dataset, forecast=params, initial_motion=initial)
+    loop, rec = out.loop, out.records
+    by_row = {(int(f), int(r)): k for k, (f, r) in enumerate(zip(out.frame, rec["row"]))}
+    measured = {}
+    for r in range(len(out.rows)):
+        key = (int(out.frame[r]), int(out.rows.row[r]))
+        present = out.rows.present[r]
+        measured[key] = list(zip(out.rows.slot[r][present], out.rows.cue[r][present]))
+    cues = np.zeros((params.solver.slots, params.height), dtype=np.int64)
+    requests, records = [], []
+    for frame, row, slot in zip(loop["frame"], loop["row"], loop["slot"]):
+        key = (int(frame), int(row))
+        requests.append({"slot": int(slot), "row": int(row),
+                         "cue": [int(v) for v in cues[:, row]]})
+        if key in by_row:
+            k = by_row[key]
+            records.append({"row": int(rec["row"][k]), "time": int(rec["time"][k]),
+                            "flags": int(rec["flags"][k]), "q": [int(v) for v in rec["q"][k]],
+                            "p": [int(v) for v in rec["p"][k]],
+                            "step": [int(v) for v in rec["step"][k]]})
+        else:
+            records.append(record(params, row=row, flags=PoseFlag.EMPTY))
+        for channel, cue in measured.get(key, []):
+            if cue:                     # as the loop: 0 is no stereo cue
+                cues[channel, row] = cue
+    case = _finish({"params": params, "coefficients": config.coef_raw,
+                    "row_coefficients": config.row_coef_raw,
+                    "initial": params.motion_fmt.quantize(initial),
+                    "requests": requests, "records": records})
+    # the replay is the loop's own forecast (else the cues or records were rebuilt wrong)
+    centres = np.array([[o["centre"] for o in outs] for outs in case["expected"]])
+    sources = np.array([[o["source_row"] for o in outs] for outs in case["expected"]])
+    if not (np.array_equal(centres, loop["centre"]) and np.array_equal(sources, loop["source_row"])):
+        raise AssertionError("replayed forecast differs from the closed loop's")
+    return case

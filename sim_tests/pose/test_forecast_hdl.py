@@ -1,0 +1,229 @@
+"""hdl.pose.forecast (the motion forecast's gateware) against emulator.pose.forecast in
+the Amaranth simulator: every output transfer and every forecast Ŷ in order, bit for
+bit, with and without random valid gaps and ready backpressure; the latency; run-time
+gains and restart; saturation flags at the extremes; parameter errors.
+
+Set SEED to replay the randomized tests; the seed in use is printed.
+"""
+
+import gc
+import os
+import random
+import warnings
+
+import numpy as np
+import pytest
+from amaranth.hdl import UnusedElaboratable
+from amaranth.sim import Simulator
+
+from hdl.pose.forecast import Forecast
+
+from hdl.pose.params import PoseFlag, PoseSolverParams
+
+from sim_tests.pose.forecast.stimulus import (expected_outputs, random_case, record,
+                                              saturations, small_params)
+
+SEED = int(os.environ.get("SEED", "5"))
+
+
+def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_wait=0):
+    """Requests and records from two independent drivers (random idle clocks with
+    ``gaps``, and ready backpressure on ``o``; the records start ``record_wait`` clocks
+    late); ``setup(ctx)`` runs with the restart. Returns the outputs per request (payload
+    dicts), the Ŷ seen at each request's first output, the cycles of the request and
+    record transfers and of the outputs, and the saturation counters at the end."""
+    rng = random.Random(seed)
+    cameras = case["params"].cameras
+    outputs, motions, starts, counters = [], [], [], {}
+
+    async def sink(ctx):
+        cycle = 0
+        while len(outputs) < len(case["requests"]) * cameras and cycle < limit:
+            ready = not gaps or rng.random() < 0.5
+            ctx.set(dut.o.ready, int(ready))
+            if ready and ctx.get(dut.o.valid):
+                payload = ctx.get(dut.o.payload)
+                if payload.camera == 0:
+                    motions.append([ctx.get(dut.motion[i]) for i in range(6)])
+                outputs.append((cycle, {name: getattr(payload, name) for name in
+                                        ("camera", "centre", "source_row", "centre_saturated",
+                                         "row_saturated", "shift_saturated",
+                                         "across_saturated", "last")}))
+            await ctx.tick()
+            cycle += 1
+        counters.update({name: ctx.get(getattr(dut.counters, name))
+                         for name in ("centre", "row", "segment")})
+
+    def driver(port, items, cycles, wait=0):
+        async def run(ctx):
+            await ctx.tick().repeat(1 + wait)  # after the restart
+            cycle = 1 + wait
+            for item in items:
+                while gaps and rng.random() < 0.4:
+                    await ctx.tick()
+                    cycle += 1
+                ctx.set(port.payload, item)
+                ctx.set(port.valid, 1)
+                while True:
+                    taken = ctx.get(port.ready)
+                    await ctx.tick()
+                    cycle += 1
+                    if taken:
+                        break
+                cycles.append(cycle - 1)
+                ctx.set(port.valid, 0)
+        return run
+
+    async def start(ctx):
+        ctx.set(dut.initial, [int(v) for v in case["initial"]])
+        ctx.set(dut.restart, 1)
+        if setup is not None:
+            setup(ctx)
+        await ctx.tick()
+        ctx.set(dut.restart, 0)
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(start)
+    sim.add_testbench(sink)
+    sim.add_testbench(driver(dut.requests, case["requests"], starts))
+    taken = []
+    sim.add_testbench(driver(dut.records, case["records"], taken, record_wait))
+    sim.run()
+    grouped = [[p for _, p in outputs[n * cameras:(n + 1) * cameras]]
+               for n in range(len(outputs) // cameras)]
+    return grouped, motions, starts, taken, [c for c, _ in outputs], counters
+
+
+def _build(case):
+    return Forecast(case["params"], case["coefficients"], case["row_coefficients"])
+
+
+def _check(case, got, motions):
+    assert len(got) == len(case["expected"])
+    for n, (g, e) in enumerate(zip(got, case["expected"])):
+        assert g == e, f"request {n}: hardware {g} != model {e}"
+    assert motions == case["motion"]
+
+
+@pytest.mark.parametrize("gaps", [False, True])
+def test_outputs_match_the_model(gaps):
+    print(f"SEED={SEED}")
+    case = random_case(SEED)
+    got, motions, *_ = simulate(_build(case), case, gaps=gaps, seed=SEED)
+    _check(case, got, motions)
+    assert any(o["centre"] for outs in case["expected"] for o in outs)
+
+
+def test_latency_and_row_time_are_the_properties():
+    """At full rate a request finds the block idle: its first output comes ``latency``
+    clocks after its transfer, its last ``row_clocks``; records take ``record_clocks``."""
+    case = random_case(SEED)
+    dut = _build(case)
+    got, motions, starts, taken, cycles, _ = simulate(dut, case)
+    _check(case, got, motions)
+    cameras = case["params"].cameras
+    firsts, lasts = cycles[::cameras], cycles[cameras - 1::cameras]
+    assert {f - s for f, s in zip(firsts, starts)} == {dut.latency}
+    assert {last - s for last, s in zip(lasts, starts)} == {dut.row_clocks}
+    assert (dut.latency, dut.row_clocks) == (2 + 1 + 6 * 2 - 1 + 7, 21 + 19)
+
+
+@pytest.mark.parametrize("delay", [0, 2, 3])
+def test_every_loop_delay_matches_the_model(delay):
+    print(f"SEED={SEED}")
+    case = random_case(SEED + delay, params=small_params(loop_delay_rows=delay))
+    got, motions, *_ = simulate(_build(case), case, gaps=True, seed=SEED)
+    _check(case, got, motions)
+
+
+def test_late_records_hold_the_requests_that_need_them():
+    """With the solver late, only requests whose forecast needs no outstanding record
+    are taken (slots up to the first's + delay); the outputs still equal the model's.
+    Records waiting with their requests taken come ``record_clocks`` apart."""
+    case = random_case(SEED, params=small_params(loop_delay_rows=2), slot_gaps=(1,))
+    delay = case["params"].loop_delay_rows
+    dut = _build(case)
+    got, motions, starts, taken, *_ = simulate(dut, case, record_wait=500)
+    _check(case, got, motions)
+    assert min(b - a for a, b in zip(taken, taken[1:])) == dut.record_clocks == 32
+    early = [n for n, cycle in enumerate(starts) if cycle < taken[0]]
+    slots = [r["slot"] for r in case["requests"]]
+    assert early and len(early) < len(slots)
+    assert all(slots[n] <= slots[0] + delay for n in early)
+    assert slots[len(early)] > slots[0] + delay
+
+
+def test_the_slot_counter_may_wrap():
+    """Five-bit slots wrap several times over the case (gaps up to 5 slots)."""
+    case = random_case(SEED)
+    dut = Forecast(case["params"], case["coefficients"], case["row_coefficients"], slot_bits=5)
+    wrapped = dict(case, requests=[dict(r, slot=r["slot"] % 32) for r in case["requests"]])
+    assert case["requests"][-1]["slot"] > 64
+    got, motions, *_ = simulate(dut, wrapped, gaps=True, seed=SEED)
+    _check(case, got, motions)
+
+
+def test_gains_are_run_time_inputs():
+    """The block built with the default gains, driven with others: the model with those
+    gains, not the default's."""
+    case = random_case(SEED)
+    params = case["params"]
+    other = params.replace(alpha=0.5, beta=0.25)
+    dut = _build(case)
+    assert (dut.alpha.init, dut.beta.init) == (params.alpha_raw, params.beta_raw)
+    expected, motion = expected_outputs(other, case["coefficients"], case["row_coefficients"],
+                                        case["initial"], case["requests"], case["records"])
+    assert motion != case["motion"]
+
+    def setup(ctx):
+        ctx.set(dut.alpha, other.alpha_raw)
+        ctx.set(dut.beta, other.beta_raw)
+
+    got, motions, *_ = simulate(dut, case, setup=setup)
+    _check(dict(case, expected=expected, motion=motion), got, motions)
+
+
+@pytest.mark.parametrize("sign", [1, -1])
+def test_saturation_at_the_extremes_is_flagged(sign):
+    """Ŷ at the ends of motion_fmt (every record flagged, so it stays there): shifts and
+    displacements beyond displacement_fmt, centres beyond ±centre_range and rows beyond
+    the frame, each flagged as the model flags it and counted."""
+    case = random_case(SEED)
+    params = case["params"]
+    fmt = params.motion_fmt
+    initial = sign * np.array([1, -1, 1, -1, 1, -1]) * fmt.max_raw
+    records = [record(params, flags=PoseFlag.ILL) for _ in case["records"]]
+    expected, motion = expected_outputs(params, case["coefficients"], case["row_coefficients"],
+                                        initial, case["requests"], records)
+    case = dict(case, initial=initial, records=records, expected=expected, motion=motion)
+    got, motions, *_, counters = simulate(_build(case), case, gaps=True, seed=SEED)
+    _check(case, got, motions)
+    flat = [o for outs in expected for o in outs]
+    assert counters == saturations(flat)
+    r = params.centre_range
+    assert {o["centre"] for o in flat if o["centre_saturated"]} == {-r, r}
+    assert {o["source_row"] for o in flat if o["row_saturated"]} == {0, params.height - 1}
+    assert any(o["shift_saturated"] for o in flat) and any(o["across_saturated"] for o in flat)
+
+
+@pytest.mark.parametrize("build, error, message", [
+    (lambda c: Forecast("params", c["coefficients"], c["row_coefficients"]), TypeError,
+     "params must be a ForecastParams, not 'params'"),
+    (lambda c: Forecast(c["params"], c["coefficients"], c["row_coefficients"], slot_bits=1),
+     ValueError, "slot_bits must be an integer from 2 to 32, not 1"),
+    (lambda c: Forecast(c["params"], c["coefficients"][:, :4], c["row_coefficients"]),
+     ValueError, r"coefficients must have shape \(4, 8, 9\), not \(4, 4, 9\)"),
+    (lambda c: Forecast(c["params"], c["coefficients"], c["row_coefficients"] * 4),
+     ValueError, "row_coefficients coefficient [0-9] does not fit SQ"),
+    (lambda c: Forecast(small_params(solver=PoseSolverParams(slots=6, rows=8), segments=3),
+                        np.zeros((6, 8, 9), dtype=int), np.zeros((6, 8, 9), dtype=int)),
+     ValueError, "segments must be a power of two in the gateware .*, not 3"),
+])
+def test_bad_parameters_are_named(build, error, message):
+    case = random_case(SEED, rows=2)
+    with warnings.catch_warnings():      # the parts built before the error are unused
+        warnings.simplefilter("ignore", UnusedElaboratable)
+        with pytest.raises(error, match=message):
+            build(case)
+        gc.collect()
