@@ -33,6 +33,9 @@ def _result(dataset, rotations, positions):
                        camera_confidence=np.ones((n, 20)), motion=np.zeros((n, 6)),
                        forecast=np.zeros((n, 6)), measured=np.zeros((n, 6)),
                        linear_step=np.full((n, 6), np.nan), refined_step=np.full((n, 6), np.nan),
+                       status=np.zeros(n, np.uint8), drifted=np.zeros(n, bool),
+                       judged=np.zeros(n, int), outliers=np.zeros(n, int),
+                       dropped_group=np.full(n, -1), partial=np.zeros(n, bool),
                        period=1 / 120, params={})
 
 

@@ -75,12 +75,16 @@ def test_known_motions_are_recovered(stereo_rig, kind, k):
 
 def test_the_measurements_not_the_forecast_do_the_work(stereo_rig):
     """Without measurements (no slot confident enough) the tracker extrapolates its first
-    frame's motion; on an accelerating motion that is several times worse."""
+    frame's motion; on an accelerating motion that is several times worse. Measured Tx:
+    blind 0.072 cm, tracked 0.0171 cm (4.2×). The bound was 5× (measured 6.6×, tracked
+    0.0108 cm) before issue 18's stereo depth rules (no depth spread across rejected
+    blocks or depth jumps), which on this rig cost Tx 60 % and gain 3–6× on Ty and Tz;
+    docs/tracker.md and the closing note of that change say so."""
     dataset = _simulate(stereo_rig, _axis_motion("translation", 0))
     tracked = evaluate(track(dataset), dataset)
     blind = evaluate(track(dataset, TrackerParams(min_confidence=1e9)), dataset)
     assert blind["update_fraction"] == 0
-    assert blind["rms_t_cm"][0] > 5 * tracked["rms_t_cm"][0] > 0
+    assert blind["rms_t_cm"][0] > 4 * tracked["rms_t_cm"][0] > 0
 
 
 def test_linear_and_nonlinear_solutions_agree_on_small_motions(stereo_rig):
