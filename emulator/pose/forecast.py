@@ -1,5 +1,6 @@
-"""Bit-accurate model of the motion forecast after the pose solver (issue 16; the
-gateware is not built yet, this model is its specification).
+"""Bit-accurate model of the motion forecast after the pose solver (issue 16): the
+specification of the gateware :class:`hdl.pose.forecast.Forecast` (bit-exact with it,
+``sim_tests/pose/test_forecast_hdl.py`` and the cocotb bench ``sim_tests/pose/forecast/``).
 
 Integers only, with the formats of :class:`hdl.pose.forecast_params.ForecastParams` and
 the arithmetic of :mod:`hdl.fixed`:
