@@ -104,7 +104,7 @@ class ReferenceStoreModel:
 class FollowedReferenceStoreModel:
     """A reference store that serves a row of the previous frame chosen per row (issue
     16's followed rows): a ring of ``ring_rows = height + D + 1`` descriptor rows
-    (``params.max_row_displacement`` = D), the gateware's ``ReferenceStore(params,
+    (``params.row_displacement`` = D), the gateware's ``ReferenceStore(params,
     follow=True)``.
 
     Row ``y`` of a frame goes to slot ``(base + y) mod ring_rows``, where ``base``
@@ -168,7 +168,7 @@ class TemporalLaneModel:
     """One camera: each row matched against the same row of the previous frame, or with
     ``follow=True`` against a row of the previous frame chosen per row (the forecast's
     row address, :class:`FollowedReferenceStoreModel`, a ring of
-    ``height + max_row_displacement + 1`` rows)."""
+    ``height + row_displacement + 1`` rows)."""
 
     def __init__(self, params, follow=False):
         self.params = params

@@ -152,8 +152,9 @@ def plot_trajectory(path, result, dataset, metrics):
         ax.legend(loc="upper left", fontsize=8)
     for ax in axes[1]:
         ax.set_xlabel("time since the first row, ms")
-    lost_note = "" if metrics["lost_at_ms"] is None else \
-        f"TRACKING LOST at {metrics['lost_at_ms']:.1f} ms (red: lost); "
+    from golden.tracking_status import lost_time
+    lost = lost_time(result)        # from the result: callers pass accuracy metrics only
+    lost_note = "" if lost is None else f"TRACKING LOST at {1000 * lost:.1f} ms (red: lost); "
     fig.suptitle(f"{lost_note}{dataset.rig.name}: estimate (thin) vs ground truth (wide); per-row Y "
                  f"RMS {_triple(metrics['rms_t_cm'])} cm, {_triple(metrics['rms_r_deg'])}°; "
                  f"render {metrics['render_px']:.2f} px", fontsize=10)

@@ -31,6 +31,10 @@ def _signed_bits(lo, hi):
     return bits
 
 
+#: D of a followed reference store (see ``max_row_displacement``).
+DEFAULT_MAX_ROW_DISPLACEMENT = 31
+
+
 @dataclass(frozen=True, kw_only=True)
 class RowDescriptorParams:
     """One camera lane (temporal) or camera pair (stereo) of the measurement engine.
@@ -60,7 +64,9 @@ class RowDescriptorParams:
         ``max(0, y − D − 1) … height − 1``. Default 31: the measured row displacement of
         the papers' motion on stereo20 is at most 11 rows per frame (docs/descriptor/
         row_descriptor.md), and at 640×480 a ring of 512 rows fills the nine block RAMs
-        the same-row store already uses.
+        the same-row store already uses. ``None`` (the default) means 31, or
+        ``2**row_bits`` for frames too short to index that far (a short co-simulated
+        window); :attr:`row_displacement` is the value in force.
     scan_lanes : int
         Costs the matcher examines per clock after a segment ends.
     pixel_bits, camera_bits, frame_bits, row_bits, timestamp_bits : int
@@ -81,7 +87,7 @@ class RowDescriptorParams:
     subpixel_frac_bits: int = 6
     confidence_fmt: QFormat = UQ(2, 6)
     centre_range: int = 32
-    max_row_displacement: int = 31
+    max_row_displacement: int = None
     scan_lanes: int = 4
     pixel_bits: int = 8
     camera_bits: int = 3
@@ -109,7 +115,8 @@ class RowDescriptorParams:
         check_int("frame_bits", self.frame_bits, 1, 32)
         check_int("row_bits", self.row_bits, 1, 16)
         check_int("timestamp_bits", self.timestamp_bits, 1, 64)
-        check_int("max_row_displacement", self.max_row_displacement, 0, 1 << self.row_bits)
+        if self.max_row_displacement is not None:
+            check_int("max_row_displacement", self.max_row_displacement, 0, 1 << self.row_bits)
         if self.height > 1 << self.row_bits:
             raise ValueError(f"row_bits {self.row_bits} cannot index {self.height} rows")
         if self.n_shifts < 4:
@@ -145,15 +152,22 @@ class RowDescriptorParams:
         return self.match.segments
 
     @property
+    def row_displacement(self):
+        """D in force: ``max_row_displacement``, or its default for this frame."""
+        if self.max_row_displacement is not None:
+            return self.max_row_displacement
+        return min(DEFAULT_MAX_ROW_DISPLACEMENT, 1 << self.row_bits)
+
+    @property
     def ring_rows(self):
         """Rows of a followed reference store's ring: ``height + D + 1``."""
-        return self.height + self.max_row_displacement + 1
+        return self.height + self.row_displacement + 1
 
     def source_in_range(self, row, source):
         """Whether a followed store serves row ``source`` of the previous frame to row
         ``row``: ``0 ≤ source < height`` and ``row − source ≤ D + 1`` (the ring slot of
         ``source`` is rewritten by row ``source + D + 1``, which reads it first)."""
-        return 0 <= source < self.height and row - source <= self.max_row_displacement + 1
+        return 0 <= source < self.height and row - source <= self.row_displacement + 1
 
     def clamp_centre(self, centre):
         """The centre the hardware uses: saturated to ``±centre_range``."""

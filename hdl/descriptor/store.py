@@ -13,7 +13,7 @@ Two kinds, one parameter (``follow``):
 * same row (``follow=False``, the top's lanes today): one slot per row index, row ``y``
   reads what row ``y`` of the previous frame left (8,640 words for 640×480: nine RAMB36);
 * followed rows (``follow=True``, issue 16): a ring of ``height + D + 1`` slots
-  (``params.ring_rows``, D = ``params.max_row_displacement``); row ``y`` of a frame is
+  (``params.ring_rows``, D = ``params.row_displacement``); row ``y`` of a frame is
   written to slot ``(base + y) mod ring_rows`` and reads row ``source`` (the row's
   ``meta.source``, the forecast's row address) of the previous frame from
   ``(previous base + source) mod ring_rows``; ``base`` moves on by ``height`` whenever
@@ -149,7 +149,7 @@ class ReferenceStore(wiring.Component):
             m.d.sync += [base.eq(now), previous.eq(before), frame.eq(item.meta.frame),
                          read_sum.eq(before + source), write_sum.eq(now + row),
                          out_of_range.eq((source >= height) |
-                                         (row > source + (p.max_row_displacement + 1)))]
+                                         (row > source + (p.row_displacement + 1)))]
         read_slot, write_slot = Signal(range(size)), Signal(range(size))
         read_base, write_base = (Signal(range(size * w + 1), name=n)
                                  for n in ("read_base", "write_base"))

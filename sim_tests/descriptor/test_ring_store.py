@@ -66,7 +66,7 @@ def random_sources(rng, params, row_indices):
     exist)."""
     out = []
     for y in row_indices:
-        lo = y - params.max_row_displacement - 1
+        lo = y - params.row_displacement - 1
         kind = rng.integers(4)
         if kind == 0 or (kind in (1, 2) and lo - (kind == 2) < 0):
             out.append(int(rng.integers(max(lo, 0), params.height)))
@@ -111,7 +111,7 @@ def test_the_served_range_is_exact():
     """Row y of frame 1 against frame 0: sources y − D − 1 … height − 1 are frame 0's
     rows; y − D − 2, −1 and height are not."""
     p = RING
-    d = p.max_row_displacement
+    d = p.row_displacement
     pixels = rng_for(2).integers(0, 256, (2, p.height, p.width))
     bits = [descriptor_bits(pixels[f], p)[0] for f in range(2)]
     kept = p.width - p.radius
@@ -150,7 +150,7 @@ def test_a_lost_row_or_frame_is_flagged_never_replaced():
 def test_the_default_ring_fills_nine_block_rams_at_640x480():
     p = RowDescriptorParams()
     words = p.ring_rows * ReferenceStore(p, follow=True).words_per_row
-    assert (p.max_row_displacement, p.ring_rows, words) == (31, 512, 9 * 1024)
+    assert (p.row_displacement, p.ring_rows, words) == (31, 512, 9 * 1024)
 
 
 @pytest.mark.parametrize("kwargs, error, message", [
@@ -200,7 +200,7 @@ def test_following_lane_matches_model(traffic):
     busy = traffic == "full_rate"
     rng = rng_for(10 + busy)
     beats, expected, out_of_range = followed_beats(rng, RING, 4)
-    d = RING.max_row_displacement
+    d = RING.row_displacement
     displacements = {b["row"] - b["source"] for b in beats if b["first"]}
     assert {d + 1, d + 2} <= displacements, "the stimulus misses the range's edge"
     assert out_of_range > 0 and any(not m["no_reference"] for m in expected)

@@ -59,4 +59,4 @@ def test_the_default_row_displacement_covers_twice_the_measured_motion(motion, s
           f"{d.min():.0f} to {d.max():.0f}, |d| median {np.median(abs(d)):.0f}, "
           f"99th percentile {np.percentile(abs(d), 99):.0f}")
     assert d.size > 0.9 * len(rig.cameras) * (FRAMES - 1) * TEMPORAL_640X480.height
-    assert 2 <= d.max() and 2 * d.max() <= TEMPORAL_640X480.max_row_displacement + 1
+    assert 2 <= d.max() and 2 * d.max() <= TEMPORAL_640X480.row_displacement + 1
