@@ -27,6 +27,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from golden.checks import check_int
 from hdl.fixed import SQ, Overflow, QFormat, Rounding, hdl_add, hdl_mul, hdl_resize
 from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.measurement.serial_units import SerialDivider, SerialSqrt
@@ -131,7 +132,6 @@ class ConsistencyStage(wiring.Component):
     def __init__(self, params, *, bits_per_clock=2):
         if not isinstance(params, ConsistencyParams):
             raise TypeError(f"params must be a ConsistencyParams, not {params!r}")
-        from golden.checks import check_int
         check_int("bits_per_clock", bits_per_clock, 1, 4)
         self.params, self.bits_per_clock = params, bits_per_clock
         self._formats()

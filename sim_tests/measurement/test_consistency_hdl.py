@@ -214,6 +214,21 @@ def test_closed_loop_rows_bit_exact(recorded, gaps):
     assert model.counts["outliers"] > 0
 
 
+def test_row_rate(recorded):
+    """A recorded stereo20 row (80 measurements, 20 cameras), no gaps: clocks from its
+    first transfer in to its last out, against the bound of the updater's rate."""
+    params, calls = recorded
+    row = max(calls[ROWS:], key=lambda c: sum(t["conf"] > 0 for t in c[0]))
+    got = run_stage(params, [row], seed=SEED, gaps=False)
+    check_against_model(params, [row], got)
+    dut = ConsistencyStage(params)
+    clocks = got["out_cycles"][-1] - got["in_cycles"][0]
+    bound = len(row[0]) * dut.update_clocks + params.cameras * dut.time_clocks + dut.latency
+    print(f"row of {len(row[0])} measurements ({sum(t['conf'] > 0 for t in row[0])} with "
+          f"confidence): {clocks} clocks (bound {bound})")
+    assert clocks <= bound
+
+
 def test_latency():
     """One row of two measurements per camera, no gaps: a camera's first measurement
     ``latency + time_clocks`` clocks from its transfer to ``o.valid``, its second
@@ -231,7 +246,7 @@ def test_latency():
 
 @pytest.mark.parametrize("args, error, message", [
     (("nope",), TypeError, "params must be a ConsistencyParams, not 'nope'"),
-    ((SMALL,), ValueError, "bits_per_clock must be an integer at least 1 and at most 4, "
+    ((SMALL,), ValueError, "bits_per_clock must be an integer between 1 and 4, "
                            "not 0"),
 ])
 def test_parameter_checks(args, error, message):
