@@ -214,17 +214,19 @@ def test_closed_loop_rows_bit_exact(recorded, gaps):
     assert model.counts["outliers"] > 0
 
 
-def test_row_rate(recorded):
+@pytest.mark.parametrize("bits_per_clock", [2, 4])
+def test_row_rate(recorded, bits_per_clock):
     """A recorded stereo20 row (80 measurements, 20 cameras), no gaps: clocks from its
     first transfer in to its last out, against the bound of the updater's rate."""
     params, calls = recorded
     row = max(calls[ROWS:], key=lambda c: sum(t["conf"] > 0 for t in c[0]))
-    got = run_stage(params, [row], seed=SEED, gaps=False)
+    got = run_stage(params, [row], seed=SEED, gaps=False, bits_per_clock=bits_per_clock)
     check_against_model(params, [row], got)
-    dut = ConsistencyStage(params)
+    dut = ConsistencyStage(params, bits_per_clock=bits_per_clock)
     clocks = got["out_cycles"][-1] - got["in_cycles"][0]
     bound = len(row[0]) * dut.update_clocks + params.cameras * dut.time_clocks + dut.latency
-    print(f"row of {len(row[0])} measurements ({sum(t['conf'] > 0 for t in row[0])} with "
+    print(f"bits_per_clock {bits_per_clock}: latency {dut.latency}, update "
+          f"{dut.update_clocks}; row of {len(row[0])} measurements ({sum(t['conf'] > 0 for t in row[0])} with "
           f"confidence): {clocks} clocks (bound {bound})")
     assert clocks <= bound
 
