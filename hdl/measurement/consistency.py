@@ -226,12 +226,16 @@ class ConsistencyStage(wiring.Component):
         t = _net(m, Mux(outlier, one, q), "t")
         ok = _net(m, conf != 0, "ok")
         judged, judged_fmt = hdl_mul(conf, s.conf_fmt, weight, p.ratio_fmt)
-        conf_out = _net(m, Mux(ok, hdl_resize(judged, judged_fmt, s.conf_fmt, HE, ERR), 0), "conf_out")
-        replacement, replacement_sat = _saturated(m, predicted, p.predicted_fmt, s.shift_fmt, "replacement")
+        conf_out = _net(m, Mux(ok, hdl_resize(judged, judged_fmt, s.conf_fmt, HE, ERR), 0),
+                        "conf_out")
+        replacement, replacement_sat = _saturated(m, predicted, p.predicted_fmt, s.shift_fmt,
+                                                  "replacement")
         replaced = ok & outlier
-        cams_after = _net(m, conf_cams | Mux(conf_out != 0, Const(1, p.cameras) << camera, 0)[:p.cameras], "cams_after")
+        this_camera = (Const(1, p.cameras) << camera)[:p.cameras]
+        cams_after = _net(m, conf_cams | Mux(conf_out != 0, this_camera, 0), "cams_after")
         max_after = _net(m, Mux(conf_out > max_conf, conf_out, max_conf), "max_after")
-        gated_now = _net(m, (max_after < cfg.min_confidence) | (_popcount(cams_after) < cfg.min_cameras), "gated_now")
+        gated_now = _net(m, (max_after < cfg.min_confidence)
+                         | (_popcount(cams_after) < cfg.min_cameras), "gated_now")
 
         # --- updater state -------------------------------------------------------------
         u_busy, u_slot = Signal(), Signal(range(p.channels))
@@ -264,7 +268,7 @@ class ConsistencyStage(wiring.Component):
                 with m.Else():
                     m.d.comb += [div.start.eq(1), div.num.eq(time_num), div.den.eq(time_den)]
                     with m.If(far & ~far_seen.bit_select(camera, 1)):
-                        m.d.sync += far_seen.eq(far_seen | (Const(1, p.cameras) << camera)[:p.cameras])
+                        m.d.sync += far_seen.eq(far_seen | this_camera)
                     m.next = "TIME"
             with m.State("TIME"):
                 with m.If(~div.busy):
@@ -310,11 +314,13 @@ class ConsistencyStage(wiring.Component):
         gained = _net(m, hdl_resize(*hdl_mul(cfg.lam_ck, gf, one - v3, rf), gf, HE, ERR),
                       "gained")
         square = _net(m, hdl_mul(u_sigma, p.scale_fmt, u_sigma, p.scale_fmt)[0], "square")
-        n = _net(m, hdl_resize(*hdl_mul(square, self.square_fmt, u_factor, gf), self.wide_fmt, HE, ERR), "n")
+        n = _net(m, hdl_resize(*hdl_mul(square, self.square_fmt, u_factor, gf), self.wide_fmt,
+                               HE, ERR), "n")
         root = _net(m, sqrt.root + (sqrt.remainder > sqrt.root), "root")
         top = p.scale_fmt.max_raw
         capped = _net(m, Mux(root > top, top, root), "capped")
-        initial = _net(m, Mux(cfg.scale_initial > cfg.scale_floor, cfg.scale_initial, cfg.scale_floor), "initial")
+        initial = _net(m, Mux(cfg.scale_initial > cfg.scale_floor, cfg.scale_initial,
+                              cfg.scale_floor), "initial")
         with m.FSM(name="updater"):
             with m.State("CLEAR"):
                 m.d.comb += [write.en.eq(1), write.addr.eq(clear_addr), write.data.eq(initial)]

@@ -57,7 +57,7 @@ class SerialDivider(wiring.Component):
 
 
 class SerialSqrt(wiring.Component):
-    """``⌊√n⌋`` and ``n − ⌊√n⌋²`` of an unsigned ``width``-bit ``n`` (digit by digit).
+    """``⌊√n⌋`` and ``n − ⌊√n⌋²`` of an unsigned ``width``-bit ``n`` (by digits).
 
     ``start`` loads ``n``; ``busy`` for :attr:`steps` clocks, then ``root`` and
     ``remainder`` hold.
@@ -66,7 +66,8 @@ class SerialSqrt(wiring.Component):
     def __init__(self, width, bits_per_clock):
         check_int("width", width, 1)
         check_int("bits_per_clock", bits_per_clock, 1)
-        self.steps = -(-(-(-width // 2)) // bits_per_clock)
+        digits = -(-width // 2)                             # root bits needed
+        self.steps = -(-digits // bits_per_clock)
         self.bits = self.steps * bits_per_clock             # root bits
         self.per_clock = bits_per_clock
         super().__init__({"start": In(1), "n": In(width), "busy": Out(1),

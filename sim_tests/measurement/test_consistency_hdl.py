@@ -14,6 +14,7 @@ import random
 
 import numpy as np
 import pytest
+from amaranth.hdl import Signal
 from amaranth.sim import Simulator
 
 import emulator.pipeline as pipeline
@@ -47,6 +48,7 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
     layout, fc_layout = measurement_layout(params.solver), forecast_layout(params)
     count = sum(len(t) for t, _, _ in rows)
     out = {"transfers": [], "gated": [], "in_cycles": [], "out_cycles": []}
+    clock = Signal(32)                  # the sink's clock count, for the sources' records
 
     def source(port, lay, items, rng, record=None):
         async def run(ctx):
@@ -57,11 +59,9 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
                 ctx.set(port.valid, 1)
                 await ctx.tick().until(port.ready)
                 if record is not None:
-                    record.append(ctx.get(cycle_counter))
+                    record.append(ctx.get(clock))
                 ctx.set(port.valid, 0)
         return run
-
-    cycle_counter = None
 
     async def sink(ctx):
         cycle = 0
@@ -82,14 +82,11 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
         out["counts"] = {n: ctx.get(getattr(dut.counts, n)) for n in COUNTS}
         out["scale"] = [ctx.get(dut.scale_memory.data[k]) for k in range(params.channels)]
 
-    from amaranth.hdl import Signal
-    clock = Signal(32)
-    cycle_counter = clock
     sim = Simulator(dut)
     sim.add_clock(1e-8)
     flat = [t for transfers, _, _ in rows for t in transfers]
-    forecasts = [{"predicted": dict(enumerate(map(int, pr))), "delta": dict(enumerate(map(int, de)))}
-                 for _, pr, de in rows]
+    forecasts = [{"predicted": dict(enumerate(map(int, pr))),
+                  "delta": dict(enumerate(map(int, de)))} for _, pr, de in rows]
     sim.add_testbench(source(dut.i, layout, flat, random.Random(rng.random()),
                              out["in_cycles"]), background=True)
     sim.add_testbench(source(dut.forecast, fc_layout, forecasts, random.Random(rng.random())),
@@ -226,8 +223,9 @@ def test_row_rate(recorded, bits_per_clock):
     clocks = got["out_cycles"][-1] - got["in_cycles"][0]
     bound = len(row[0]) * dut.update_clocks + params.cameras * dut.time_clocks + dut.latency
     print(f"bits_per_clock {bits_per_clock}: latency {dut.latency}, update "
-          f"{dut.update_clocks}; row of {len(row[0])} measurements ({sum(t['conf'] > 0 for t in row[0])} with "
-          f"confidence): {clocks} clocks (bound {bound})")
+          f"{dut.update_clocks}; row of {len(row[0])} measurements "
+          f"({sum(t['conf'] > 0 for t in row[0])} with confidence): {clocks} clocks "
+          f"(bound {bound})")
     assert clocks <= bound
 
 
