@@ -167,6 +167,15 @@ def test_random_rows_bit_exact(name, gaps):
     assert model.counts["gated_rows"] < len(rows)
 
 
+@pytest.mark.parametrize("bits_per_clock", [1, 3, 4])
+def test_other_unit_widths_bit_exact(bits_per_clock):
+    """The iterative units at other widths (padded to whole clocks) give the same."""
+    print(f"SEED={SEED}")
+    rows = random_rows(LARGE, np.random.default_rng(SEED + bits_per_clock), 40)
+    got = run_stage(LARGE, rows, seed=SEED, gaps=True, bits_per_clock=bits_per_clock)
+    check_against_model(LARGE, rows, got)
+
+
 # --- rows of a closed-loop emulator run ----------------------------------------------
 
 ROWS = 32
