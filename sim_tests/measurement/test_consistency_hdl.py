@@ -8,7 +8,6 @@ without valid gaps and ready backpressure (SEED replays a run, printed). Also th
 latency and the parameter checks.
 """
 
-import dataclasses
 import os
 import random
 
@@ -24,18 +23,15 @@ from golden.rig import preset
 from golden.scene import default_scene_spec
 from golden.simulator import simulate
 from golden.trajectory import make_trajectory
-from hdl.measurement.consistency import (COUNTER_BITS, COUNTS, ConsistencyStage,
+from hdl.measurement.consistency import (COUNTS, ConsistencyStage,
                                          forecast_layout)
-from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.pipeline_config import PipelineConfig
 from hdl.pose.accumulator import measurement_layout
-from hdl.pose.params import PoseSolverParams
+from sim_tests.measurement.consistency.stimulus import (LARGE, SMALL, check_against_model,
+                                                       random_rows)
 
 SEED = int(os.environ.get("SEED", "1"))
 FIELDS = ("slot", "row", "time", "shift", "cue", "conf", "last")
-#: A small stage for the random rows: 4 cameras × 2 segments, P = 40, offsets up to 16.
-SMALL = ConsistencyParams(solver=PoseSolverParams(slots=8, rows=32, row_bits=6),
-                          segments=2, frame_rows=40.0, huber_k=1.0, min_cameras=3)
 
 
 def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
@@ -96,60 +92,6 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
     return out
 
 
-def check_against_model(params, rows, got):
-    """Every transfer, the row verdicts, the counters and the scales equal the model's."""
-    model = ConsistencyModel(params)
-    n = 0
-    for r, (transfers, predicted, delta) in enumerate(rows):
-        want, verdict = model.apply(transfers, predicted, delta)
-        row_gated = got["gated"][n + len(want) - 1]        # the verdict rides on `last`
-        assert row_gated == verdict["gated"], f"row {r} gated"
-        for k, w in enumerate(want):
-            g = got["transfers"][n]
-            assert g == {**w, "conf": int(verdict["conf"][k])}, \
-                f"row {r} transfer {k}: hardware {g}, model {w} {verdict}"
-            assert (0 if row_gated else g["conf"]) == w["conf"], f"row {r} transfer {k}"
-            n += 1
-    assert n == len(got["transfers"])
-    mask = (1 << COUNTER_BITS) - 1
-    assert got["counts"] == {k: v & mask for k, v in model.counts.items()}
-    assert got["scale"] == model.scale.tolist()
-    return model
-
-
-def random_rows(params, rng, count):
-    """Rows of distinct slots in slot order, every field over its format's range (and
-    beyond for the offsets: far cameras), confidences often 0 or the largest."""
-    s = params.solver
-    rows = []
-    for r in range(count):
-        slots = np.sort(rng.choice(params.channels, rng.integers(1, params.channels + 1),
-                                   replace=False))
-        conf = rng.integers(0, s.conf_fmt.max_raw + 1, len(slots))
-        conf[rng.random(len(slots)) < 0.2] = 0
-        conf[rng.random(len(slots)) < 0.1] = s.conf_fmt.max_raw
-        shift = rng.integers(s.shift_fmt.min_raw, s.shift_fmt.max_raw + 1, len(slots))
-        near = rng.random(len(slots)) < 0.5
-        shift[near] //= 256                         # small shifts: inliers too
-        predicted = rng.integers(params.predicted_fmt.min_raw,
-                                 params.predicted_fmt.max_raw + 1, params.channels)
-        small = rng.random(params.channels) < 0.6
-        predicted[small] = rng.integers(-64, 64, small.sum())
-        predicted[rng.random(params.channels) < 0.05] = params.predicted_fmt.min_raw
-        delta = rng.integers(-s.rows + 1, s.rows, params.cameras)
-        delta[rng.random(params.cameras) < 0.6] = 0
-        row = int(rng.integers(0, s.rows))
-        transfers = [{"slot": int(sl), "row": row, "time": int(rng.integers(0, 1 << 32)),
-                      "shift": int(sh), "cue": int(rng.integers(s.cue_fmt.min_raw,
-                                                              s.cue_fmt.max_raw + 1)),
-                      "conf": int(c), "last": int(k == len(slots) - 1)}
-                     for k, (sl, sh, c) in enumerate(zip(slots, shift, conf))]
-        rows.append((transfers, predicted, delta))
-    return rows
-
-
-#: ... and with scales started near the top of ``scale_fmt``: outliers saturate them.
-LARGE = dataclasses.replace(SMALL, scale_initial=31.0)
 
 
 @pytest.mark.parametrize("gaps", [False, True])
