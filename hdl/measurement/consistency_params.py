@@ -1,6 +1,7 @@
 """Parameters and number formats of the robust consistency stage between the measurement
 router and the pose solver (issue 16 item 3; no Amaranth here: the emulator's model
-:mod:`emulator.measurement.consistency` reads them, the gateware is not built yet).
+:mod:`emulator.measurement.consistency` and the gateware
+:mod:`hdl.measurement.consistency` read them).
 
 First, per camera, the reference-time correction: the lane compared the row with the
 previous frame's row ``source`` (the forecast's row address), exposed ``source − row``

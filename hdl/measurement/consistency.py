@@ -1,0 +1,356 @@
+"""Robust consistency stage: router → consistency → pose solver (issue 16 item 3).
+
+The gateware twin of :class:`emulator.measurement.consistency.ConsistencyModel` (its
+docstring lists every step and rounding; formats in
+:class:`hdl.measurement.consistency_params.ConsistencyParams`). Inside:
+
+* a *judge* that takes one measurement at a time: the camera's reference-time factor
+  ``P/(P − Δ)`` (one division, only at the first measurement of each camera in a row),
+  the innovation, ``kσ``, the outlier test and the ratio division, then the output
+  register. The two divisions share one :class:`SerialDivider`;
+* an *updater* that runs the scale recursion (four product stages, a
+  :class:`SerialSqrt`, rounding, floor) of the previous measurement while the judge works
+  on the next one; the judge waits only if the next measurement's channel is the one
+  being updated (a row's channels are distinct, so only across rows);
+* per-channel ``σ`` in a ``slots``-word memory, written with ``max(scale_initial,
+  scale_floor)`` after reset (``slots`` clocks, the stage is not ready meanwhile).
+
+Measurements are forwarded as they are judged (not buffered per row: a row of 80 would
+add 80 judge periods, ~9 µs, to the loop's latency). The row gates need all of a row,
+so the verdict ``gated`` comes with the row's ``last`` transfer; the solver must then
+treat the row as the model's zeroed confidences make it: flag it EMPTY, no step
+(``docs/measurement/consistency.md``).
+"""
+
+from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal, signed
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from golden.checks import check_int
+from hdl.fixed import SQ, Overflow, QFormat, Rounding, hdl_add, hdl_mul, hdl_resize
+from hdl.measurement.consistency_params import ConsistencyParams
+from hdl.measurement.serial_units import SerialDivider, SerialSqrt
+from hdl.pose.accumulator import measurement_layout
+
+__all__ = ["ConsistencyStage", "forecast_layout", "settings_layout", "counts_layout",
+           "COUNTS", "settings_init"]
+
+#: The counters, as :attr:`ConsistencyModel.counts` names them (16-bit, wrapping).
+COUNTS = ("far_rows", "time_saturated", "innovation_saturated", "scale_saturated",
+          "shift_saturated", "outliers", "gated_rows")
+COUNTER_BITS = 16
+HE, SAT, WRAP, ERR = Rounding.HALF_EVEN, Overflow.SATURATE, Overflow.WRAP, Overflow.ERROR
+
+
+def forecast_layout(params):
+    """The forecast's side input, one transfer per row (before or with the row's first
+    measurement): ``predicted`` shift of every slot (``predicted_fmt``) and each camera's
+    row offset ``delta = source − row`` (signed, ``row_bits + 1``)."""
+    return data.StructLayout({
+        "predicted": data.ArrayLayout(params.predicted_fmt.shape(), params.channels),
+        "delta": data.ArrayLayout(signed(params.solver.row_bits + 1), params.cameras)})
+
+
+def settings_layout(params):
+    """The run-time registers, raw in their formats (``keep = 1 − λ``, ``lam_ck = λ·c_k``)."""
+    return data.StructLayout({
+        "frame_rows": params.frame_rows_fmt.width, "max_row_offset": params.solver.row_bits,
+        "huber_k": params.k_fmt.width, "scale_initial": params.scale_fmt.width,
+        "scale_floor": params.scale_fmt.width, "keep": params.gain_fmt.width,
+        "lam_ck": params.gain_fmt.width, "min_confidence": params.solver.conf_fmt.width,
+        "min_cameras": range(params.cameras + 1)})
+
+
+def settings_init(params):
+    """The registers' reset values: the parameters'."""
+    return {"frame_rows": params.frame_rows_raw, "max_row_offset": params.max_row_offset,
+            "huber_k": params.k_raw, "scale_initial": params.initial_raw,
+            "scale_floor": params.floor_raw, "keep": params.keep_raw,
+            "lam_ck": params.lam_ck_raw, "min_confidence": params.min_confidence_raw,
+            "min_cameras": params.min_cameras}
+
+
+def counts_layout():
+    return data.StructLayout({name: COUNTER_BITS for name in COUNTS})
+
+
+def _saturated(m, value, src, dst, name):
+    """(saturated narrowing, whether it saturated) of a half-even narrowing, as nets."""
+    value = _net(m, value, f"{name}_exact")
+    out = _net(m, hdl_resize(value, src, dst, HE, SAT), name)
+    return out, _net(m, out != hdl_resize(value, src, dst, HE, WRAP), f"{name}_saturated")
+
+
+def _net(m, value, name):
+    """``value`` as a named combinational signal: shared subexpressions stay shared (the
+    simulator and RTLIL back ends would otherwise copy them at every use)."""
+    from amaranth.hdl import Value
+    value = Value.cast(value)
+    sig = Signal(value.shape(), name=name)
+    m.d.comb += sig.eq(value)
+    return sig
+
+
+def _popcount(bits):
+    return sum(bits[k] for k in range(len(bits)))
+
+
+class ConsistencyStage(wiring.Component):
+    """Bit-exact with :meth:`ConsistencyModel.apply` row by row.
+
+    Parameters
+    ----------
+    params : ConsistencyParams
+    bits_per_clock : int
+        Quotient and root bits per clock of the iterative units (1 … 4).
+
+    Members
+    -------
+    i : In(stream.Signature(measurement_layout(params.solver)))
+        The router's transfers; a row's slots distinct, ``last`` on its final one.
+    forecast : In(stream.Signature(forecast_layout(params)))
+        One per row, taken when the row's first measurement is.
+    o : Out(stream.Signature(measurement_layout(params.solver)))
+        The same transfers, ``shift`` and ``conf`` judged (the model's verdict before the
+        row gates); one per input transfer.
+    gated : Out(1)
+        With ``o.valid`` and ``o.payload.last``: the row failed the gates (the model sets
+        all its confidences to 0).
+    settings : In(settings_layout(params)), reset to the parameters'
+        Change them between rows.
+    counts : Out(counts_layout())
+        The model's counters, modulo 2**16.
+
+    Timing: :attr:`latency` clocks from a measurement's transfer to its ``o.valid`` when
+    its camera's time factor is known (an earlier measurement of the row had that
+    camera), :attr:`time_clocks` more at a camera's first measurement; a new transfer
+    may be taken the clock after ``o.valid`` when ``o`` is ready. With confidence, the
+    updater needs :attr:`update_clocks` per measurement, which bounds the rate.
+    """
+
+    def __init__(self, params, *, bits_per_clock=2):
+        if not isinstance(params, ConsistencyParams):
+            raise TypeError(f"params must be a ConsistencyParams, not {params!r}")
+        check_int("bits_per_clock", bits_per_clock, 1, 4)
+        self.params, self.bits_per_clock = params, bits_per_clock
+        self._formats()
+        #: Per-channel σ (raw ``scale_fmt``); tests read its final contents.
+        self.scale_memory = Memory(shape=params.scale_fmt.width, depth=params.channels,
+                                   init=[])
+        layout = measurement_layout(params.solver)
+        super().__init__({
+            "i": In(stream.Signature(layout)),
+            "forecast": In(stream.Signature(forecast_layout(params))),
+            "o": Out(stream.Signature(layout)), "gated": Out(1),
+            "settings": In(settings_layout(params), init=settings_init(params)),
+            "counts": Out(counts_layout())})
+
+    def _formats(self):
+        p, s = self.params, self.params.solver
+        self.ks_fmt = QFormat(False, p.k_fmt.int_bits + p.scale_fmt.int_bits,
+                              p.k_fmt.frac_bits + p.scale_fmt.frac_bits)
+        self.frac = max(self.ks_fmt.frac_bits, p.innovation_fmt.frac_bits)
+        self.cmp_width = max(self.ks_fmt.width, p.innovation_fmt.width + self.frac
+                             - p.innovation_fmt.frac_bits)
+        fr = p.frame_rows_fmt
+        self.den_width = max(fr.width, s.row_bits + fr.frac_bits) + 2
+        num_width = max(fr.width + p.time_fmt.frac_bits, self.cmp_width + p.ratio_fmt.frac_bits)
+        quotient_bits = max(p.time_fmt.width, p.ratio_fmt.frac_bits + 1)
+        self.divider = SerialDivider(num_width, max(self.den_width, self.cmp_width),
+                                     quotient_bits, self.bits_per_clock)
+        square = QFormat(False, 2 * p.scale_fmt.int_bits, 2 * p.scale_fmt.frac_bits)
+        self.square_fmt = square
+        self.wide_fmt = QFormat(False, square.int_bits + p.gain_fmt.int_bits, square.frac_bits)
+        self.sqrt = SerialSqrt(self.wide_fmt.width, self.bits_per_clock)
+        self.time_clocks = self.divider.steps + 1
+        self.latency = self.divider.steps + 4
+        self.update_clocks = self.sqrt.steps + 6
+
+    def elaborate(self, platform):
+        m = Module()
+        p, s = self.params, self.params.solver
+        m.submodules.divider = div = self.divider
+        m.submodules.sqrt = sqrt = self.sqrt
+        m.submodules.scale = scale = self.scale_memory
+        read, write = scale.read_port(domain="comb"), scale.write_port()
+        cfg = self.settings
+        one = 1 << p.ratio_fmt.frac_bits
+        camera_of = Array(Const(slot // p.segments, range(p.cameras))
+                          for slot in range(p.channels))
+
+        # --- judge state -----------------------------------------------------------
+        meas = Signal(measurement_layout(s))
+        fc = Signal(forecast_layout(p))
+        have_fc = Signal()
+        camera = Signal(range(p.cameras))
+        cached, cached_camera = Signal(), Signal(range(p.cameras))
+        factor = Signal(p.time_fmt.width)
+        far_seen, conf_cams = Signal(p.cameras), Signal(p.cameras)
+        max_conf = Signal(s.conf_fmt.width)
+        sigma = Signal(p.scale_fmt.width)
+        scaled = Signal(s.shift_fmt.shape())
+        conf = Signal(s.conf_fmt.width)
+        outlier = Signal()
+        counts = self.counts
+
+        delta = _net(m, fc.delta[camera], "delta")
+        far = _net(m, Mux(delta < 0, -delta, delta) > cfg.max_row_offset, "far")
+        # P / (P − Δ): numerator and denominator (Δ = 0 for a far camera)
+        fr = p.frame_rows_fmt
+        offset = Mux(far, 0, delta) << fr.frac_bits
+        time_den = _net(m, (cfg.frame_rows - offset)[:self.den_width], "time_den")
+        time_num = cfg.frame_rows << p.time_fmt.frac_bits
+        q_time, r_time = div.quotient, div.remainder
+        up = _net(m, (r_time << 1 > time_den) | ((r_time << 1 == time_den) & q_time[0]), "up")
+        time_factor = _net(m, (q_time + up)[:p.time_fmt.width], "time_factor")
+
+        # the innovation, kσ and the outlier test of the latched measurement
+        predicted = _net(m, fc.predicted[meas.slot], "predicted")
+        product, product_fmt = hdl_mul(meas.shift, s.shift_fmt, factor, p.time_fmt)
+        scaled_now, time_sat = _saturated(m, product, product_fmt, s.shift_fmt, "scaled")
+        negated = SQ(p.predicted_fmt.int_bits + 1, p.predicted_fmt.frac_bits)
+        exact, exact_fmt = hdl_add(scaled_now, s.shift_fmt, -predicted, negated)
+        r, innovation_sat = _saturated(m, exact, exact_fmt, p.innovation_fmt, "r")
+        inn = p.innovation_fmt
+        abs_r = _net(m, Mux(r < 0, -r, r).as_unsigned()[:inn.width], "abs_r")
+        ks = _net(m, hdl_mul(cfg.huber_k, p.k_fmt, read.data, p.scale_fmt)[0], "ks")
+        a = _net(m, abs_r << (self.frac - inn.frac_bits), "a")
+        b = _net(m, ks << (self.frac - self.ks_fmt.frac_bits), "b")
+        is_outlier = _net(m, a > b, "is_outlier")
+        biggest = _net(m, Mux(is_outlier, a, b), "biggest")
+
+        # the verdict of the division
+        q = _net(m, div.quotient[:p.ratio_fmt.width], "q")
+        weight = _net(m, Mux(outlier, q, one), "weight")
+        t = _net(m, Mux(outlier, one, q), "t")
+        ok = _net(m, conf != 0, "ok")
+        judged, judged_fmt = hdl_mul(conf, s.conf_fmt, weight, p.ratio_fmt)
+        conf_out = _net(m, Mux(ok, hdl_resize(judged, judged_fmt, s.conf_fmt, HE, ERR), 0),
+                        "conf_out")
+        replacement, replacement_sat = _saturated(m, predicted, p.predicted_fmt, s.shift_fmt,
+                                                  "replacement")
+        replaced = ok & outlier
+        this_camera = (Const(1, p.cameras) << camera)[:p.cameras]
+        cams_after = _net(m, conf_cams | Mux(conf_out != 0, this_camera, 0), "cams_after")
+        max_after = _net(m, Mux(conf_out > max_conf, conf_out, max_conf), "max_after")
+        gated_now = _net(m, (max_after < cfg.min_confidence)
+                         | (_popcount(cams_after) < cfg.min_cameras), "gated_now")
+
+        # --- updater state -------------------------------------------------------------
+        u_busy, u_slot = Signal(), Signal(range(p.channels))
+        u_sigma, u_t = Signal(p.scale_fmt.width), Signal(p.ratio_fmt.width)
+        u_v, u_v2 = Signal(p.ratio_fmt.width), Signal(p.ratio_fmt.width)
+        u_factor = Signal(p.gain_fmt.width)
+        clearing = Signal(init=1)
+        clear_addr = Signal(range(p.channels))
+        handoff = Signal()
+
+        o_free = ~self.o.valid | self.o.ready
+        with m.If(self.o.valid & self.o.ready):
+            m.d.sync += self.o.valid.eq(0)
+        m.d.comb += read.addr.eq(meas.slot)
+
+        with m.FSM(name="judge"):
+            with m.State("TAKE"):
+                m.d.comb += self.forecast.ready.eq(~have_fc & ~clearing)
+                with m.If(self.forecast.valid & self.forecast.ready):
+                    m.d.sync += [fc.eq(self.forecast.payload), have_fc.eq(1)]
+                hazard = u_busy & (u_slot == self.i.payload.slot)
+                m.d.comb += self.i.ready.eq(have_fc & ~hazard)
+                with m.If(self.i.valid & self.i.ready):
+                    m.d.sync += [meas.eq(self.i.payload),
+                                 camera.eq(camera_of[self.i.payload.slot])]
+                    m.next = "CAMERA"
+            with m.State("CAMERA"):
+                with m.If(cached & (cached_camera == camera)):
+                    m.next = "JUDGE"
+                with m.Else():
+                    m.d.comb += [div.start.eq(1), div.num.eq(time_num), div.den.eq(time_den)]
+                    with m.If(far & ~far_seen.bit_select(camera, 1)):
+                        m.d.sync += far_seen.eq(far_seen | this_camera)
+                    m.next = "TIME"
+            with m.State("TIME"):
+                with m.If(~div.busy):
+                    m.d.sync += [factor.eq(time_factor), cached.eq(1),
+                                 cached_camera.eq(camera)]
+                    m.next = "JUDGE"
+            with m.State("JUDGE"):
+                m.d.comb += [div.start.eq(1), div.num.eq(Mux(is_outlier, b, a)
+                                                         << p.ratio_fmt.frac_bits),
+                             div.den.eq(Mux(biggest == 0, 1, biggest))]
+                m.d.sync += [scaled.eq(scaled_now), outlier.eq(is_outlier),
+                             sigma.eq(read.data), conf.eq(Mux(far, 0, meas.conf)),
+                             counts.time_saturated.eq(counts.time_saturated + time_sat),
+                             counts.innovation_saturated.eq(
+                                 counts.innovation_saturated + innovation_sat)]
+                m.next = "DIVIDE"
+            with m.State("DIVIDE"):
+                with m.If(~div.busy & o_free & ~(ok & u_busy)):
+                    m.d.comb += handoff.eq(ok)
+                    m.d.sync += [self.o.valid.eq(1), self.o.payload.eq(meas),
+                                 self.o.payload.shift.eq(Mux(replaced, replacement, scaled)),
+                                 self.o.payload.conf.eq(conf_out),
+                                 self.gated.eq(meas.last & gated_now),
+                                 counts.outliers.eq(counts.outliers + replaced),
+                                 counts.shift_saturated.eq(counts.shift_saturated
+                                                           + (replaced & replacement_sat)),
+                                 conf_cams.eq(cams_after), max_conf.eq(max_after)]
+                    with m.If(meas.last):
+                        m.d.sync += [conf_cams.eq(0), max_conf.eq(0), far_seen.eq(0),
+                                     have_fc.eq(0), cached.eq(0),
+                                     counts.gated_rows.eq(counts.gated_rows + gated_now),
+                                     counts.far_rows.eq(counts.far_rows
+                                                        + _popcount(far_seen))]
+                    m.next = "TAKE"
+
+        # --- updater: σ' = max(min(round(√(σ² f)), max), floor) -----------------------------
+        rf, gf = p.ratio_fmt, p.gain_fmt
+
+        def ratio(x, y):
+            return hdl_resize(*hdl_mul(x, rf, y, rf), rf, HE, ERR)
+
+        v3 = _net(m, ratio(u_v2, u_v), "v3")
+        gained = _net(m, hdl_resize(*hdl_mul(cfg.lam_ck, gf, one - v3, rf), gf, HE, ERR),
+                      "gained")
+        square = _net(m, hdl_mul(u_sigma, p.scale_fmt, u_sigma, p.scale_fmt)[0], "square")
+        n = _net(m, hdl_resize(*hdl_mul(square, self.square_fmt, u_factor, gf), self.wide_fmt,
+                               HE, ERR), "n")
+        root = _net(m, sqrt.root + (sqrt.remainder > sqrt.root), "root")
+        top = p.scale_fmt.max_raw
+        capped = _net(m, Mux(root > top, top, root), "capped")
+        initial = _net(m, Mux(cfg.scale_initial > cfg.scale_floor, cfg.scale_initial,
+                              cfg.scale_floor), "initial")
+        with m.FSM(name="updater"):
+            with m.State("CLEAR"):
+                m.d.comb += [write.en.eq(1), write.addr.eq(clear_addr), write.data.eq(initial)]
+                m.d.sync += clear_addr.eq(clear_addr + 1)
+                with m.If(clear_addr == p.channels - 1):
+                    m.d.sync += clearing.eq(0)
+                    m.next = "IDLE"
+            with m.State("IDLE"):
+                with m.If(handoff):
+                    m.d.sync += [u_busy.eq(1), u_slot.eq(meas.slot), u_sigma.eq(sigma),
+                                 u_t.eq(t)]
+                    m.next = "V"
+            with m.State("V"):
+                m.d.sync += u_v.eq(one - ratio(u_t, u_t))
+                m.next = "V2"
+            with m.State("V2"):
+                m.d.sync += u_v2.eq(ratio(u_v, u_v))
+                m.next = "FACTOR"
+            with m.State("FACTOR"):
+                m.d.sync += u_factor.eq(cfg.keep + gained)
+                m.next = "SQUARE"
+            with m.State("SQUARE"):
+                m.d.comb += [sqrt.start.eq(1), sqrt.n.eq(n)]
+                m.next = "ROOT"
+            with m.State("ROOT"):
+                with m.If(~sqrt.busy):
+                    m.d.comb += [write.en.eq(1), write.addr.eq(u_slot),
+                                 write.data.eq(Mux(capped < cfg.scale_floor,
+                                                   cfg.scale_floor, capped))]
+                    m.d.sync += [u_busy.eq(0), counts.scale_saturated.eq(
+                        counts.scale_saturated + (root > top))]
+                    m.next = "IDLE"
+        return m

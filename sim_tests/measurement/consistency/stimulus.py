@@ -1,0 +1,72 @@
+"""Stimulus and checks shared by the consistency stage's Amaranth-simulator tests
+(sim_tests/measurement/test_consistency_hdl.py) and its cocotb bench: small parameter sets,
+random rows at the formats' extremes, and the comparison with
+:class:`emulator.measurement.consistency.ConsistencyModel`."""
+
+import dataclasses
+
+import numpy as np
+
+from emulator.measurement.consistency import ConsistencyModel
+from hdl.measurement.consistency import COUNTER_BITS
+from hdl.measurement.consistency_params import ConsistencyParams
+from hdl.pose.params import PoseSolverParams
+
+#: A small stage for the random rows: 4 cameras × 2 segments, P = 40, offsets up to 16.
+SMALL = ConsistencyParams(solver=PoseSolverParams(slots=8, rows=32, row_bits=6),
+                          segments=2, frame_rows=40.0, huber_k=1.0, min_cameras=3)
+#: ... and with scales started near the top of ``scale_fmt``: outliers saturate them.
+LARGE = dataclasses.replace(SMALL, scale_initial=31.0)
+
+
+def check_against_model(params, rows, got):
+    """Every transfer, the row verdicts, the counters and the scales equal the model's."""
+    model = ConsistencyModel(params)
+    n = 0
+    for r, (transfers, predicted, delta) in enumerate(rows):
+        want, verdict = model.apply(transfers, predicted, delta)
+        row_gated = got["gated"][n + len(want) - 1]        # the verdict rides on `last`
+        assert row_gated == verdict["gated"], f"row {r} gated"
+        for k, w in enumerate(want):
+            g = got["transfers"][n]
+            assert g == {**w, "conf": int(verdict["conf"][k])}, \
+                f"row {r} transfer {k}: hardware {g}, model {w} {verdict}"
+            assert (0 if row_gated else g["conf"]) == w["conf"], f"row {r} transfer {k}"
+            n += 1
+    assert n == len(got["transfers"])
+    mask = (1 << COUNTER_BITS) - 1
+    assert got["counts"] == {k: v & mask for k, v in model.counts.items()}
+    if "scale" in got:
+        assert got["scale"] == model.scale.tolist()
+    return model
+
+
+def random_rows(params, rng, count):
+    """Rows of distinct slots in slot order, every field over its format's range (and
+    beyond for the offsets: far cameras), confidences often 0 or the largest."""
+    s = params.solver
+    rows = []
+    for r in range(count):
+        slots = np.sort(rng.choice(params.channels, rng.integers(1, params.channels + 1),
+                                   replace=False))
+        conf = rng.integers(0, s.conf_fmt.max_raw + 1, len(slots))
+        conf[rng.random(len(slots)) < 0.2] = 0
+        conf[rng.random(len(slots)) < 0.1] = s.conf_fmt.max_raw
+        shift = rng.integers(s.shift_fmt.min_raw, s.shift_fmt.max_raw + 1, len(slots))
+        near = rng.random(len(slots)) < 0.5
+        shift[near] //= 256                         # small shifts: inliers too
+        predicted = rng.integers(params.predicted_fmt.min_raw,
+                                 params.predicted_fmt.max_raw + 1, params.channels)
+        small = rng.random(params.channels) < 0.6
+        predicted[small] = rng.integers(-64, 64, small.sum())
+        predicted[rng.random(params.channels) < 0.05] = params.predicted_fmt.min_raw
+        delta = rng.integers(-s.rows + 1, s.rows, params.cameras)
+        delta[rng.random(params.cameras) < 0.6] = 0
+        row = int(rng.integers(0, s.rows))
+        transfers = [{"slot": int(sl), "row": row, "time": int(rng.integers(0, 1 << 32)),
+                      "shift": int(sh), "cue": int(rng.integers(s.cue_fmt.min_raw,
+                                                              s.cue_fmt.max_raw + 1)),
+                      "conf": int(c), "last": int(k == len(slots) - 1)}
+                     for k, (sl, sh, c) in enumerate(zip(slots, shift, conf))]
+        rows.append((transfers, predicted, delta))
+    return rows

@@ -1,0 +1,205 @@
+"""Consistency stage gateware (hdl/measurement/consistency.py) in the Amaranth simulator,
+bit-exact with :class:`emulator.measurement.consistency.ConsistencyModel`: every output
+transfer (the verdict before the gates, and with the row's ``gated`` applied the
+transfers the model gives the solver), the counters and the final per-channel scales.
+Inputs: rows recorded from a short closed-loop emulator run (stereo20 cut to 32 rows, as
+sim_tests/pose/test_closed_loop.py) and random rows at the formats' extremes; with and
+without valid gaps and ready backpressure (SEED replays a run, printed). Also the
+latency and the parameter checks.
+"""
+
+import os
+import random
+
+import numpy as np
+import pytest
+from amaranth.hdl import Signal
+from amaranth.sim import Simulator
+
+import emulator.pipeline as pipeline
+from emulator.hdl_sim.payload import pack
+from emulator.measurement.consistency import ConsistencyModel
+from golden.rig import preset
+from golden.scene import default_scene_spec
+from golden.simulator import simulate
+from golden.trajectory import make_trajectory
+from hdl.measurement.consistency import (COUNTS, ConsistencyStage,
+                                         forecast_layout)
+from hdl.pipeline_config import PipelineConfig
+from hdl.pose.accumulator import measurement_layout
+from sim_tests.measurement.consistency.stimulus import (LARGE, SMALL, check_against_model,
+                                                       random_rows)
+
+SEED = int(os.environ.get("SEED", "1"))
+FIELDS = ("slot", "row", "time", "shift", "cue", "conf", "last")
+
+
+def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
+    """Rows ``(transfers, predicted, delta)`` through the gateware; returns the output
+    transfers, the ``gated`` bit of each, the clocks of input and output transfers, the
+    counters and the final scales."""
+    dut = ConsistencyStage(params, bits_per_clock=bits_per_clock)
+    rng = random.Random(seed)
+    prob = 0.6 if gaps else 1.0
+    layout, fc_layout = measurement_layout(params.solver), forecast_layout(params)
+    count = sum(len(t) for t, _, _ in rows)
+    out = {"transfers": [], "gated": [], "in_cycles": [], "out_cycles": []}
+    clock = Signal(32)                  # the sink's clock count, for the sources' records
+
+    def source(port, lay, items, rng, record=None):
+        async def run(ctx):
+            for item in items:
+                while rng.random() >= prob:
+                    await ctx.tick()
+                ctx.set(port.payload.as_value(), pack(lay, item))
+                ctx.set(port.valid, 1)
+                await ctx.tick().until(port.ready)
+                if record is not None:
+                    record.append(ctx.get(clock))
+                ctx.set(port.valid, 0)
+        return run
+
+    async def sink(ctx):
+        cycle = 0
+        while len(out["transfers"]) < count:
+            ready = rng.random() < prob
+            ctx.set(dut.o.ready, ready)
+            ctx.set(clock, cycle)
+            *_, valid, payload, gated = await ctx.tick().sample(dut.o.valid, dut.o.payload,
+                                                                  dut.gated)
+            if valid and ready:
+                out["transfers"].append({n: int(getattr(payload, n)) for n in FIELDS})
+                out["gated"].append(int(gated))
+                out["out_cycles"].append(cycle)
+            cycle += 1
+            assert cycle < 100 * count + 1000, "stage hung"
+        await ctx.tick().repeat(60)     # no stray transfers, the last update written
+        assert not ctx.get(dut.o.valid)
+        out["counts"] = {n: ctx.get(getattr(dut.counts, n)) for n in COUNTS}
+        out["scale"] = [ctx.get(dut.scale_memory.data[k]) for k in range(params.channels)]
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    flat = [t for transfers, _, _ in rows for t in transfers]
+    forecasts = [{"predicted": dict(enumerate(map(int, pr))),
+                  "delta": dict(enumerate(map(int, de)))} for _, pr, de in rows]
+    sim.add_testbench(source(dut.i, layout, flat, random.Random(rng.random()),
+                             out["in_cycles"]), background=True)
+    sim.add_testbench(source(dut.forecast, fc_layout, forecasts, random.Random(rng.random())),
+                      background=True)
+    sim.add_testbench(sink)
+    sim.run()
+    return out
+
+
+
+
+@pytest.mark.parametrize("gaps", [False, True])
+@pytest.mark.parametrize("name", ["SMALL", "LARGE"])
+def test_random_rows_bit_exact(name, gaps):
+    print(f"SEED={SEED}")
+    params = {"SMALL": SMALL, "LARGE": LARGE}[name]
+    rows = random_rows(params, np.random.default_rng(SEED), 120)
+    got = run_stage(params, rows, seed=SEED, gaps=gaps)
+    model = check_against_model(params, rows, got)
+    print(model.counts)
+    # the stimulus reached every decision (scale saturation with the large scales)
+    reached = {k for k, v in model.counts.items() if v}
+    assert reached == set(COUNTS) - ({"scale_saturated"} if name == "SMALL" else set())
+    assert model.counts["gated_rows"] < len(rows)
+
+
+@pytest.mark.parametrize("bits_per_clock", [1, 3, 4])
+def test_other_unit_widths_bit_exact(bits_per_clock):
+    """The iterative units at other widths (padded to whole clocks) give the same."""
+    print(f"SEED={SEED}")
+    rows = random_rows(LARGE, np.random.default_rng(SEED + bits_per_clock), 40)
+    got = run_stage(LARGE, rows, seed=SEED, gaps=True, bits_per_clock=bits_per_clock)
+    check_against_model(LARGE, rows, got)
+
+
+# --- rows of a closed-loop emulator run ----------------------------------------------
+
+ROWS = 32
+
+
+@pytest.fixture(scope="module")
+def recorded():
+    """The stage's inputs of two frames of the closed loop (stereo20, 32 rows, K = 4)."""
+    rig = preset("stereo20").replace_cameras(height=ROWS, cy=(ROWS - 1) / 2,
+                                             t_r=1 / (120 * ROWS))
+    dataset = simulate(rig, default_scene_spec(1), make_trajectory("paper"), 2 / 120, seed=1)
+    config = PipelineConfig.for_rig(rig, segments=4, stereo_segments=4)
+    params = config.consistency()
+    calls = []
+
+    class Recording(ConsistencyModel):
+        def apply(self, transfers, predicted, delta):
+            calls.append(([dict(t) for t in transfers], np.array(predicted), np.array(delta)))
+            return super().apply(transfers, predicted, delta)
+
+    original = pipeline.ConsistencyModel
+    pipeline.ConsistencyModel = Recording
+    try:
+        pipeline.run(config, dataset, frames=2, forecast=config.forecast(loop_delay_rows=1),
+                     initial_motion=np.zeros(6), consistency=params, cue_fallback=True)
+    finally:
+        pipeline.ConsistencyModel = original
+    return params, calls
+
+
+@pytest.mark.parametrize("gaps", [False, True])
+def test_closed_loop_rows_bit_exact(recorded, gaps):
+    """Six rows of the second frame (their measurements have references), replayed from
+    the reset scales."""
+    print(f"SEED={SEED}")
+    params, calls = recorded
+    rows = [c for c in calls[ROWS:] if any(t["conf"] for t in c[0])][:6]
+    assert len(rows) == 6
+    got = run_stage(params, rows, seed=SEED, gaps=gaps)
+    model = check_against_model(params, rows, got)
+    print(model.counts)
+    assert model.counts["outliers"] > 0
+
+
+@pytest.mark.parametrize("bits_per_clock", [2, 4])
+def test_row_rate(recorded, bits_per_clock):
+    """A recorded stereo20 row (80 measurements, 20 cameras), no gaps: clocks from its
+    first transfer in to its last out, against the bound of the updater's rate."""
+    params, calls = recorded
+    row = max(calls[ROWS:], key=lambda c: sum(t["conf"] > 0 for t in c[0]))
+    got = run_stage(params, [row], seed=SEED, gaps=False, bits_per_clock=bits_per_clock)
+    check_against_model(params, [row], got)
+    dut = ConsistencyStage(params, bits_per_clock=bits_per_clock)
+    clocks = got["out_cycles"][-1] - got["in_cycles"][0]
+    bound = len(row[0]) * dut.update_clocks + params.cameras * dut.time_clocks + dut.latency
+    print(f"bits_per_clock {bits_per_clock}: latency {dut.latency}, update "
+          f"{dut.update_clocks}; row of {len(row[0])} measurements "
+          f"({sum(t['conf'] > 0 for t in row[0])} with confidence): {clocks} clocks "
+          f"(bound {bound})")
+    assert clocks <= bound
+
+
+def test_latency():
+    """One row of two measurements per camera, no gaps: a camera's first measurement
+    ``latency + time_clocks`` clocks from its transfer to ``o.valid``, its second
+    ``latency``."""
+    rows = random_rows(SMALL, np.random.default_rng(SEED), 1)
+    transfers = [{**t, "slot": k, "last": int(k == SMALL.channels - 1), "conf": 0}
+                 for k, t in enumerate([rows[0][0][0]] * SMALL.channels)]
+    got = run_stage(SMALL, [(transfers, rows[0][1], rows[0][2])], seed=SEED, gaps=False)
+    dut = ConsistencyStage(SMALL)
+    took = [o - i for i, o in zip(got["in_cycles"], got["out_cycles"])]
+    print("latency", dut.latency, "time", dut.time_clocks, "update", dut.update_clocks,
+          "measured", took)
+    assert took == [dut.latency + dut.time_clocks, dut.latency] * SMALL.cameras
+
+
+@pytest.mark.parametrize("args, error, message", [
+    (("nope",), TypeError, "params must be a ConsistencyParams, not 'nope'"),
+    ((SMALL,), ValueError, "bits_per_clock must be an integer between 1 and 4, "
+                           "not 0"),
+])
+def test_parameter_checks(args, error, message):
+    with pytest.raises(error, match=message):
+        ConsistencyStage(*args, **({"bits_per_clock": 0} if args[0] is SMALL else {}))
