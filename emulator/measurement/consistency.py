@@ -1,5 +1,7 @@
 """Bit-accurate model of the robust consistency stage: router → consistency → pose solver
-(issue 16 item 3; the gateware is not built yet, this model is its specification).
+(issue 16 item 3): the specification of the gateware
+:class:`hdl.measurement.consistency.ConsistencyStage` (bit-exact with it,
+``sim_tests/measurement/test_consistency_hdl.py`` and the cocotb bench).
 
 The float original is :class:`golden.temporal_filter.RobustScale` as the golden tracker
 uses it (``golden.tracker.Tracker._step``); the parameters and formats are
