@@ -212,8 +212,8 @@ def _store(solver, table, degree, rig_name):
     if degree is None:
         return solver, direct, direct, 0
     poly, _ = fit_row_polynomials(table, degree)
-    groups = (solver.coef_t_fmt, solver.coef_c_fmt, solver.coef_r_fmt)
-    solver = replace(solver, coef_poly_fmts=polynomial_formats(poly, groups, solver.rows))
+    solver = replace(solver, coef_poly_fmts=polynomial_formats(poly, solver.coef_group_fmts,
+                                                               solver.rows))
     store = quantize_polynomials(solver, poly)
     coef_raw = evaluate_polynomials(solver, store, np.arange(solver.rows), Overflow.ERROR)
     error = int(np.abs(coef_raw - direct).max())

@@ -69,11 +69,12 @@ class CoefficientStore(wiring.Component):
         contents = np.asarray(contents)
         if contents.shape != shape:
             raise ValueError(f"coefficients must have shape {shape}, not {contents.shape}")
-        for k in range(9):
-            fmts = ([params.coef_poly_fmts[t][k // 3] for t in range(params.coef_terms)]
-                    or [(params.coef_t_fmt, params.coef_c_fmt, params.coef_r_fmt)[k // 3]])
-            for t, fmt in enumerate(fmts):
-                fmt.raw(contents[:, t, k] if params.coef_terms else contents[..., k])
+        for k in range(9):          # raises if a value does not fit its format
+            if params.coef_terms:
+                for t in range(params.coef_terms):
+                    params.coef_fmt(k, t).raw(contents[:, t, k])
+            else:
+                params.coef_fmt(k).raw(contents[..., k])
         self.params = params
         self.contents = contents
         super().__init__({
@@ -106,7 +107,6 @@ class CoefficientStore(wiring.Component):
     def elaborate(self, platform):
         p = self.params
         m = Module()
-        coef_fmts = [p.coef_t_fmt] * 3 + [p.coef_c_fmt] * 3 + [p.coef_r_fmt] * 3
         if not p.coef_terms:
             for k in range(9):
                 m.d.comb += self.data[k].eq(self._memory(m, f"coefficients{k}",
@@ -121,9 +121,9 @@ class CoefficientStore(wiring.Component):
         top = p.coef_terms - 1
         for k in range(9):
             terms = [self._memory(m, f"coefficients{k}_{t}",
-                                  signed(p.coef_poly_fmts[t][k // 3].width), k, t)
+                                  signed(p.coef_fmt(k, t).width), k, t)
                      for t in range(p.coef_terms)]
-            acc, fmt = terms[top], p.coef_poly_fmts[top][k // 3]
+            acc, fmt = terms[top], p.coef_fmt(k, top)
             for step, t in enumerate(range(top - 1, -1, -1)):
                 product, product_fmt = hdl_mul(acc, fmt, rows[step], row_fmt)
                 # the lower term's read is delayed to meet the product
@@ -132,9 +132,9 @@ class CoefficientStore(wiring.Component):
                     held = Signal.like(lower, name=f"c{k}_{t}_d{d}")
                     m.d.sync += held.eq(lower)
                     lower = held
-                total, fmt = hdl_add(product, product_fmt, lower, p.coef_poly_fmts[t][k // 3])
+                total, fmt = hdl_add(product, product_fmt, lower, p.coef_fmt(k, t))
                 acc = Signal(fmt.shape(), name=f"horner{k}_{t}")
                 m.d.sync += acc.eq(total)
-            m.d.sync += self.data[k].eq(hdl_resize(acc, fmt, coef_fmts[k], Rounding.HALF_EVEN,
+            m.d.sync += self.data[k].eq(hdl_resize(acc, fmt, p.coef_fmt(k), Rounding.HALF_EVEN,
                                                    Overflow.SATURATE))
         return m

@@ -66,8 +66,8 @@ def check_store(name, solver, coefficients):
     shape = (solver.slots, solver.rows, 9)
     if coefficients.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, not {coefficients.shape}")
-    fmts = [solver.coef_t_fmt] * 3 + [solver.coef_c_fmt] * 3 + [solver.coef_r_fmt] * 3
-    for k, fmt in enumerate(fmts):
+    for k in range(9):
+        fmt = solver.coef_fmt(k)
         try:
             fmt.raw(coefficients[..., k])
         except (OverflowError, TypeError) as exc:

@@ -151,8 +151,7 @@ class PoseSolverParams:
         if len(fmts) > 4:
             raise ValueError(f"coef_poly_fmts must have at most 4 terms (degree 3), not "
                              f"{len(fmts)}")
-        groups = (self.coef_t_fmt, self.coef_c_fmt, self.coef_r_fmt)
-        for g, (name, coef_fmt) in enumerate(zip(COEF_GROUPS, groups)):
+        for g, (name, coef_fmt) in enumerate(zip(COEF_GROUPS, self.coef_group_fmts)):
             for k, term in enumerate(fmts):
                 check_format(f"coef_poly_fmts[{k}][{g}]", term[g], signed=True)
             fracs = {term[g].frac_bits for term in fmts}
@@ -164,6 +163,17 @@ class PoseSolverParams:
     replace = replace
 
     # --- sizes -------------------------------------------------------------------------
+
+    @property
+    def coef_group_fmts(self):
+        """Formats of the three coefficient groups: a_T, a_C, a_R."""
+        return (self.coef_t_fmt, self.coef_c_fmt, self.coef_r_fmt)
+
+    def coef_fmt(self, index, term=None):
+        """Format of coefficient ``index`` (0–8): of its value in a row, or of its
+        polynomial term ``term``."""
+        group = index // 3
+        return self.coef_group_fmts[group] if term is None else self.coef_poly_fmts[term][group]
 
     @property
     def coef_terms(self):
@@ -332,9 +342,9 @@ def quantize_coefficients(params, table):
     if table.shape != (params.slots, params.rows, 9):
         raise ValueError(f"table must have shape ({params.slots}, {params.rows}, 9), "
                          f"not {table.shape}")
-    fmts = (params.coef_t_fmt, params.coef_c_fmt, params.coef_r_fmt)
     return np.concatenate([fmt.quantize(table[..., 3 * k:3 * k + 3], Rounding.HALF_EVEN,
-                                        Overflow.ERROR) for k, fmt in enumerate(fmts)], axis=-1)
+                                        Overflow.ERROR)
+                           for k, fmt in enumerate(params.coef_group_fmts)], axis=-1)
 
 
 #: Format of the seed table's values ``1/sqrt(m) ∈ (1, 2]`` (the interpolation is good to

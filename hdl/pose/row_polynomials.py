@@ -30,8 +30,7 @@ from golden.checks import check_int
 from hdl.fixed import SQ, UQ, Overflow, Rounding, add, mul, resize
 
 __all__ = ["DEFAULT_GUARD_BITS", "fit_row_polynomials", "polynomial_formats",
-           "quantize_polynomials", "evaluate_polynomials", "shift_polynomials",
-           "term_format"]
+           "quantize_polynomials", "evaluate_polynomials", "shift_polynomials"]
 
 #: Fraction bits of each term beyond what its power of the row needs: each term adds at
 #: most 2^-4 LSB to the 0.5 LSB of the final rounding.
@@ -91,15 +90,6 @@ def polynomial_formats(poly, coef_fmts, rows, guard_bits=DEFAULT_GUARD_BITS):
     return tuple(formats)
 
 
-def _group_fmts(params):
-    return (params.coef_t_fmt, params.coef_c_fmt, params.coef_r_fmt)
-
-
-def term_format(params, term, index):
-    """Format of term ``term`` of coefficient ``index`` (0–8)."""
-    return params.coef_poly_fmts[term][index // 3]
-
-
 def quantize_polynomials(params, poly):
     """Raw terms (slots, terms, 9) of float polynomials; half-even rounding, an error
     if a term does not fit its format."""
@@ -125,11 +115,11 @@ def evaluate_polynomials(params, poly_raw, rows, overflow=Overflow.SATURATE):
     for index in range(9):
         top = params.coef_terms - 1
         acc = np.broadcast_to(poly_raw[:, top, index, None], (len(poly_raw), y.shape[1]))
-        fmt = term_format(params, top, index)
+        fmt = params.coef_fmt(index, top)
         for k in range(top - 1, -1, -1):
             acc, fmt = mul(acc, fmt, y, row_fmt)
-            acc, fmt = add(acc, fmt, poly_raw[:, k, index, None], term_format(params, k, index))
-        out[..., index] = resize(acc, fmt, _group_fmts(params)[index // 3],
+            acc, fmt = add(acc, fmt, poly_raw[:, k, index, None], params.coef_fmt(index, k))
+        out[..., index] = resize(acc, fmt, params.coef_fmt(index),
                                  Rounding.HALF_EVEN, overflow)
     return out
 
