@@ -24,13 +24,15 @@ rows only) of ``n ≤ window`` rows, and with the raw registers (fractions ``f``
 * drifted from the first LOST row on, until ``clear``.
 """
 
+import math
 from collections import deque
 
+from golden.checks import check_int
 from hdl.pose.params import PoseFlag
 from hdl.pose.status_params import (DRIFTED_BIT, FRACTION_FMT, MEASUREMENTS_FMT,
                                     STATUS_SHIFT, StatusParams, TrackingStatus)
 
-__all__ = ["StatusUnitModel", "row_entry", "annotate"]
+__all__ = ["StatusUnitModel", "row_entry", "annotate", "golden_to_hardware", "hardware_to_golden"]
 
 #: Fields of a history entry (one row), in the order the gateware packs them.
 ENTRY_FIELDS = ("stepped", "formed", "ill", "judged", "outliers", "confident")
@@ -93,6 +95,11 @@ class StatusUnitModel:
     def update(self, flags, judged, outliers, confident):
         """The status bits of one record: its flags (``PoseFlag`` bits) with the status
         code at bits 5:4 and drifted at bit 6 (:data:`DRIFTED_BIT`)."""
+        slots = self.params.slots
+        for name, value, high in (("flags", flags, (1 << len(PoseFlag)) - 1),
+                                  ("judged", judged, slots), ("outliers", outliers, slots),
+                                  ("confident", confident, slots)):
+            check_int(name, value, 0, high)
         window = self._effective_window()
         if window != self._window:
             self._history.clear()
@@ -157,3 +164,34 @@ def annotate(params, flags, judged, outliers, confident, model=None):
     model = StatusUnitModel(params) if model is None else model
     return [model.update(*row) for row in zip(flags, judged, outliers, confident)]
 
+
+
+# --- the golden monitor's inputs and the unit's, one for the other (agreement checks) ---
+
+def golden_to_hardware(updated, condition, degraded_condition):
+    """Solver flags standing for golden slots: 0 where the slot stepped, ``EMPTY``
+    where no system was formed (NaN condition), ``ILL`` where the condition exceeds
+    ``degraded_condition``, else ``SATURATED`` (formed, no step). A golden slot that
+    stepped with a condition above the threshold has no hardware counterpart (an ILL
+    row never steps): it maps to 0."""
+    out = []
+    for stepped, cond in zip(updated, condition):
+        if stepped:
+            out.append(0)
+        elif not math.isfinite(cond):
+            out.append(int(PoseFlag.EMPTY))
+        else:
+            out.append(int(PoseFlag.ILL if cond > degraded_condition else PoseFlag.SATURATED))
+    return out
+
+
+def hardware_to_golden(flags, degraded_condition):
+    """``(stepped, condition)`` the golden monitor gets for records with these solver
+    flags: NaN for ``EMPTY``; ``1.5 × degraded_condition`` for ``ILL`` and 1 otherwise,
+    so that the golden's median (the mean of the middle two of an even count) exceeds
+    the threshold exactly when more than half the formed rows are ILL, the unit's
+    rule with ``degraded_ill_fraction`` 0.5."""
+    stepped = [int(f) == 0 for f in flags]
+    condition = [math.nan if int(f) & PoseFlag.EMPTY else
+                 1.5 * degraded_condition if int(f) & PoseFlag.ILL else 1.0 for f in flags]
+    return stepped, condition
