@@ -21,7 +21,10 @@ rows only) of ``n ≤ window`` rows, and with the raw registers (fractions ``f``
 * DEGRADED if ``S·2**b < f_du·n``, ``O·2**b > f_do·J``, ``F = 0``, ``I·2**b > f_di·F``,
   or ``C·2**c < m·S`` (with ``S = 0``: ``m > 0``);
 * a latched loss stays LOST until a full window is not degraded;
-* drifted from the first LOST row on, until ``clear``.
+* drifted from the first LOST row after the first TRACKING row (``acquired``) on, until
+  ``clear``: the golden tracker is given its first frame and monitors only the rows
+  after it; the hardware has no pose before it acquires (start-up rows are EMPTY, hence
+  LOST), and a loss then leaves no drift behind.
 """
 
 import math
@@ -76,7 +79,8 @@ class StatusUnitModel:
         """The ``status.clear`` command: history, loss latch, drifted and counters."""
         self._history = deque()
         self._window = None
-        self.state = {"status": 0, "drifted": 0, "lost": 0, "window_error": 0, "losses": 0,
+        self.state = {"status": 0, "drifted": 0, "lost": 0, "acquired": 0, "window_error": 0,
+                      "losses": 0,
                       "degraded_rows": 0, "lost_rows": 0}
 
     def set_settings(self, **raw):
@@ -110,10 +114,12 @@ class StatusUnitModel:
         status = self._classify(window)
         state, count = self.state, (1 << self.params.count_bits) - 1
         if status == TrackingStatus.LOST:
-            state["drifted"] = 1
+            state["drifted"] |= state["acquired"]
             state["lost_rows"] = (state["lost_rows"] + 1) & count
         elif status == TrackingStatus.DEGRADED:
             state["degraded_rows"] = (state["degraded_rows"] + 1) & count
+        else:
+            state["acquired"] = 1
         state["status"] = int(status)
         return (int(flags) | int(status) << STATUS_SHIFT | state["drifted"] << DRIFTED_BIT)
 

@@ -158,12 +158,14 @@ class StatusParams:
 
     def state_layout(self):
         """What the unit shows the PS (register ``status.state``): the latest record's
-        ``status`` and ``drifted``, ``lost`` (the latch), ``window_error``, and wrapping
-        counters: ``losses`` (entries into LOST), ``degraded_rows``, ``lost_rows``."""
+        ``status`` and ``drifted``, ``lost`` (the latch), ``acquired`` (a row was
+        TRACKING since reset or ``clear``: a loss after it marks drift),
+        ``window_error``, and wrapping counters: ``losses`` (entries into LOST),
+        ``degraded_rows``, ``lost_rows``."""
         from amaranth.lib import data
         c = self.count_bits
         return data.StructLayout({"status": STATUS_BITS, "drifted": 1, "lost": 1,
-                                  "window_error": 1, "losses": c, "degraded_rows": c,
+                                  "acquired": 1, "window_error": 1, "losses": c, "degraded_rows": c,
                                   "lost_rows": c})
 
 

@@ -49,7 +49,8 @@ class StatusUnit(wiring.Component):
         together with the record.
     o : Out(stream.Signature(status_source(solver).layout()))
         The same records, flags bits 5:4 the status code
-        (:class:`golden.tracking_status.TrackingStatus`), bit 6 drifted since a loss.
+        (:class:`golden.tracking_status.TrackingStatus`), bit 6 drifted since a loss
+        (a loss after the unit first saw a TRACKING row).
     settings : In(params.settings_layout()), reset to ``params.raw_settings()``
         Registers; a change of ``window`` restarts the history at the next record.
     clear : In(1)
@@ -184,12 +185,14 @@ class StatusUnit(wiring.Component):
             m.d.sync += state.lost.eq(0)
             m.d.comb += status.eq(Mux(degraded, TrackingStatus.DEGRADED,
                                       TrackingStatus.TRACKING))
-        drifted = state.drifted | (status == TrackingStatus.LOST)
+        drifted = state.drifted | (state.acquired & (status == TrackingStatus.LOST))
         m.d.sync += [state.status.eq(status), state.drifted.eq(drifted),
                      state.lost_rows.eq(state.lost_rows + (status == TrackingStatus.LOST)),
                      state.degraded_rows.eq(state.degraded_rows
                                             + (status == TrackingStatus.DEGRADED)),
                      self.o.valid.eq(1)]
+        with m.If(status == TrackingStatus.TRACKING):
+            m.d.sync += state.acquired.eq(1)
         for name in record.shape().members:
             if name != "flags":
                 m.d.sync += getattr(self.o.payload, name).eq(getattr(record, name))

@@ -64,13 +64,16 @@ def golden_statuses(params, rows, tracker=TRACKER):
     """``(status, drifted)`` of :class:`golden.tracking_status.StatusMonitor` (window and
     thresholds ``tracker``'s, window ``params.window``) on the same rows, through
     :func:`emulator.pose.tracking_status.hardware_to_golden`; drifted as the golden
-    tracker sets it (from the first LOST slot on)."""
+    tracker sets it (from the first LOST slot on), counting only slots after the first
+    TRACKING one (the golden tracker monitors only the rows after its given first
+    frame; the unit's ``acquired``)."""
     monitor = StatusMonitor(params.window, tracker)
     stepped, condition = hardware_to_golden([r[0] for r in rows], tracker.degraded_condition)
-    status, drifted, lost = [], [], False
+    status, drifted, lost, acquired = [], [], False, False
     for (flags, judged, outliers, confident), s, c in zip(rows, stepped, condition):
         code = int(monitor.update(s, judged, outliers, c, confident))
-        lost |= code == TrackingStatus.LOST
+        lost |= acquired and code == TrackingStatus.LOST
+        acquired |= code == TrackingStatus.TRACKING
         status.append(code)
         drifted.append(int(lost))
     return status, drifted

@@ -219,3 +219,14 @@ def test_regime_rows_are_reproducible():
     a = regime_rows(np.random.default_rng(3), 50, DEFAULT)
     b = regime_rows(np.random.default_rng(3), 50, DEFAULT)
     assert a == b and regime_row(np.random.default_rng(0), "empty", 8)[0] == EMPTY
+
+
+def test_loss_before_acquisition_marks_no_drift():
+    """Start-up rows (no reference yet: EMPTY) are LOST but leave no drift; a loss
+    after the first TRACKING row does."""
+    rows = [(EMPTY, 0, 0, 0)] * 2 * W + [GOOD] * 3 * W + [(SAT, 10, 0, 0)] * W
+    status, drifted = both(rows)
+    acquired = first(status, T)
+    assert status[W - 1] == L and acquired > 2 * W
+    assert not any(drifted[:acquired])
+    assert drifted[-1] and status[-1] == L

@@ -1,0 +1,143 @@
+"""Real runs for the tracking-status checks: the emulator's closed loop and the golden
+tracker on the stereo20 rig cut to its 32 middle rows (as sim_tests/pose/test_closed_loop.py),
+and the agreement of the status unit's model with the golden StatusMonitor on them.
+
+The pipeline does not return the consistency stage's per-row verdicts yet, so
+:func:`emulator_run` records them by running the loop with a
+:class:`~emulator.measurement.consistency.ConsistencyModel` that notes each row's
+counts (the stage's own arithmetic, unchanged). Run as a script for the figures::
+
+    .venv/bin/python -m sim_tests.pose.status_runs [--frames 3] [--motion paper] [--seed 1]
+"""
+
+import argparse
+import contextlib
+
+import numpy as np
+
+import emulator.pipeline as pipeline
+from emulator.measurement.consistency import ConsistencyModel
+from emulator.pose.tracking_status import golden_to_hardware
+from golden.rig import preset
+from golden.scene import default_scene_spec
+from golden.simulator import simulate
+from golden.tracker import TrackerParams, track
+from golden.trajectory import make_trajectory
+from hdl.pipeline_config import PipelineConfig
+from hdl.pose.status_params import StatusParams
+
+from sim_tests.pose.status_stimulus import golden_statuses, model_statuses
+
+ROWS, K = 32, 4
+
+
+def dataset(frames=3, motion="paper", seed=1):
+    rig = preset("stereo20").replace_cameras(height=ROWS, cy=(ROWS - 1) / 2,
+                                             t_r=1 / (120 * ROWS))
+    return simulate(rig, default_scene_spec(seed), make_trajectory(motion), frames / 120,
+                    seed=seed)
+
+
+class _Recording(ConsistencyModel):
+    """The stage, noting per row: judged (confidence in), outliers, confident (out)."""
+    log = None
+
+    def judge(self, channel, shift, predicted, conf):
+        verdict = super().judge(channel, shift, predicted, conf)
+        self.log.append((int(np.count_nonzero(np.asarray(conf) > 0)),
+                         int(np.count_nonzero(verdict["outlier"])),
+                         int(np.count_nonzero(verdict["conf"]))))
+        return verdict
+
+
+@contextlib.contextmanager
+def _recording(log):
+    original = pipeline.ConsistencyModel
+    pipeline.ConsistencyModel = type("Recording", (_Recording,), {"log": log})
+    try:
+        yield
+    finally:
+        pipeline.ConsistencyModel = original
+
+
+def emulator_run(data):
+    """The closed loop as emulator/benches/hw_tracking.py runs it (forecast, consistency
+    stage, cue fallback; started at golden (b)'s first forecast as
+    test_closed_loop.py): ``(config, records, rows)`` with ``rows`` the status unit's
+    inputs ``(flags, judged, outliers, confident)`` of every record."""
+    golden_b = track(data, TrackerParams(reference="previous", follow_rows=True,
+                                         loop_delay_rows=1, motion_gain="scalar"))
+    config = PipelineConfig.for_rig(data.rig, segments=K, stereo_segments=K)
+    log = []
+    with _recording(log):
+        result = pipeline.run(config, data, forecast=config.forecast(loop_delay_rows=1),
+                              initial_motion=golden_b.forecast[golden_b.tracked][0],
+                              consistency=config.consistency(), cue_fallback=True)
+    flags = result.records["flags"]
+    if len(log) != len(flags):
+        raise AssertionError(f"{len(log)} judged rows for {len(flags)} records")
+    return config, result.records, [(int(f), *counts) for f, counts in zip(flags, log)]
+
+
+def frame_rows(data):
+    """Row periods per frame period (blanking included), as golden.tracker counts them."""
+    cam = data.rig.cameras[0]
+    return 1.0 / (cam.fps * cam.t_r)
+
+
+def emulator_agreement(data, tracker=TrackerParams()):
+    """Model against golden StatusMonitor on the emulator run's own per-row quantities."""
+    config, _, rows = emulator_run(data)
+    params = StatusParams.for_tracker(tracker, slots=config.router.solver.slots,
+                                      frame_rows=frame_rows(data))
+    status, drifted, _ = model_statuses(params, rows)
+    g_status, g_drifted = golden_statuses(params, rows, tracker)
+    return _figures(status, g_status, drifted, g_drifted)
+
+
+def golden_agreement(data, tracker=TrackerParams()):
+    """Model against the golden tracker's own status, fed the golden run's quantities
+    (:func:`emulator.pose.tracking_status.golden_to_hardware`)."""
+    result = track(data, tracker)
+    t = result.tracked
+    window = max(round(tracker.status_window * frame_rows(data)), 1)
+    slots = int(max(result.equations.max(), result.judged.max(), 1))
+    params = StatusParams(slots=slots, window=window,
+                          max_window=1 << max(1, (window - 1).bit_length()),
+                          **{k: getattr(tracker, k) for k in (
+                              "lost_update_fraction", "lost_outlier_fraction",
+                              "degraded_update_fraction", "degraded_outlier_fraction",
+                              "degraded_measurements")})
+    flags = golden_to_hardware(result.updated[t], result.condition[t],
+                               tracker.degraded_condition)
+    rows = list(zip(flags, result.judged[t].tolist(), result.outliers[t].tolist(),
+                    result.equations[t].tolist()))
+    status, drifted, _ = model_statuses(params, rows)
+    return _figures(status, result.status[t].tolist(), drifted,
+                    result.drifted[t].astype(int).tolist())
+
+
+def _figures(status, golden, drifted, golden_drifted):
+    status, golden = np.array(status), np.array(golden)
+    return {"rows": len(status), "agree": float(np.mean(status == golden)),
+            "drifted_agree": float(np.mean(np.array(drifted) == np.array(golden_drifted))),
+            "model": np.bincount(status, minlength=3).tolist(),
+            "golden": np.bincount(golden, minlength=3).tolist()}
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--frames", type=int, default=3)
+    parser.add_argument("--motion", default="paper")
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args(argv)
+    data = dataset(args.frames, args.motion, args.seed)
+    for name, figures in (("emulator closed loop", emulator_agreement(data)),
+                          ("golden track()", golden_agreement(data))):
+        print(f"{name}: {figures['rows']} rows, status agreement {figures['agree']:.1%}, "
+              f"drifted agreement {figures['drifted_agree']:.1%}; rows tracking/degraded/"
+              f"lost: model {figures['model']}, golden {figures['golden']}")
+
+
+if __name__ == "__main__":
+    main()
