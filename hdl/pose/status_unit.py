@@ -58,14 +58,15 @@ class StatusUnit(wiring.Component):
         drifted and the counters.
     state : Out(params.state_layout())
 
-    Latency: :attr:`latency` clocks from a record's transfer to its ``o.valid``.
+    Latency: ``o.valid`` rises :attr:`latency` clocks after the clock of a record's
+    transfer (take, sum, decide).
     Throughput: one record per :attr:`interval` clocks when ``o`` is ready (a pose
     record comes once per camera row, hundreds of clocks apart). Backpressure: ``o``
     not ready holds the record and stops taking new ones. Reset: empty history, not
     lost, not drifted, counters 0.
     """
 
-    latency = 2
+    latency = 3
     interval = 4
 
     def __init__(self, params, solver):
