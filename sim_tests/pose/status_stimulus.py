@@ -7,7 +7,7 @@ import numpy as np
 from emulator.pose.tracking_status import StatusUnitModel, hardware_to_golden
 from golden.tracking_status import StatusMonitor, TrackingStatus
 from golden.tracker_params import TrackerParams
-from hdl.pose.params import PoseFlag, PoseSolverParams
+from hdl.pose.params import PoseFlag, PoseSolverParams, solver_source
 from hdl.pose.status_params import StatusParams
 
 #: A small unit: 8 slots, windows up to 16 rows (reset 6).
@@ -77,3 +77,37 @@ def golden_statuses(params, rows, tracker=TRACKER):
         status.append(code)
         drifted.append(int(lost))
     return status, drifted
+
+
+def random_records(solver, rng, count):
+    """Pose records with every field random (flags set by the rows)."""
+    src = solver_source(solver)
+
+    def fmt(f):
+        return int(rng.integers(f.min_raw, f.max_raw + 1))
+
+    return [{"row": int(rng.integers(0, 1 << src.row_bits)),
+             "time": int(rng.integers(0, 1 << src.time_bits)),
+             "q": [fmt(src.quaternion_fmt) for _ in range(4)],
+             "p": [fmt(src.position_fmt) for _ in range(3)],
+             "step": [fmt(src.step_fmt) for _ in range(6)]} for _ in range(count)]
+
+
+def packable(record):
+    """A record with its array fields as the index dicts ``pack`` takes."""
+    return {k: dict(enumerate(v)) if isinstance(v, list) else v for k, v in record.items()}
+
+
+def expected(params, records, rows, events=None):
+    """The model's output records and final state for ``records`` with ``rows``;
+    ``events`` (record index → settings dict or ``"clear"``) apply before a record."""
+    model = StatusUnitModel(params)
+    out = []
+    for k, (record, row) in enumerate(zip(records, rows)):
+        event = (events or {}).get(k)
+        if event == "clear":
+            model.clear()
+        elif event:
+            model.set_settings(**event)
+        out.append({**record, "flags": model.update(*row)})
+    return out, model.state

@@ -13,27 +13,16 @@ import pytest
 from amaranth.sim import Simulator
 
 from emulator.hdl_sim.payload import pack
-from emulator.pose.tracking_status import StatusUnitModel
 from hdl.pose.params import PoseSolverParams, solver_source
 from hdl.pose.status_params import StatusParams
 from hdl.pose.status_unit import StatusUnit
 
-from sim_tests.pose.status_stimulus import SMALL, SOLVER, regime_rows
+from sim_tests.pose.status_stimulus import (SMALL, SOLVER, expected, packable, random_records,
+                                            regime_rows)
 
 SEED = int(os.environ.get("SEED", "1"))
 STATE = ("status", "drifted", "lost", "acquired", "window_error", "losses",
          "degraded_rows", "lost_rows")
-
-
-def random_records(solver, rng, count):
-    """Pose records with every field random (flags set by the rows)."""
-    src = solver_source(solver)
-    fmt = lambda f: int(rng.integers(f.min_raw, f.max_raw + 1))    # noqa: E731
-    return [{"row": int(rng.integers(0, 1 << src.row_bits)),
-             "time": int(rng.integers(0, 1 << src.time_bits)),
-             "q": [fmt(src.quaternion_fmt) for _ in range(4)],
-             "p": [fmt(src.position_fmt) for _ in range(3)],
-             "step": [fmt(src.step_fmt) for _ in range(6)]} for _ in range(count)]
 
 
 def run_unit(params, solver, records, rows, *, seed, gaps, events=None):
@@ -95,30 +84,12 @@ def run_unit(params, solver, records, rows, *, seed, gaps, events=None):
     return out
 
 
-def packable(record):
-    """A record with its array fields as the index dicts ``pack`` takes."""
-    return {k: dict(enumerate(v)) if isinstance(v, list) else v for k, v in record.items()}
-
-
 def _record(view):
     def value(v):
         return [int(x) for x in v] if hasattr(v, "__len__") and not isinstance(v, int) \
             else int(v)
     return {name: value(getattr(view, name))
             for name in ("row", "time", "flags", "q", "p", "step")}
-
-
-def expected(params, records, rows, events=None):
-    model = StatusUnitModel(params)
-    out = []
-    for k, (record, row) in enumerate(zip(records, rows)):
-        event = (events or {}).get(k)
-        if event == "clear":
-            model.clear()
-        elif event:
-            model.set_settings(**event)
-        out.append({**record, "flags": model.update(*row)})
-    return out, model.state
 
 
 def check(params, solver, records, rows, *, seed, gaps, events=None):
