@@ -118,6 +118,10 @@ class StatusUnit(wiring.Component):
                     "confident": Mux(flags == 0, self.row.payload.confident, 0)}
         m.d.comb += read.addr.eq(position - effective)
 
+        # the record waits in `record` until `o` takes it: one copy of its ~600 bits
+        for name in record.shape().members:
+            if name != "flags":
+                m.d.comb += getattr(self.o.payload, name).eq(getattr(record, name))
         with m.FSM():
             with m.State("TAKE"):
                 with m.If(pending_clear):
@@ -194,8 +198,5 @@ class StatusUnit(wiring.Component):
                      self.o.valid.eq(1)]
         with m.If(status == TrackingStatus.TRACKING):
             m.d.sync += state.acquired.eq(1)
-        for name in record.shape().members:
-            if name != "flags":
-                m.d.sync += getattr(self.o.payload, name).eq(getattr(record, name))
         m.d.sync += self.o.payload.flags.eq(record.flags | (status << STATUS_SHIFT)
                                             | (drifted << DRIFTED_BIT))
