@@ -30,12 +30,15 @@ rows only) of ``n ≤ window`` rows, and with the raw registers (fractions ``f``
 import math
 from collections import deque
 
+import numpy as np
+
 from golden.checks import check_int
 from hdl.pose.params import PoseFlag
 from hdl.pose.status_params import (DRIFTED_BIT, FRACTION_FMT, MEASUREMENTS_FMT,
                                     STATUS_SHIFT, StatusParams, TrackingStatus)
 
-__all__ = ["StatusUnitModel", "row_entry", "annotate", "golden_to_hardware", "hardware_to_golden"]
+__all__ = ["StatusUnitModel", "row_entry", "row_counts", "annotate", "golden_to_hardware",
+           "hardware_to_golden"]
 
 #: Fields of a history entry (one row), in the order the gateware packs them.
 ENTRY_FIELDS = ("stepped", "formed", "ill", "judged", "outliers", "confident")
@@ -50,6 +53,16 @@ def row_entry(flags, judged, outliers, confident):
     return {"stepped": int(stepped), "formed": int(not flags & PoseFlag.EMPTY),
             "ill": int(bool(flags & PoseFlag.ILL)), "judged": int(judged),
             "outliers": int(outliers), "confident": int(confident) if stepped else 0}
+
+
+def row_counts(conf, verdict):
+    """A row's ``(judged, outliers, confident)`` from the confidences the consistency
+    stage judged (raw, after the far-camera zeroing) and its verdict
+    (:meth:`emulator.measurement.consistency.ConsistencyModel.judge`): measurements with
+    a confidence in, those it replaced as outliers, those with a confidence out."""
+    return (int(np.count_nonzero(np.asarray(conf) > 0)),
+            int(np.count_nonzero(verdict["outlier"])),
+            int(np.count_nonzero(verdict["conf"])))
 
 
 class StatusUnitModel:

@@ -1,5 +1,6 @@
-"""Real runs for the tracking-status checks: the emulator's closed loop and the golden
-tracker on the stereo20 rig cut to its 32 middle rows (as sim_tests/pose/test_closed_loop.py),
+"""Real runs for the tracking-status checks: the emulator's closed loop (as
+emulator/benches/hw_tracking.py runs it) and the golden tracker on the stereo20 rig cut to
+its 32 middle rows (as sim_tests/pose/test_closed_loop.py),
 and the agreement of the status unit's model with the golden StatusMonitor on them.
 
 The pipeline does not return the consistency stage's per-row verdicts yet, so
@@ -23,7 +24,7 @@ import numpy as np
 
 import emulator.pipeline as pipeline
 from emulator.measurement.consistency import ConsistencyModel
-from emulator.pose.tracking_status import golden_to_hardware
+from emulator.pose.tracking_status import golden_to_hardware, row_counts
 from golden.rig import preset
 from golden.scene import default_scene_spec
 from golden.simulator import simulate
@@ -34,25 +35,26 @@ from hdl.pose.status_params import StatusParams
 
 from sim_tests.pose.status_stimulus import golden_statuses, model_statuses
 
-ROWS, K = 32, 4
+ROWS = 32
 
 
 def dataset(frames=3, motion="paper", seed=1):
+    """The hw_tracking benchmark's sequence (sensor noise, ``motion`` of ``seed``) on the
+    stereo20 rig cut to 32 rows."""
+    from emulator.benches.tracker import NOISE
     rig = preset("stereo20").replace_cameras(height=ROWS, cy=(ROWS - 1) / 2,
-                                             t_r=1 / (120 * ROWS))
-    return simulate(rig, default_scene_spec(seed), make_trajectory(motion), frames / 120,
-                    seed=seed)
+                                             t_r=1 / (120 * ROWS), noise_sigma=NOISE)
+    return simulate(rig, default_scene_spec(seed), make_trajectory(motion, seed=seed),
+                    frames / 120, seed=seed)
 
 
 class _Recording(ConsistencyModel):
-    """The stage, noting per row: judged (confidence in), outliers, confident (out)."""
+    """The stage, noting each row's counts (:func:`emulator.pose.tracking_status.row_counts`)."""
     log = None
 
     def judge(self, channel, shift, predicted, conf):
         verdict = super().judge(channel, shift, predicted, conf)
-        self.log.append((int(np.count_nonzero(np.asarray(conf) > 0)),
-                         int(np.count_nonzero(verdict["outlier"])),
-                         int(np.count_nonzero(verdict["conf"]))))
+        self.log.append(row_counts(conf, verdict))
         return verdict
 
 
@@ -67,17 +69,18 @@ def _recording(log):
 
 
 def emulator_run(data):
-    """The closed loop as emulator/benches/hw_tracking.py runs it (forecast, consistency
-    stage, cue fallback; started at golden (b)'s first forecast as
-    test_closed_loop.py): ``(config, records, rows)`` with ``rows`` the status unit's
+    """The closed loop as emulator/benches/hw_tracking.py runs it (the configuration's
+    forecast with the hardware's loop delay, the consistency stage, a disparity per
+    temporal segment, the cue fallback, started at the true one-frame motion of the
+    first tracked row): ``(config, records, rows)`` with ``rows`` the status unit's
     inputs ``(flags, judged, outliers, confident)`` of every record."""
-    golden_b = track(data, TrackerParams(reference="previous", follow_rows=True,
-                                         loop_delay_rows=1, motion_gain="scalar"))
-    config = PipelineConfig.for_rig(data.rig, segments=K, stereo_segments=K)
+    from emulator.e2e import true_steps
+    from hdl.top_params import DEFAULT_SEGMENTS
+    config = PipelineConfig.for_rig(data.rig, stereo_segments=DEFAULT_SEGMENTS)
     log = []
     with _recording(log):
-        result = pipeline.run(config, data, forecast=config.forecast(loop_delay_rows=1),
-                              initial_motion=golden_b.forecast[golden_b.tracked][0],
+        result = pipeline.run(config, data, forecast=config.forecast(),
+                              initial_motion=true_steps(data, [1], [0])[0],
                               consistency=config.consistency(), cue_fallback=True)
     flags = result.records["flags"]
     if len(log) != len(flags):
