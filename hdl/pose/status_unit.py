@@ -25,7 +25,7 @@ from hdl.pose.status_params import (DRIFTED_BIT, FRACTION_FMT, MEASUREMENTS_FMT,
                                     STATUS_SHIFT, StatusParams, TrackingStatus,
                                     status_source)
 
-__all__ = ["StatusUnit"]
+__all__ = ["StatusUnit", "default_status_unit"]
 
 COUNTS = ("judged", "outliers", "confident")
 BITS = ("stepped", "formed", "ill")
@@ -200,3 +200,12 @@ class StatusUnit(wiring.Component):
             m.d.sync += state.acquired.eq(1)
         m.d.sync += self.o.payload.flags.eq(record.flags | (status << STATUS_SHIFT)
                                             | (drifted << DRIFTED_BIT))
+
+
+def default_status_unit():
+    """The status unit of the default top (:class:`hdl.top_params.TopParams`): the
+    catalog's build, for Verilog and synthesis."""
+    from hdl.pose.status_params import top_status_params
+    from hdl.top_params import TopParams
+    top = TopParams()
+    return StatusUnit(top_status_params(top), top.solver)
