@@ -20,6 +20,7 @@ from hdl.fixed import UQ, Overflow, Rounding
 from hdl.pose.params import PoseFlag, PoseSolverParams, solver_source
 
 __all__ = ["StatusParams", "FRACTION_FMT", "MEASUREMENTS_FMT", "FRACTIONS", "FLAG_BITS",
+           "TRACKER_THRESHOLDS",
            "status_source", "top_status_params", "TrackingStatus", "STATUS_SHIFT",
            "STATUS_BITS", "DRIFTED_BIT"]
 
@@ -33,6 +34,11 @@ MEASUREMENTS_FMT = UQ(8, 4)
 #: The fraction settings, in register order.
 FRACTIONS = ("lost_update_fraction", "lost_outlier_fraction", "degraded_update_fraction",
              "degraded_outlier_fraction", "degraded_ill_fraction")
+#: The thresholds :meth:`StatusParams.for_tracker` takes from the golden tracker's
+#: parameters (``degraded_ill_fraction`` stands for its ``degraded_condition``).
+TRACKER_THRESHOLDS = ("lost_update_fraction", "lost_outlier_fraction",
+                      "degraded_update_fraction", "degraded_outlier_fraction",
+                      "degraded_measurements")
 #: Width of the annotated flags: the solver's PoseFlag bits, then the status code and
 #: the drifted bit (golden.tracking_status's layout).
 FLAG_BITS = DRIFTED_BIT + 1
@@ -100,8 +106,7 @@ class StatusParams:
         the golden tracker sizes its :class:`~golden.tracking_status.StatusMonitor`."""
         check_number("frame_rows", frame_rows, 0, low_open=True)
         window = max(round(tracker.status_window * frame_rows), 1)
-        fields = {name: getattr(tracker, name) for name in (*FRACTIONS[:4],
-                                                            "degraded_measurements")}
+        fields = {name: getattr(tracker, name) for name in TRACKER_THRESHOLDS}
         return cls(slots=slots, window=window, **{**fields, **changes})
 
     # --- widths -------------------------------------------------------------------------

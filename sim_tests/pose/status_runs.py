@@ -111,12 +111,8 @@ def golden_agreement(data, tracker=TrackerParams()):
     t = result.tracked
     window = max(round(tracker.status_window * frame_rows(data)), 1)
     slots = int(max(result.equations.max(), result.judged.max(), 1))
-    params = StatusParams(slots=slots, window=window,
-                          max_window=1 << max(1, (window - 1).bit_length()),
-                          **{k: getattr(tracker, k) for k in (
-                              "lost_update_fraction", "lost_outlier_fraction",
-                              "degraded_update_fraction", "degraded_outlier_fraction",
-                              "degraded_measurements")})
+    params = StatusParams.for_tracker(tracker, slots=slots, frame_rows=frame_rows(data),
+                                      max_window=1 << max(1, (window - 1).bit_length()))
     flags = golden_to_hardware(result.updated[t], result.condition[t],
                                tracker.degraded_condition)
     rows = list(zip(flags, result.judged[t].tolist(), result.outliers[t].tolist(),
