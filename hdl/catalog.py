@@ -24,6 +24,7 @@ BLOCKS = {
     "pose_solver": "hdl.pose_solver:PoseSolver",
     "forecast": "hdl.pose.forecast:default_forecast",
     "status_unit": "hdl.pose.status_unit:default_status_unit",
+    "row_counter": "hdl.pose.row_counter:default_row_counter",
     "row_descriptor": "hdl.row_descriptor:RowDescriptor",
     "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",
     "measurement_engine": "hdl.measurement.engine:MeasurementEngine",

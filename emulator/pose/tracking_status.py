@@ -35,9 +35,10 @@ import numpy as np
 from golden.checks import check_int
 from hdl.pose.params import PoseFlag
 from hdl.pose.status_params import (DRIFTED_BIT, FRACTION_FMT, MEASUREMENTS_FMT,
-                                    STATUS_SHIFT, StatusParams, TrackingStatus)
+                                    ROW_COUNTS, STATUS_SHIFT, StatusParams, TrackingStatus)
 
-__all__ = ["StatusUnitModel", "row_entry", "row_counts", "annotate", "golden_to_hardware",
+__all__ = ["StatusUnitModel", "row_entry", "measurement_verdicts", "count_rows",
+           "row_counts", "annotate", "golden_to_hardware",
            "hardware_to_golden"]
 
 #: Fields of a history entry (one row), in the order the gateware packs them.
@@ -55,14 +56,32 @@ def row_entry(flags, judged, outliers, confident):
             "outliers": int(outliers), "confident": int(confident) if stepped else 0}
 
 
-def row_counts(conf, verdict):
-    """A row's ``(judged, outliers, confident)`` from the confidences the consistency
-    stage judged (raw, after the far-camera zeroing) and its verdict
-    (:meth:`emulator.measurement.consistency.ConsistencyModel.judge`): measurements with
-    a confidence in, those it replaced as outliers, those with a confidence out."""
-    return (int(np.count_nonzero(np.asarray(conf) > 0)),
-            int(np.count_nonzero(verdict["outlier"])),
-            int(np.count_nonzero(verdict["conf"])))
+def measurement_verdicts(conf, verdict):
+    """The verdict bits of a row's measurements (:func:`hdl.pose.row_counter.verdict_layout`)
+    from the confidences the consistency stage judged (raw, after the far-camera
+    zeroing) and its verdict (:meth:`emulator.measurement.consistency.ConsistencyModel.judge`):
+    a confidence in, replaced as an outlier, a confidence out; ``last`` on the final one."""
+    conf = np.asarray(conf)
+    return [{"judged": int(c > 0), "outliers": int(o), "confident": int(out != 0),
+             "last": int(k == len(conf) - 1)}
+            for k, (c, o, out) in enumerate(zip(conf, verdict["outlier"], verdict["conf"]))]
+
+
+def count_rows(verdicts, slots):
+    """Per-row counts ``(judged, outliers, confident)`` of a run of measurement verdicts,
+    as :class:`hdl.pose.row_counter.RowCounter` sums them (each stops at ``slots``)."""
+    out, counts = [], [0] * len(ROW_COUNTS)
+    for v in verdicts:
+        counts = [min(c + int(v[name]), slots) for c, name in zip(counts, ROW_COUNTS)]
+        if v["last"]:
+            out.append(tuple(counts))
+            counts = [0] * len(ROW_COUNTS)
+    return out
+
+
+def row_counts(conf, verdict, slots):
+    """A row's ``(judged, outliers, confident)`` from the consistency stage's verdict."""
+    return count_rows(measurement_verdicts(conf, verdict), slots)[0]
 
 
 class StatusUnitModel:

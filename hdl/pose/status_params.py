@@ -20,7 +20,7 @@ from hdl.fixed import UQ, Overflow, Rounding
 from hdl.pose.params import PoseFlag, PoseSolverParams, solver_source
 
 __all__ = ["StatusParams", "FRACTION_FMT", "MEASUREMENTS_FMT", "FRACTIONS", "FLAG_BITS",
-           "TRACKER_THRESHOLDS",
+           "TRACKER_THRESHOLDS", "ROW_COUNTS",
            "status_source", "top_status_params", "TrackingStatus", "STATUS_SHIFT",
            "STATUS_BITS", "DRIFTED_BIT"]
 
@@ -39,6 +39,9 @@ FRACTIONS = ("lost_update_fraction", "lost_outlier_fraction", "degraded_update_f
 TRACKER_THRESHOLDS = ("lost_update_fraction", "lost_outlier_fraction",
                       "degraded_update_fraction", "degraded_outlier_fraction",
                       "degraded_measurements")
+#: The per-row counts (the fields of :meth:`StatusParams.row_layout`), each the sum of
+#: one verdict bit per measurement (:mod:`hdl.pose.row_counter`).
+ROW_COUNTS = ("judged", "outliers", "confident")
 #: Width of the annotated flags: the solver's PoseFlag bits, then the status code and
 #: the drifted bit (golden.tracking_status's layout).
 FLAG_BITS = DRIFTED_BIT + 1
@@ -158,8 +161,7 @@ class StatusParams:
         ``outliers`` among them beyond the Huber threshold, ``confident`` measurements
         with a non-zero confidence after the judge (the golden's ``used``)."""
         from amaranth.lib import data
-        return data.StructLayout({name: self.row_count_bits
-                                  for name in ("judged", "outliers", "confident")})
+        return data.StructLayout({name: self.row_count_bits for name in ROW_COUNTS})
 
     def state_layout(self):
         """What the unit shows the PS (register ``status.state``): the latest record's

@@ -54,7 +54,7 @@ class _Recording(ConsistencyModel):
 
     def judge(self, channel, shift, predicted, conf):
         verdict = super().judge(channel, shift, predicted, conf)
-        self.log.append(row_counts(conf, verdict))
+        self.log.append(row_counts(conf, verdict, self.params.solver.slots))
         return verdict
 
 

@@ -111,3 +111,15 @@ def expected(params, records, rows, events=None):
             model.set_settings(**event)
         out.append({**record, "flags": model.update(*row)})
     return out, model.state
+
+
+def random_verdicts(rng, rows, slots):
+    """Measurement verdicts of ``rows`` rows of 1 to ``slots + 3`` measurements (the
+    longer ones make the row counter's counts stop at ``slots``)."""
+    out = []
+    for _ in range(rows):
+        n = int(rng.integers(1, slots + 4))
+        bits = rng.random((n, 3)) < rng.uniform(0.1, 0.9, 3)
+        out += [{"judged": int(j), "outliers": int(o), "confident": int(c),
+                 "last": int(k == n - 1)} for k, (j, o, c) in enumerate(bits)]
+    return out
