@@ -52,7 +52,9 @@ class StatusUnit(wiring.Component):
         (:class:`golden.tracking_status.TrackingStatus`), bit 6 drifted since a loss
         (a loss after the unit first saw a TRACKING row).
     settings : In(params.settings_layout()), reset to ``params.raw_settings()``
-        Registers; a change of ``window`` restarts the history at the next record.
+        Registers, raw: ``window`` (rows, integer), the fractions in ``FRACTION_FMT``
+        UQ(1,16), ``degraded_measurements`` in ``MEASUREMENTS_FMT`` UQ(8,4); a change
+        of ``window`` restarts the history at the next record.
     clear : In(1)
         A one-clock strobe: before the next record, forget the history, the loss latch,
         drifted and the counters.
