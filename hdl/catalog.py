@@ -23,6 +23,8 @@ BLOCKS = {
     "camera_front": "hdl.front_end.camera_sync:CameraFrontEnd",
     "pose_solver": "hdl.pose_solver:PoseSolver",
     "forecast": "hdl.pose.forecast:default_forecast",
+    "status_unit": "hdl.pose.status_unit:default_status_unit",
+    "row_counter": "hdl.pose.row_counter:default_row_counter",
     "row_descriptor": "hdl.row_descriptor:RowDescriptor",
     "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",
     "measurement_engine": "hdl.measurement.engine:MeasurementEngine",

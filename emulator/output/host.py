@@ -5,7 +5,10 @@ sync word, checks the length byte and the CRC, and after any failure moves on by
 byte only, so a corrupted, shortened or cut packet costs that packet and never the
 intact one behind it. Sequence numbers tell packets lost on the wire (a gap beyond the
 ``skipped`` count the hardware reports) from records the hardware dropped because the
-link was slower than the tracker.
+link was slower than the tracker. Each record's flags say whether the tracker can be
+trusted (``status``: tracking, degraded or lost; ``drifted`` since a loss,
+:func:`emulator.output.packets.flag_fields`): the decoder reports both per record and
+counts them, and the live line says when tracking was lost.
 
 :func:`run_host` reads a serial port (pyserial), prints the live pose and rates, and
 writes a CSV log; ``rowtrack host`` is its command line.
@@ -21,13 +24,15 @@ from dataclasses import dataclass
 
 from hdl.output.params import PacketParams
 
-from emulator.output.packets import crc16, decode_payload, pose_to_float
+from golden.tracking_status import TrackingStatus
+
+from emulator.output.packets import crc16, decode_payload, flag_fields, pose_to_float
 
 __all__ = ["LinkStats", "PacketDecoder", "RateMeter", "run_host", "PtyLink", "CSV_COLUMNS"]
 
 #: Columns of the CSV log.
 CSV_COLUMNS = ("host_time", "seq", "skipped", "lost_before", "t_row", "row", "x_m", "y_m",
-               "z_m", "qw", "qx", "qy", "qz", "flags")
+               "z_m", "qw", "qx", "qy", "qz", "flags", "status", "drifted")
 
 
 @dataclass
@@ -41,6 +46,8 @@ class LinkStats:
     fields). ``crc_errors``, ``bad_lengths``: candidate packets rejected. ``discarded``:
     bytes thrown away while resynchronizing. ``seq_errors``: sequence numbers that went
     backwards or repeated (a reset of the hardware, or a false packet).
+    ``degraded``, ``lost``, ``drifted``: records with that status (or flag);
+    ``losses``: records that were lost after one that was not (or the first).
     """
     packets_ok: int = 0
     packets_lost: int = 0
@@ -49,6 +56,10 @@ class LinkStats:
     bad_lengths: int = 0
     discarded: int = 0
     seq_errors: int = 0
+    degraded: int = 0
+    lost: int = 0
+    drifted: int = 0
+    losses: int = 0
 
 
 class PacketDecoder:
@@ -68,13 +79,16 @@ class PacketDecoder:
         self._sync = params.sync.to_bytes(2, "big")
         self._size = params.packet_bytes
         self._last_seq = None
+        self._was_lost = False
         self._borrowed = False              # the buffer starts with a decoded packet's byte
 
     def feed(self, data):
         """Add received bytes; returns the records of the packets they completed.
 
         Each record is a :func:`emulator.output.packets.decode_payload` dict plus
-        ``lost_before``: packets missing from the sequence just before it.
+        ``lost_before``: packets missing from the sequence just before it, ``status``
+        (``"tracking"``, ``"degraded"`` or ``"lost"``) and ``drifted`` (bool) from its
+        flags.
         """
         self._buffer += data
         out = []
@@ -126,7 +140,15 @@ class PacketDecoder:
                 lost = 0
         stats.packets_lost += lost
         self._last_seq = record["seq"]
-        return {**record, "lost_before": lost}
+        fields = flag_fields(record["flags"])
+        status = fields["status"]
+        stats.degraded += status == TrackingStatus.DEGRADED
+        stats.lost += status == TrackingStatus.LOST
+        stats.drifted += fields["drifted"]
+        stats.losses += status == TrackingStatus.LOST and not self._was_lost
+        self._was_lost = status == TrackingStatus.LOST
+        return {**record, "lost_before": lost, "status": status.name.lower(),
+                "drifted": fields["drifted"]}
 
 
 class RateMeter:
@@ -164,9 +186,11 @@ def _status_line(record, stats, link_rate, record_rate, params):
     pos = " ".join(f"{v:+.4f}" for v in position)
     quat = " ".join(f"{v:+.4f}" for v in quaternion)
     hw = f"{record_rate:,.0f} rec/s" if record_rate else "-"
-    return (f"seq {record['seq']:5d} row {record['row']:4d} | pos [{pos}] m | q [{quat}] | "
-            f"link {link_rate:,.0f} pkt/s, hw {hw} | ok {stats.packets_ok} "
-            f"lost {stats.packets_lost} crc {stats.crc_errors} skipped {stats.hw_skipped}")
+    status = record["status"].upper() + (", drifted" if record["drifted"] else "")
+    return (f"seq {record['seq']:5d} row {record['row']:4d} | {status} | pos [{pos}] m | "
+            f"q [{quat}] | link {link_rate:,.0f} pkt/s, hw {hw} | ok {stats.packets_ok} "
+            f"lost {stats.packets_lost} crc {stats.crc_errors} skipped {stats.hw_skipped} "
+            f"| tracking lost {stats.losses}×")
 
 
 def run_host(port, *, baud=3_000_000, csv_path=None, count=None, seconds=None,
@@ -206,7 +230,8 @@ def run_host(port, *, baud=3_000_000, csv_path=None, count=None, seconds=None,
                     writer.writerow([f"{now - start:.6f}", record["seq"], record["skipped"],
                                      record["lost_before"], record["t_row"], record["row"],
                                      *(f"{v:.9f}" for v in position),
-                                     *(f"{v:.6f}" for v in quaternion), record["flags"]])
+                                     *(f"{v:.6f}" for v in quaternion), record["flags"],
+                                     record["status"], int(record["drifted"])])
             if live and window and now - last_print >= 0.2:
                 last_print = now
                 rate = _record_rate(window[0], window[-1], clk_hz, params)

@@ -14,6 +14,7 @@ from amaranth.lib import data
 
 from hdl.front_end.camera_sync import sync_config_layout, sync_status_layout
 from hdl.measurement.engine_params import engine_config_layout, engine_status_layout
+from hdl.pose.status_params import FRACTION_FMT, MEASUREMENTS_FMT, top_status_params
 from hdl.pose_solver import counters_layout
 from hdl.bus.register_map import Access, Register, RegisterGroup, RegisterMap
 
@@ -24,7 +25,7 @@ MAGIC = 0x5257544B
 
 #: Byte offset of each block's group in the window.
 GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "camera": 0x200, "solver": 0x400,
-                 "engine": 0x500}
+                 "engine": 0x500, "status": 0x600}
 
 
 def _package_version():
@@ -180,9 +181,38 @@ def _engine(params):
     ])
 
 
+def _status(params):
+    status = top_status_params(params)
+    return RegisterGroup("status", GROUP_OFFSETS["status"], "Tracking status "
+                         "(`hdl/pose/status_unit.py`, [docs/pose/tracking_status.md]"
+                         "(pose/tracking_status.md)): the rule that sets bits 6:4 of every "
+                         "pose record's flags (see [the packet format](packet_format.md)) "
+                         f"over the last `window` rows (at most {status.max_window}). "
+                         f"Fractions are raw {FRACTION_FMT} (0x10000 = 1), "
+                         f"`degraded_measurements` raw {MEASUREMENTS_FMT}; change them "
+                         "between rows (a new `window` restarts the history). Until "
+                         "`hdl/top.py` places the unit between the solver and the pose "
+                         "output, these registers are not connected (`state` reads 0).", [
+        Register("settings", status.settings_layout(), Access.RW, "window (rows) and "
+                 "thresholds: lost below `lost_update_fraction` of rows solved or above "
+                 "`lost_outlier_fraction` of outlier measurements over a full window; "
+                 "degraded below `degraded_update_fraction`, above "
+                 "`degraded_outlier_fraction`, above `degraded_ill_fraction` of formed "
+                 "rows ILL, no row formed, or below `degraded_measurements` confident "
+                 "measurements per solved row (reset: the golden tracker's, a window of "
+                 f"{status.window} rows)", reset=status.raw_settings()),
+        Register("clear", 1, Access.WO, "write 1 to forget the history, the loss latch, "
+                 "drifted and the counters (before the next row)"),
+        Register("state", status.state_layout(), Access.RO, "the latest row's status and "
+                 "drifted, the loss latch, `acquired` (a row was tracking since reset or "
+                 "clear), `window_error` (`window` 0 or above the largest, taken as 1 or "
+                 "the largest), entries into lost and rows degraded and lost"),
+    ])
+
+
 def rowtrack_map(params):
     """The register map of :class:`hdl.top.RowtrackTop` built with ``params``."""
     regmap = RegisterMap(groups=(_ident(params), _pose_out(params), _camera(params),
-                                 _solver(params), _engine(params)),
+                                 _solver(params), _engine(params), _status(params)),
                          base=params.reg_base, size=params.reg_size)
     return regmap.with_value("ident", "map_crc", regmap.layout_crc())

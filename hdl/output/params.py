@@ -11,16 +11,30 @@ import functools
 from dataclasses import dataclass, replace
 
 from golden.checks import check_int
+from golden.tracking_status import DRIFTED_BIT, STATUS_BITS, STATUS_SHIFT
 
 from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, check_format
 
 __all__ = ["PacketField", "PacketParams", "PoseSource", "PoseOutputParams", "UartParams",
-           "CRC16_POLY", "CRC16_INIT", "FRAME_BITS"]
+           "CRC16_POLY", "CRC16_INIT", "FRAME_BITS", "FLAG_FIELDS", "FLAGS_DOC"]
 
 #: CRC-16/CCITT-FALSE: polynomial x^16 + x^12 + x^5 + 1, initial value 0xFFFF, no
 #: reflection, no final XOR (Python's ``binascii.crc_hqx(data, 0xFFFF)``).
 CRC16_POLY = 0x1021
 CRC16_INIT = 0xFFFF
+
+
+#: The fields of a pose record's (and packet's) flags byte, ``(name, lowest bit, bits)``:
+#: the solver's :class:`hdl.pose.params.PoseFlag` (0: the row was solved), the tracking
+#: status code (:class:`golden.tracking_status.TrackingStatus`: 0 tracking, 1 degraded,
+#: 2 lost, 3 reserved and read as lost) and drifted since a loss
+#: (:mod:`hdl.pose.status_unit`); bit 7 is reserved (0). Zero means a good pose.
+FLAG_FIELDS = (("solver", 0, STATUS_SHIFT), ("status", STATUS_SHIFT, STATUS_BITS),
+               ("drifted", DRIFTED_BIT, 1))
+#: One line on the flags for the packet table.
+FLAGS_DOC = (f"pose flags: bits {STATUS_SHIFT - 1}:0 the solver's PoseFlag (0: solved), "
+             f"{STATUS_SHIFT + STATUS_BITS - 1}:{STATUS_SHIFT} tracking status (0 tracking, "
+             f"1 degraded, 2 lost), {DRIFTED_BIT} drifted since a loss; 0: a good pose")
 
 
 def _check_bits(name, value, multiple_of=8, high=64):
@@ -127,7 +141,7 @@ def _packet_fields(params):
                     f"x, y, z in metres, raw {params.position_fmt}"),
         PacketField("quaternion", params.quaternion_fmt.width, True, 4,
                     f"w, x, y, z, raw {params.quaternion_fmt}"),
-        PacketField("flags", params.flag_bits, False, 1, "pose flags from the tracker"),
+        PacketField("flags", params.flag_bits, False, 1, FLAGS_DOC),
     )
 
 
@@ -172,7 +186,9 @@ class PoseSource:
         time : unsigned(time_bits)
             Of the row's last measurement.
         flags : unsigned(flag_bits)
-            :class:`hdl.pose.params.PoseFlag` (one reason; zero when the row was solved).
+            :class:`hdl.pose.params.PoseFlag` (one reason; zero when the row was solved);
+            after the status unit (``flag_bits`` 7, :func:`hdl.pose.status_params.status_source`)
+            also the tracking status and drifted bits (:data:`FLAG_FIELDS`).
         q : ArrayLayout(quaternion_fmt, 4)
             World-from-body orientation (w, x, y, z) after the row.
         p : ArrayLayout(position_fmt, 3)

@@ -209,7 +209,7 @@ def test_register_map_doc_is_generated_from_the_declaration():
 def test_rowtrack_map_binds_every_block():
     regmap = TopParams().regmap()
     assert [g.name for g in regmap.groups] == ["ident", "pose_out", "camera", "solver",
-                                               "engine"]
+                                               "engine", "status"]
     assert regmap.find("ident", "map_crc").register.value == regmap.layout_crc()
     for group, name in (("pose_out", "control"), ("pose_out", "uart_divisor"),
                         ("camera", "sync"), ("camera", "inputs"), ("solver", "coef"),
