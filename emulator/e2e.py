@@ -1,52 +1,60 @@
-"""Level-2 comparison of the bit-accurate pipeline: its per-row steps against the golden
-tracker's and against ground truth, on the same dataset rows.
+"""Level-1 and level-2 comparison of the hardware path: the bit-accurate emulator's
+closed measurement loop (issue 16) against ground truth, against the golden tracker's
+reference (b) with the same loop delay, and against float64 on its own measurements.
 
-The quantity compared is the one-frame motion ``Y = [T θ]`` of each row slot (the
-pipeline's solved step, :mod:`emulator.pipeline`; ``TrackResult.motion`` of
-:func:`golden.tracker.track`; the exact body-frame step from the pose of the same row
-one frame earlier). The records' integrated poses are compared with ground truth too
-(:func:`pose_errors`): the solver composes each row's step onto the same row's pose one
-frame earlier, so they are poses relative to the first frame's rows.
+The hardware path (:func:`closed_loop`): :meth:`hdl.pipeline_config.PipelineConfig.for_rig`
+with a disparity per temporal segment, :func:`emulator.pipeline.run` closed through the
+configuration's forecast, with the consistency stage and the stereo cue fallback, started
+at the true one-frame motion of the first tracked row (the papers' "first frame given",
+:func:`first_frame_motion`). ``rowtrack run`` and ``rowtrack bench --only hw_tracking``
+both run it through this module.
 
-The hardware scheme (each row against the same row of the previous frame, search
-centre 0) differs from the golden tracker's (forecast window, rows followed), so
-emulator ↔ golden is judged against :func:`scheme_steps`, the hardware's scheme in
-float64, with the tolerances stated below; the golden tracker's accuracy against truth
-is reported, not compared.
+The quantity compared is the one-frame motion ``Y = [T θ]`` of each row (the papers'
+Table 1 quantity). The hardware path's estimate is the forecast filter's level after each
+row's step (``result.loop["level"]``, as golden (b) reports its filter's motion); the
+solver's raw steps are compared beside it. The truth is the exact body-frame step from
+the pose of the same row one frame earlier (:func:`true_steps`); golden (b) is
+:func:`golden_b_params` (``reference="previous"``, ``follow_rows=True``, scalar gain,
+the hardware's loop delay).
+
+Tolerances (:func:`check_closed_loop`, from issue 16's targets): per axis, the filter
+level's RMS against truth at most :data:`GOLDEN_B_RATIO` × golden (b)'s and at most
+:data:`SHARE_OF_MOTION` × the true motion's RMS; at least :data:`SOLVED_FRACTION` of the
+rows of frames ≥ 1 solved; and the fixed-point solver within :data:`FLOAT_TOLERANCE` of a
+float64 solve of the same routed measurements (level 2).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from golden.descriptor import describe, match, strength
 from golden.pose_lsq import UNKNOWNS, ShiftCoefficients, body_step, quat_to_matrix, solve_step
 
-__all__ = ["true_steps", "golden_steps", "float_steps", "agreement", "compare_steps",
-           "pose_errors",
-           "SchemeResult", "scheme_steps", "measurement_agreement", "check_tolerances",
-           "SUBPIXEL_TOLERANCE", "WELL_TEXTURED", "STEP_TOLERANCE"]
+__all__ = ["true_steps", "golden_steps", "golden_poses", "float_steps", "agreement",
+           "pose_errors", "relative_poses", "first_frame_motion", "hardware_config",
+           "golden_b_params", "HardwarePath", "closed_loop", "compare_closed_loop",
+           "check_closed_loop", "GOLDEN_B_RATIO", "SHARE_OF_MOTION", "SOLVED_FRACTION",
+           "FLOAT_TOLERANCE"]
 
-#: The lanes' documented sub-pixel agreement with the float matcher (docs/descriptor/row_descriptor.md).
-SUBPIXEL_TOLERANCE = 1 / 16
-#: A segment is well textured where the float scheme's weight (peak ratio) is at least
-#: this, as in the lanes' own comparison with the golden matcher.
-WELL_TEXTURED = 1.5
-#: Share of well-textured measurements that must agree within SUBPIXEL_TOLERANCE, and the
-#: bound on every one of them (px). Measured on stereo20 640×480, 4 frames: 98.6 %,
-#: worst 0.20 px (paper motion, seed 1); the integer kernel flips a few bits of a
-#: segment and the parabola through the costs moves with them.
-SUBPIXEL_SHARE = 0.97
-SHIFT_BOUND = 0.25
-#: Per-axis RMS bound of emulator − float-scheme steps (m, rad). Measured on the same
-#: run: 5.1e-4 7.2e-4 7.0e-4, 3.6e-4 1.6e-4 2.2e-4; a few weak segments whose integer
-#: argmin differs move single rows by up to 1e-2, so the maximum is reported, not bounded.
-STEP_TOLERANCE = 2e-3
+#: Issue 16's target: per axis, the hardware path's per-row Y RMS against truth at most
+#: this multiple of golden (b)'s with the same loop delay (docs/results/hw_tracking.md
+#: measures 2.2–4.2× on the tracker benchmark's stereo20 sequence: missed today).
+GOLDEN_B_RATIO = 1.5
+#: Per axis, the hardware path's per-row Y RMS against truth at most this share of the
+#: true one-frame motion's RMS (the absolute bound of sim_tests/pose/test_closed_loop.py;
+#: measured there at most 0.11, Ty). An estimate no better than this does not track.
+SHARE_OF_MOTION = 0.2
+#: Issue 16's target: at least this share of the rows of frames ≥ 1 solved.
+SOLVED_FRACTION = 0.95
+#: Level 2: per axis (m, rad), the emulator's solved steps against a float64 solve of the
+#: same routed measurements (:func:`float_steps`): the fixed-point solver's error alone.
+#: Measured in the closed loop: RMS ≤ 7e-8 (stereo20 cut to 32 rows, 3 frames) — see
+#: docs/e2e.md; the solver's exact-shift test holds 1e-6 on the worst row.
+FLOAT_TOLERANCE = 1e-6
 
 #: A row and a golden slot are the same when their times differ by less than this (s):
 #: slot times are recomputed from the row period, so they carry rounding error.
 SLOT_TIME_TOLERANCE = 1e-9
-
 
 def true_steps(dataset, frames, rows, camera=0):
     """Exact one-frame motions (n, 6) at the rows ``(frames, rows)`` of ``camera``;
@@ -61,16 +69,31 @@ def true_steps(dataset, frames, rows, camera=0):
     return out
 
 
-def golden_steps(track_result, dataset, frames, rows, camera=0):
-    """The golden tracker's smoothed one-frame motion (n, 6) of the slot of each row
-    ``(frames, rows)`` of ``camera``; NaN where that slot made no measurement step."""
+def _golden_slots(track_result, dataset, frames, rows, camera=0):
+    """The golden tracker's slot of each row ``(frames, rows)`` of ``camera``."""
     times = dataset.cameras[camera].time[np.asarray(frames), np.asarray(rows)]
     slot = np.searchsorted(track_result.times, times - SLOT_TIME_TOLERANCE)
     slot = np.clip(slot, 0, len(track_result.times) - 1)
     if not np.allclose(track_result.times[slot], times, rtol=0, atol=SLOT_TIME_TOLERANCE):
         raise ValueError("rows do not fall on the golden tracker's slots")
+    return slot
+
+
+def golden_steps(track_result, dataset, frames, rows, camera=0):
+    """The golden tracker's smoothed one-frame motion (n, 6) of the slot of each row
+    ``(frames, rows)`` of ``camera``; NaN where that slot made no measurement step."""
+    slot = _golden_slots(track_result, dataset, frames, rows, camera)
     made_step = track_result.tracked[slot] & track_result.updated[slot]
     return np.where(made_step[:, None], track_result.motion[slot], np.nan)
+
+
+def golden_poses(track_result, dataset, frames, rows, camera=0):
+    """The golden tracker's pose (rotation (n, 3, 3), position (n, 3)) at the slot of
+    each row; NaN where the slot is not tracked."""
+    slot = _golden_slots(track_result, dataset, frames, rows, camera)
+    tracked = track_result.tracked[slot]
+    return (np.where(tracked[:, None, None], track_result.rotations[slot], np.nan),
+            np.where(tracked[:, None], track_result.positions[slot], np.nan))
 
 
 def float_steps(config, rows):
@@ -85,131 +108,23 @@ def float_steps(config, rows):
     return np.where(solution.ok[:, None], solution.step, np.nan)
 
 
-@dataclass(frozen=True)
-class SchemeResult:
-    """The golden counterpart of the hardware scheme, rows ``(frame, row)`` of frames
-    1 … F−1 in (frame, row) order; measurement arrays (n, slots), slot = camera·K + k.
-
-    Members
-    -------
-    frame, row : ndarray (n,)
-    shift, cue, weight : ndarray (n, slots)
-        Float shift (px), disparity cue (px; 0 where unusable) and weight (the peak
-        ratio; 0 where the router would give 0).
-    steps : ndarray (n, 6)
-        :func:`golden.pose_lsq.solve_step` of those measurements; NaN where not solved.
-    """
-    frame: np.ndarray
-    row: np.ndarray
-    shift: np.ndarray
-    cue: np.ndarray
-    weight: np.ndarray
-    steps: np.ndarray
+def _record_poses(config, result):
+    """Frames, rows and the integrated poses (rotation, position) of the records of
+    frames ≥ 1."""
+    solver, records = config.router.solver, result.records
+    use = result.frame > 0
+    q = solver.quat_fmt.to_float(records["q"][use])
+    return (result.frame[use], records["row"][use],
+            quat_to_matrix(q / np.linalg.norm(q, axis=1, keepdims=True)),
+            solver.position_fmt.to_float(records["p"][use]))
 
 
-def _float_bits(pixels, lane):
-    """Float descriptor bits and strong columns of rows ``(..., W)``."""
-    rows = np.asarray(pixels, dtype=np.float64)
-    return describe(rows, lane.descriptor), strength(rows, lane.descriptor)
-
-
-def scheme_steps(config, dataset, frames):
-    """The hardware's measurement scheme in float64: each camera's row ``y`` of frame
-    ``i`` matched by :func:`golden.descriptor.match` against row ``y`` of frame ``i − 1``
-    (centre 0, the lanes' K segments), each pair's disparity by the float stereo match
-    of the same rows, the router's rules for cue and weight, the float coefficient table
-    and :func:`golden.pose_lsq.solve_step`. What the emulator must equal up to its
-    fixed-point arithmetic; frames ``1 … frames − 1``."""
-    router = config.router
-    temporal, stereo = router.temporal, router.stereo
-    height, k = temporal.height, temporal.segments
-    bits, strong = zip(*(_float_bits(dataset.cameras[n].rows[:frames], temporal)
-                         for n in range(router.cameras)))
-    cues = {}
-    for a, b in router.pairs:
-        m = match(bits[a], bits[b], stereo.descriptor, stereo.match, 0, cur_strong=strong[a])
-        usable = (m.peak_ratio > 0) & ~m.edge_hit & (m.shift > 0)
-        cues[a] = np.where(usable, m.shift, np.nan)[1:]             # (F−1, H, K_s)
-    shift, cue, weight = [], [], []
-    for n in range(router.cameras):
-        m = match(bits[n][1:], bits[n][:-1], temporal.descriptor, temporal.match, 0,
-                  cur_strong=strong[n][1:])
-        c = cues[router.pair_of[n]][..., np.arange(k) * stereo.segments // k]
-        usable = np.isfinite(c) & ~m.edge_hit
-        shift.append(m.shift)
-        cue.append(np.where(usable, c, 0.0))
-        weight.append(np.where(usable, m.peak_ratio, 0.0))
-    n_rows = (frames - 1) * height
-
-    def slots(parts):
-        return np.concatenate(parts, axis=-1).reshape(n_rows, -1)
-    shift, cue, weight = slots(shift), slots(cue), slots(weight)
-    frame, row = np.divmod(np.arange(n_rows), height)
-    coefficients = ShiftCoefficients.from_table(config.table[:, row].transpose(1, 0, 2))
-    solution = solve_step(coefficients, cue, shift, weight)
-    return SchemeResult(frame=frame + 1, row=row, shift=shift, cue=cue, weight=weight,
-                        steps=np.where(solution.ok[:, None], solution.step, np.nan))
-
-
-
-def emulator_measurements(config, result):
-    """The emulator's routed shifts (px) and weights (n, slots) of the records of frames
-    ≥ 1, in :class:`SchemeResult` order (slot = column)."""
-    solver, rows = config.router.solver, result.rows
-    records = np.flatnonzero(result.frame > 0)
-    shift = np.zeros((len(records), solver.slots))
-    weight = np.zeros_like(shift)
-    index = np.arange(len(records))[:, None]
-    slot = rows.slot[records]
-    present = rows.present[records]
-    shift[index, slot] = np.where(present, solver.shift_fmt.to_float(rows.shift[records]), 0)
-    weight[index, slot] = np.where(present, solver.conf_fmt.to_float(rows.conf[records]), 0)
-    return shift, weight
-
-
-def measurement_agreement(config, result, scheme):
-    """Emulator ↔ float scheme per measurement: figures (flat dict) and where the worst
-    well-textured difference is, ``(frame, row, camera, segment, difference)``."""
-    if not (np.array_equal(result.frame[result.frame > 0], scheme.frame)
-            and np.array_equal(result.records["row"][result.frame > 0], scheme.row)):
-        raise ValueError("emulator records and the float scheme cover different rows")
-    shift, weight = emulator_measurements(config, result)
-    good = scheme.weight >= WELL_TEXTURED
-    diff = np.abs(shift - scheme.shift)
-    worst = np.unravel_index(np.argmax(np.where(good, diff, -1)), diff.shape)
-    k = config.router.temporal.segments
-    where = (int(scheme.frame[worst[0]]), int(scheme.row[worst[0]]), int(worst[1] // k),
-             int(worst[1] % k), float(diff[worst]))
-    figures = {"well_textured": int(good.sum()),
-               "within_subpixel": float(np.mean(diff[good] <= SUBPIXEL_TOLERANCE))
-               if good.any() else float("nan"),
-               "max_shift_px": float(diff[good].max()) if good.any() else float("nan"),
-               "weight_disagrees": float(np.mean((weight > 0) != (scheme.weight > 0)))}
-    return figures, where
-
-
-def check_tolerances(figures, where):
-    """Failure messages (empty when the emulator meets the stated tolerances) for the
-    figures of :func:`compare_steps` with ``scheme`` and ``where`` from
-    :func:`measurement_agreement`."""
-    failures = []
-    frame, row, camera, segment, worst = where
-    at = f"worst at frame {frame}, row {row}, camera {camera}, segment {segment}: {worst:.3f} px"
-    if not figures["measurement.well_textured"]:
-        failures.append("emulator ↔ golden scheme: no well-textured measurement to compare")
-    elif figures["measurement.within_subpixel"] < SUBPIXEL_SHARE:
-        failures.append(f"emulator ↔ golden scheme: {figures['measurement.within_subpixel']:.1%} "
-                        f"of well-textured shifts within {SUBPIXEL_TOLERANCE} px, below "
-                        f"{SUBPIXEL_SHARE:.0%} ({at})")
-    if figures.get("measurement.max_shift_px", 0) > SHIFT_BOUND:
-        failures.append(f"emulator ↔ golden scheme: a well-textured shift differs by more "
-                        f"than {SHIFT_BOUND} px ({at})")
-    for name in UNKNOWNS:
-        rms = figures[f"emulator_vs_scheme.rms.{name}"]
-        if not rms <= STEP_TOLERANCE:
-            failures.append(f"emulator ↔ golden scheme: step RMS {name} {rms:.3g} exceeds "
-                            f"{STEP_TOLERANCE:g} over {figures['emulator_vs_scheme.rows']} rows")
-    return failures
+def _true_relative(dataset, frames, rows, camera):
+    """The true pose of rows ``(frames, rows)`` relative to the same rows of frame 0."""
+    rec = dataset.cameras[camera]
+    start_r, start_p = rec.rotation[0, rows], rec.position[0, rows]
+    return (np.swapaxes(start_r, -1, -2) @ rec.rotation[frames, rows],
+            np.einsum("nji,nj->ni", start_r, rec.position[frames, rows] - start_p))
 
 
 def pose_errors(config, result, dataset, camera=0):
@@ -221,17 +136,26 @@ def pose_errors(config, result, dataset, camera=0):
     (:func:`emulator.pose_solver.integrate_rows`); so a record of frame ``i``, row ``y``
     is the rig's pose relative to row ``y`` of frame 0. The truth is the same relative
     pose from the dataset, and the error is the body-frame step between the two."""
-    solver, records = config.router.solver, result.records
-    use = result.frame > 0
-    frames, rows = result.frame[use], records["row"][use]
-    rec = dataset.cameras[camera]
-    start_r, start_p = rec.rotation[0, rows], rec.position[0, rows]
-    true_r = np.swapaxes(start_r, -1, -2) @ rec.rotation[frames, rows]
-    true_p = np.einsum("nji,nj->ni", start_r, rec.position[frames, rows] - start_p)
-    q = solver.quat_fmt.to_float(records["q"][use])
-    est_r = quat_to_matrix(q / np.linalg.norm(q, axis=1, keepdims=True))
-    est_p = solver.position_fmt.to_float(records["p"][use])
-    return body_step(true_r, true_p, est_r, est_p)
+    frames, rows, est_r, est_p = _record_poses(config, result)
+    return body_step(*_true_relative(dataset, frames, rows, camera), est_r, est_p)
+
+
+def relative_poses(config, result, dataset, track_result, camera=0):
+    """The trajectory of the records of frames ≥ 1 as poses relative to the same row of
+    frame 0, ``[T θ]`` (n, 6): ``(frames, rows, {"truth", "hardware path", "golden (b)":
+    (n, 6)})``; the hardware's are its records' integrated poses (:func:`pose_errors`),
+    the golden's its poses at the same rows (``track_result``, NaN where untracked)."""
+    frames, rows, est_r, est_p = _record_poses(config, result)
+    identity = np.broadcast_to(np.eye(3), est_r.shape)
+    start_r, start_p = golden_poses(track_result, dataset, np.zeros_like(rows), rows, camera)
+    golden_r, golden_p = golden_poses(track_result, dataset, frames, rows, camera)
+    with np.errstate(invalid="ignore"):
+        golden = body_step(start_r, start_p, golden_r, golden_p)
+    return frames, rows, {
+        "truth": body_step(identity, np.zeros_like(est_p),
+                           *_true_relative(dataset, frames, rows, camera)),
+        "hardware path": body_step(identity, np.zeros_like(est_p), est_r, est_p),
+        "golden (b)": golden}
 
 
 def agreement(steps, reference):
@@ -250,32 +174,165 @@ def agreement(steps, reference):
     return figures
 
 
-def compare_steps(config, result, dataset, track_result, scheme=None):
-    """Step agreement (flat dict of figures, dotted keys): emulator ↔ float64 solution
-    of the same measurements (the fixed-point error alone), emulator ↔ golden tracker,
-    emulator ↔ truth, golden ↔ truth; plus the fraction of rows the emulator solved.
-    With ``scheme`` (:func:`scheme_steps`) also emulator ↔ float scheme, scheme ↔ truth
-    and the per-measurement figures (``measurement.*``)."""
-    frames, rows = result.frame, result.records["row"]
-    emulator = result.steps(config)
-    golden = golden_steps(track_result, dataset, frames, rows)
+def first_frame_motion(dataset, camera=0):
+    """The true one-frame motion of the first tracked row (frame 1, row 0 of ``camera``):
+    the loop's start, the papers' "first frame given". ``ValueError`` when the dataset's
+    ground-truth poses of those rows are missing (not finite)."""
+    if min(len(c.rows) for c in dataset.cameras) < 2:
+        raise ValueError("the hardware path needs at least 2 frames")
+    motion = true_steps(dataset, [1], [0], camera)[0]
+    if not np.all(np.isfinite(motion)):
+        raise ValueError(f"the dataset has no ground-truth pose for row 0 of frames 0 and 1 "
+                         f"(camera {camera}); the hardware path starts from the true motion "
+                         f"of the first tracked row (the papers' first frame given)")
+    return motion
+
+
+def hardware_config(rig):
+    """The pipeline the hardware path runs: :meth:`PipelineConfig.for_rig` with a
+    disparity per temporal segment (``stereo_segments`` = the top's default segments).
+    ``ValueError`` for a rig the pipeline cannot take."""
+    from hdl.pipeline_config import PipelineConfig
+    from hdl.top_params import DEFAULT_SEGMENTS
+    return PipelineConfig.for_rig(rig, stereo_segments=DEFAULT_SEGMENTS)
+
+
+def golden_b_params(loop_delay_rows):
+    """Golden reference (b) with the hardware's loop delay and gain law."""
+    from golden.tracker import TrackerParams
+    return TrackerParams(reference="previous", follow_rows=True, motion_gain="scalar",
+                         loop_delay_rows=loop_delay_rows)
+
+
+@dataclass(frozen=True)
+class HardwarePath:
+    """The hardware path's closed loop on a dataset (:func:`closed_loop`).
+
+    Members
+    -------
+    config : hdl.pipeline_config.PipelineConfig
+    forecast : hdl.pose.forecast_params.ForecastParams
+    result : emulator.pipeline.PipelineResult
+        With its loop history ``result.loop``.
+    """
+    config: object
+    forecast: object
+    result: object
+
+    @property
+    def loop_delay_rows(self):
+        return self.forecast.loop_delay_rows
+
+    def levels(self):
+        """``(frame, row, level)`` of the loop's rows of frames ≥ 1: the forecast
+        filter's level after each row's step (n, 6; m, rad), the hardware path's
+        estimate of the one-frame motion."""
+        loop = self.result.loop
+        scored = loop["frame"] > 0
+        return (loop["frame"][scored], loop["row"][scored],
+                self.forecast.motion_fmt.to_float(loop["level"][scored]))
+
+    def steps(self):
+        """``(frame, row, step)`` of the solver's records of frames ≥ 1: the raw solved
+        steps (n, 6; m, rad), NaN where not solved."""
+        result = self.result
+        later = result.frame > 0
+        return (result.frame[later], result.records["row"][later],
+                result.steps(self.config)[later])
+
+
+def closed_loop(dataset, frames=None, *, config=None, forecast_changes=None,
+                progress=False):
+    """Run the hardware path's closed loop on the first ``frames`` frames of
+    ``dataset`` (default all): :func:`hardware_config` (or ``config``), its forecast
+    (``forecast_changes`` go to :meth:`PipelineConfig.forecast`), the consistency stage,
+    the cue fallback, started at :func:`first_frame_motion`. Returns :class:`HardwarePath`."""
+    from emulator.pipeline import run
+    config = hardware_config(dataset.rig) if config is None else config
+    forecast = config.forecast(**(forecast_changes or {}))
+    result = run(config, dataset, frames, progress=progress, forecast=forecast,
+                 initial_motion=first_frame_motion(dataset),
+                 consistency=config.consistency(), cue_fallback=True)
+    return HardwarePath(config=config, forecast=forecast, result=result)
+
+
+def compare_closed_loop(path, dataset, golden_b, golden=None):
+    """Figures (flat dict, dotted keys, m and rad) of the hardware path ``path``
+    (:class:`HardwarePath`) against truth and against golden (b) (``golden_b``, a
+    :class:`golden.tracker.TrackResult` of :func:`golden_b_params` on ``dataset``), each
+    ``<a>_vs_<b>.{rms,median_abs,max_abs}.<axis>`` over the rows where both are defined:
+
+    ``emulator_vs_truth`` (the filter level), ``emulator_steps_vs_truth`` (the raw solved
+    steps), ``golden_b_vs_truth``, ``emulator_vs_golden_b``, ``true_motion`` (the truth
+    against zero: the motion's own RMS), ``emulator_vs_float`` (level 2: the solver
+    against float64 on the same routed measurements), ``emulator_pose_vs_truth``, with
+    ``golden`` (the default golden tracker) also ``golden_vs_truth``; and
+    ``ratio_to_golden_b.<axis>``, ``share_of_motion.<axis>``, ``solved_fraction`` (rows
+    of frames ≥ 1), ``loop_delay_rows`` and ``loop_delay_clocks`` (rows × row period at
+    the pipeline's clock)."""
+    frames, rows, level = path.levels()
     truth = true_steps(dataset, frames, rows)
-    figures = {"solved_fraction": float(np.mean(result.records["flags"] == 0)),
+    step_frames, step_rows, steps = path.steps()
+    result, config = path.result, path.config
+    t_r = dataset.rig.cameras[0].t_r
+    figures = {"solved_fraction": float(np.mean(np.isfinite(steps[:, 0])))
+               if len(steps) else float("nan"),
+               "loop_delay_rows": path.loop_delay_rows,
+               "loop_delay_clocks": int(round(path.loop_delay_rows * t_r * config.clk_hz)),
                "emulator_rows_per_s": result.rows_per_s}
-    pairs = {"emulator_vs_float": (emulator, float_steps(config, result.rows)),
-             "emulator_vs_golden": (emulator, golden),
-             "emulator_vs_truth": (emulator, truth),
-             "golden_vs_truth": (golden, truth)}
-    if scheme is not None:
-        float_scheme = np.full_like(emulator, np.nan)
-        float_scheme[frames > 0] = scheme.steps
-        pairs.update({"emulator_vs_scheme": (emulator, float_scheme),
-                      "scheme_vs_truth": (float_scheme, truth)})
-        measured, _ = measurement_agreement(config, result, scheme)
-        figures.update({f"measurement.{key}": value for key, value in measured.items()})
+    gold_b = golden_steps(golden_b, dataset, frames, rows)
+    pairs = {"emulator_vs_truth": (level, truth),
+             "emulator_steps_vs_truth": (steps, true_steps(dataset, step_frames, step_rows)),
+             "golden_b_vs_truth": (gold_b, truth),
+             "emulator_vs_golden_b": (level, gold_b),
+             "true_motion": (truth, np.zeros_like(truth)),
+             "emulator_vs_float": (result.steps(config), float_steps(config, result.rows))}
+    if golden is not None:
+        pairs["golden_vs_truth"] = (golden_steps(golden, dataset, frames, rows), truth)
     for name, (a, b) in pairs.items():
         figures.update({f"{name}.{key}": value for key, value in agreement(a, b).items()})
     error = pose_errors(config, result, dataset)
     figures.update({f"emulator_pose_vs_truth.{key}": value
                     for key, value in agreement(error, np.zeros_like(error)).items()})
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for name in UNKNOWNS:
+            rms = figures[f"emulator_vs_truth.rms.{name}"]
+            figures[f"ratio_to_golden_b.{name}"] = rms / figures[f"golden_b_vs_truth.rms.{name}"]
+            figures[f"share_of_motion.{name}"] = rms / figures[f"true_motion.rms.{name}"]
     return figures
+
+
+def _unit(name):
+    return "m" if name.startswith("T") else "rad"
+
+
+def check_closed_loop(figures):
+    """Failure lines (empty when the hardware path meets its tolerances) for the
+    figures of :func:`compare_closed_loop`, one per axis and bound, each with the
+    measured value and the bound."""
+    failures = []
+    solved = figures["solved_fraction"]
+    if not solved >= SOLVED_FRACTION:
+        failures.append(f"hardware path: {solved:.1%} of the rows of frames ≥ 1 solved, "
+                        f"below {SOLVED_FRACTION:.0%}")
+    for name in UNKNOWNS:
+        unit = _unit(name)
+        rms = figures[f"emulator_vs_truth.rms.{name}"]
+        gold = figures[f"golden_b_vs_truth.rms.{name}"]
+        motion = figures[f"true_motion.rms.{name}"]
+        ratio = figures[f"ratio_to_golden_b.{name}"]
+        share = figures[f"share_of_motion.{name}"]
+        if not ratio <= GOLDEN_B_RATIO:
+            failures.append(f"hardware path {name}: per-row Y RMS {rms:.3g} {unit} against "
+                            f"truth is {ratio:.2f} × golden (b)'s {gold:.3g} {unit} (same "
+                            f"loop delay); bound {GOLDEN_B_RATIO} ×")
+        if not share <= SHARE_OF_MOTION:
+            failures.append(f"hardware path {name}: per-row Y RMS {rms:.3g} {unit} against "
+                            f"truth is {share:.2f} of the true motion's RMS {motion:.3g} "
+                            f"{unit}; bound {SHARE_OF_MOTION}")
+        solver = figures[f"emulator_vs_float.rms.{name}"]
+        if not solver <= FLOAT_TOLERANCE:
+            failures.append(f"emulator ↔ float64 solve of its own measurements {name}: step "
+                            f"RMS {solver:.3g} {unit}; bound {FLOAT_TOLERANCE:g} over "
+                            f"{figures['emulator_vs_float.rows']} rows")
+    return failures
