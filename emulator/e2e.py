@@ -89,11 +89,9 @@ def golden_steps(track_result, dataset, frames, rows, camera=0):
 
 def golden_poses(track_result, dataset, frames, rows, camera=0):
     """The golden tracker's pose (rotation (n, 3, 3), position (n, 3)) at the slot of
-    each row; NaN where the slot is not tracked."""
+    each row (on the first frame's slots, the ground truth it was given)."""
     slot = _golden_slots(track_result, dataset, frames, rows, camera)
-    tracked = track_result.tracked[slot]
-    return (np.where(tracked[:, None, None], track_result.rotations[slot], np.nan),
-            np.where(tracked[:, None], track_result.positions[slot], np.nan))
+    return track_result.rotations[slot], track_result.positions[slot]
 
 
 def float_steps(config, rows):
@@ -144,13 +142,12 @@ def relative_poses(config, result, dataset, track_result, camera=0):
     """The trajectory of the records of frames ≥ 1 as poses relative to the same row of
     frame 0, ``[T θ]`` (n, 6): ``(frames, rows, {"truth", "hardware path", "golden (b)":
     (n, 6)})``; the hardware's are its records' integrated poses (:func:`pose_errors`),
-    the golden's its poses at the same rows (``track_result``, NaN where untracked)."""
+    the golden's its poses at the same rows (``track_result``)."""
     frames, rows, est_r, est_p = _record_poses(config, result)
     identity = np.broadcast_to(np.eye(3), est_r.shape)
     start_r, start_p = golden_poses(track_result, dataset, np.zeros_like(rows), rows, camera)
     golden_r, golden_p = golden_poses(track_result, dataset, frames, rows, camera)
-    with np.errstate(invalid="ignore"):
-        golden = body_step(start_r, start_p, golden_r, golden_p)
+    golden = body_step(start_r, start_p, golden_r, golden_p)
     return frames, rows, {
         "truth": body_step(identity, np.zeros_like(est_p),
                            *_true_relative(dataset, frames, rows, camera)),
