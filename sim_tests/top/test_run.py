@@ -430,3 +430,19 @@ def test_a_golden_loss_fails_the_run(outcome):
     assert m["golden.lost_at_ms"] == pytest.approx(
         1000 * (outcome.golden.times[lost_from] - outcome.golden.times[0]))
     assert "status lost" in lost.summary()
+
+
+def test_the_benchmark_scores_the_run_s_closed_loop(outcome):
+    """``rowtrack bench --only hw_tracking`` runs the same function on a dataset and
+    scores the same quantities: its figures equal the run's."""
+    from emulator.benches.hw_tracking import hardware_path
+    bench = hardware_path(outcome.dataset)
+    m = metrics(outcome)
+    assert bench["loop_delay_rows"] == m["loop_delay_rows"]
+    assert bench["solved_fraction"] == m["solved_fraction"]
+    for k, axis in enumerate("xyz"):
+        t, r = UNKNOWNS[k], UNKNOWNS[k + 3]
+        assert bench[f"rms_t_cm.{axis}"] == pytest.approx(100 * m[f"emulator_vs_truth.rms.{t}"])
+        assert bench[f"rms_r_rad.{axis}"] == pytest.approx(m[f"emulator_vs_truth.rms.{r}"])
+        assert bench[f"step_rms_t_cm.{axis}"] == pytest.approx(
+            100 * m[f"emulator_steps_vs_truth.rms.{t}"])
