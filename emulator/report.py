@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from emulator.e2e import FLOAT_TOLERANCE, GOLDEN_B_RATIO, SHARE_OF_MOTION, SOLVED_FRACTION
+from emulator.e2e import (FLOAT_TOLERANCE, GOLDEN_B_RATIO, SHARE_OF_MOTION, SHIFT_BOUND,
+                          SOLVED_FRACTION, SUBPIXEL_SHARE, SUBPIXEL_TOLERANCE, WELL_TEXTURED)
 from golden.metrics import AXES
 from golden.pose_lsq import UNKNOWNS
 from golden.tracking_status import status_summary
@@ -75,6 +76,9 @@ class Outcome:
                  f"emulator vs float64 solve of its own measurements: step RMS "
                  f"{_six(m, 'emulator_vs_float.rms')}; pose vs truth RMS "
                  f"{_six(m, 'emulator_pose_vs_truth.rms')}",
+                 f"lanes vs float matcher on the loop's rows and centres: "
+                 f"{m['lanes.within_subpixel']:.1%} of {m['lanes.well_textured']} "
+                 f"well-textured shifts within 1/16 px, worst {m['lanes.max_shift_px']:.3f} px",
                  f"emulator: {m['emulator_rows_per_s']:.0f} camera rows/s"]
         if self.cosim is None:
             lines.append("HDL co-simulation: " + ("skipped (--cosim-rows 0)"
@@ -151,7 +155,9 @@ def metrics(outcome):
     m.update({"tolerance.golden_b_ratio": GOLDEN_B_RATIO,
               "tolerance.share_of_motion": SHARE_OF_MOTION,
               "tolerance.solved_fraction": SOLVED_FRACTION,
-              "tolerance.float": FLOAT_TOLERANCE})
+              "tolerance.float": FLOAT_TOLERANCE,
+              "tolerance.lanes_within_subpixel": SUBPIXEL_SHARE,
+              "tolerance.lanes_max_shift_px": SHIFT_BOUND})
     m.update({f"wall_s.{k}": v for k, v in outcome.walls.items()})
     m["tolerance_failures"] = len(outcome.failures)
     if cosim is not None:
@@ -311,6 +317,12 @@ def tolerance_section(m):
     rows.append((f"emulator ↔ float64 solve of its own measurements, step RMS per axis "
                  f"(tolerance: ≤ {FLOAT_TOLERANCE:g})",
                  _axes_row(m, "emulator_vs_float.rms", UNKNOWNS)))
+    rows += [(f"lanes ↔ float matcher (same rows, centres and followed rows), "
+              f"well-textured (float peak ratio ≥ {WELL_TEXTURED})", m["lanes.well_textured"]),
+             (f"within {SUBPIXEL_TOLERANCE} px (tolerance: ≥ {SUBPIXEL_SHARE:.0%})",
+              f"{m['lanes.within_subpixel']:.2%}"),
+             (f"largest difference (tolerance: ≤ {SHIFT_BOUND} px)",
+              f"{m['lanes.max_shift_px']:.3f} px ({m.get('lanes.worst_at')})")]
     return table(rows)
 
 

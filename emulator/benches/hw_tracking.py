@@ -46,9 +46,10 @@ def _axes(prefix, t_m, r_rad):
 
 
 def hardware_path(dataset, progress=False):
-    """The emulator's closed loop on ``dataset`` (:func:`emulator.e2e.closed_loop`, the
+    """The emulator's closed loop on ``dataset`` (:func:`emulator.hardware_path.closed_loop`, the
     run's too): figures (unprefixed) and the delay."""
-    from emulator.e2e import closed_loop, true_steps
+    from emulator.e2e import true_steps
+    from emulator.hardware_path import closed_loop
     start = time.perf_counter()
     path = closed_loop(dataset, progress=progress)
     frames, rows, level = path.levels()
@@ -66,7 +67,7 @@ def hardware_path(dataset, progress=False):
 
 def golden_b(dataset, loop_delay_rows):
     """Golden reference (b) with the hardware's delay and gain law: figures (unprefixed)."""
-    from emulator.e2e import golden_b_params
+    from emulator.hardware_path import golden_b_params
     from golden.metrics import evaluate
     from golden.tracker import track
     metrics = evaluate(track(dataset, golden_b_params(loop_delay_rows)), dataset)

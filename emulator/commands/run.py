@@ -1,8 +1,8 @@
 """``rowtrack run``: the main job (what ``make run`` calls).
 
 Simulate a rig and trajectory (or load a dataset), run the hardware path's closed
-measurement loop in the bit-accurate emulator (:func:`emulator.e2e.closed_loop`, the
-first frame given), track the same rows with the golden tracker's reference (b) with the
+measurement loop in the bit-accurate emulator
+(:func:`emulator.hardware_path.closed_loop`, the first frame given), track the same rows with the golden tracker's reference (b) with the
 same loop delay and with its default parameters, judge the hardware path against truth
 and golden (b) (:func:`emulator.e2e.check_closed_loop`), co-simulate a slice of the HDL
 top, and write ``build/report/`` (report.md, PNG plots, metrics.json). Every input is
@@ -141,7 +141,7 @@ def _frames(args, rig, available=None):
 
 
 def _configure(rig):
-    from emulator.e2e import hardware_config
+    from emulator.hardware_path import hardware_config
     try:
         return hardware_config(rig)
     except ValueError as exc:
@@ -187,7 +187,7 @@ def _cosim_slice(args, rig, config, frames):
 
 def _first_frame_given(dataset, path):
     """The hardware path starts from the dataset's true motion of its first tracked row."""
-    from emulator.e2e import first_frame_motion
+    from emulator.hardware_path import first_frame_motion
     try:
         first_frame_motion(dataset)
     except ValueError as exc:
@@ -235,7 +235,7 @@ def run_job(job, progress=True):
     """The long work of a checked :class:`Job`: simulate, run the hardware path's closed
     loop, track with golden (b) (same loop delay) and the default golden tracker, judge,
     co-simulate. Returns :class:`emulator.report.Outcome`."""
-    from emulator import e2e
+    from emulator import e2e, hardware_path
     from emulator.report import Outcome
     from golden.metrics import evaluate
     from golden.scene import default_scene_spec
@@ -251,11 +251,11 @@ def run_job(job, progress=True):
                            job.frames / job.rig.cameras[0].fps, seed=job.seed,
                            progress=progress)
     walls["simulate"] = time.perf_counter() - start
-    hardware = e2e.closed_loop(dataset, job.frames, config=job.config,
+    hardware = hardware_path.closed_loop(dataset, job.frames, config=job.config,
                                forecast_changes=job.forecast_changes, progress=progress)
     walls["emulator"] = hardware.result.seconds
     start = time.perf_counter()
-    golden_b = track(dataset, e2e.golden_b_params(hardware.loop_delay_rows),
+    golden_b = track(dataset, hardware_path.golden_b_params(hardware.loop_delay_rows),
                      progress=progress)
     walls["golden_b"] = time.perf_counter() - start
     start = time.perf_counter()
