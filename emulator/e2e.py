@@ -61,6 +61,7 @@ SHIFT_BOUND = 0.25
 #: slot times are recomputed from the row period, so they carry rounding error.
 SLOT_TIME_TOLERANCE = 1e-9
 
+
 def true_steps(dataset, frames, rows, camera=0):
     """Exact one-frame motions (n, 6) at the rows ``(frames, rows)`` of ``camera``;
     NaN in the first frame (no previous frame)."""
@@ -178,8 +179,9 @@ def agreement(steps, reference):
 
 def compare_closed_loop(path, dataset, golden_b, golden=None):
     """Figures (flat dict, dotted keys, m and rad) of the hardware path ``path``
-    (:class:`HardwarePath`) against truth and against golden (b) (``golden_b``, a
-    :class:`golden.tracker.TrackResult` of :func:`golden_b_params` on ``dataset``), each
+    (:class:`emulator.hardware_path.HardwarePath`) against truth and against golden (b)
+    (``golden_b``, a :class:`golden.tracker.TrackResult` of
+    :func:`emulator.hardware_path.golden_b_params` on ``dataset``), each
     ``<a>_vs_<b>.{rms,median_abs,max_abs}.<axis>`` over the rows where both are defined:
 
     ``emulator_vs_truth`` (the filter level), ``emulator_steps_vs_truth`` (the raw solved
@@ -221,7 +223,8 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     with np.errstate(divide="ignore", invalid="ignore"):
         for name in UNKNOWNS:
             rms = figures[f"emulator_vs_truth.rms.{name}"]
-            figures[f"ratio_to_golden_b.{name}"] = rms / figures[f"golden_b_vs_truth.rms.{name}"]
+            gold = figures[f"golden_b_vs_truth.rms.{name}"]
+            figures[f"ratio_to_golden_b.{name}"] = rms / gold
             figures[f"share_of_motion.{name}"] = rms / figures[f"true_motion.rms.{name}"]
     return figures
 

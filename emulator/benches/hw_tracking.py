@@ -46,8 +46,9 @@ def _axes(prefix, t_m, r_rad):
 
 
 def hardware_path(dataset, progress=False):
-    """The emulator's closed loop on ``dataset`` (:func:`emulator.hardware_path.closed_loop`, the
-    run's too): figures (unprefixed) and the delay."""
+    """The emulator's closed loop on ``dataset``
+    (:func:`emulator.hardware_path.closed_loop`, the run's too): figures (unprefixed) and
+    the delay."""
     from emulator.e2e import true_steps
     from emulator.hardware_path import closed_loop
     start = time.perf_counter()

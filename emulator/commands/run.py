@@ -2,8 +2,9 @@
 
 Simulate a rig and trajectory (or load a dataset), run the hardware path's closed
 measurement loop in the bit-accurate emulator
-(:func:`emulator.hardware_path.closed_loop`, the first frame given), track the same rows with the golden tracker's reference (b) with the
-same loop delay and with its default parameters, judge the hardware path against truth
+(:func:`emulator.hardware_path.closed_loop`, the first frame given), track the same
+rows with the golden tracker's reference (b) with the same loop delay and with its
+default parameters, judge the hardware path against truth
 and golden (b) (:func:`emulator.e2e.check_closed_loop`), co-simulate a slice of the HDL
 top, and write ``build/report/`` (report.md, PNG plots, metrics.json). Every input is
 checked before the long work starts; the exit status is 1 when the hardware path misses
