@@ -251,7 +251,7 @@ def _plots(outcome, out):
     plot_confidence(out / "confidence.png", _ms(outcome.golden_b.times),
                     outcome.golden_b.camera_confidence, step_ms,
                     emulator_camera_confidence(job.config, hardware.result)[
-                        hardware.result.frame > 0])
+                        hardware.result.frame > 0], golden_label="golden (b)")
     return ["trajectory.png", "steps.png", "step_errors.png", "golden_trajectory.png",
             "confidence.png"]
 

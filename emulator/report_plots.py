@@ -55,12 +55,14 @@ def emulator_camera_confidence(config, result):
     return conf.reshape(len(rows), config.router.cameras, -1).max(axis=-1)
 
 
-def plot_confidence(path, golden_ms, golden_conf, emulator_ms, emulator_conf):
-    """Per-camera confidence over time: the golden tracker's best segment confidence and
-    the emulator's largest routed confidence (the solver's weight)."""
+def plot_confidence(path, golden_ms, golden_conf, emulator_ms, emulator_conf,
+                    golden_label="golden tracker"):
+    """Per-camera confidence over time: the golden tracker's (``golden_label``) best
+    segment confidence and the emulator's largest routed confidence (the solver's
+    weight)."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 1, figsize=(13, 7), sharex=True)
-    for ax, ms, conf, title in ((axes[0], golden_ms, golden_conf, "golden tracker: best "
+    for ax, ms, conf, title in ((axes[0], golden_ms, golden_conf, f"{golden_label}: best "
                                  "segment confidence"),
                                 (axes[1], emulator_ms, emulator_conf, "emulator: largest "
                                  "routed confidence (solver weight)")):
