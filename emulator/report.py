@@ -318,7 +318,7 @@ def tolerance_section(m):
                  f"(tolerance: ≤ {FLOAT_TOLERANCE:g})",
                  _axes_row(m, "emulator_vs_float.rms", UNKNOWNS)))
     rows += [(f"lanes ↔ float matcher (same rows, centres and followed rows), "
-              f"well-textured (float peak ratio ≥ {WELL_TEXTURED})", m["lanes.well_textured"]),
+              f"well-textured (float and lane peak ratio ≥ {WELL_TEXTURED})", m["lanes.well_textured"]),
              (f"within {SUBPIXEL_TOLERANCE} px (tolerance: ≥ {SUBPIXEL_SHARE:.0%})",
               f"{m['lanes.within_subpixel']:.2%}"),
              (f"largest difference (tolerance: ≤ {SHIFT_BOUND} px)",
