@@ -434,9 +434,11 @@ def test_a_golden_loss_fails_the_run(outcome):
 
 def test_the_benchmark_scores_the_run_s_closed_loop(outcome):
     """``rowtrack bench --only hw_tracking`` runs the same function on a dataset and
-    scores the same quantities: its figures equal the run's."""
-    from emulator.benches.hw_tracking import hardware_path
+    scores the same quantities: its figures equal the run's, golden (b)'s too (its
+    ``golden.metrics.evaluate`` figures are the run's Y from golden (b)'s trajectory)."""
+    from emulator.benches.hw_tracking import golden_b, hardware_path
     bench = hardware_path(outcome.dataset)
+    bench.update(golden_b(outcome.dataset, bench["loop_delay_rows"]))
     m = metrics(outcome)
     assert bench["loop_delay_rows"] == m["loop_delay_rows"]
     assert bench["solved_fraction"] == m["solved_fraction"]
@@ -446,6 +448,10 @@ def test_the_benchmark_scores_the_run_s_closed_loop(outcome):
         assert bench[f"rms_r_rad.{axis}"] == pytest.approx(m[f"emulator_vs_truth.rms.{r}"])
         assert bench[f"step_rms_t_cm.{axis}"] == pytest.approx(
             100 * m[f"emulator_steps_vs_truth.rms.{t}"])
+        assert bench[f"golden_b_rms_t_cm.{axis}"] == pytest.approx(
+            100 * m[f"golden_b_vs_truth.rms.{t}"], rel=1e-6)
+        assert bench[f"golden_b_rms_r_rad.{axis}"] == pytest.approx(
+            m[f"golden_b_vs_truth.rms.{r}"], rel=1e-6)
 
 
 def test_the_lanes_in_the_loop_equal_the_float_matcher_and_can_fail(outcome):
