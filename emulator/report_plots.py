@@ -1,15 +1,16 @@
 """The PNG plots of ``build/report/`` (:mod:`emulator.report`).
 
 The golden tracker's trajectory against ground truth is the ``rowtrack track`` plot
-(:func:`emulator.commands.track.plot_trajectory`); this module adds the one-frame
-steps of the hardware path and the per-camera confidence.
+(:func:`emulator.commands.track.plot_trajectory`); this module adds the per-axis plots
+of the hardware path against golden (b) and truth (trajectory, per-row one-frame motion,
+its error) and the per-camera confidence.
 """
 
 import numpy as np
 
 from golden.pose_lsq import UNKNOWNS
 
-__all__ = ["plot_steps", "plot_confidence", "emulator_camera_confidence"]
+__all__ = ["plot_axes", "plot_confidence", "emulator_camera_confidence"]
 
 #: Scale and unit per axis: translations in cm, rotations in degrees.
 _UNITS = [(100.0, "cm")] * 3 + [(180 / np.pi, "deg")] * 3
@@ -22,15 +23,18 @@ def _pyplot():
     return plt
 
 
-def plot_steps(path, ms, series, title):
-    """One panel per axis of the (n, 6) step arrays ``series`` (label → array) against
-    ``ms`` (time of each row, ms); NaN rows are gaps."""
+def plot_axes(path, ms, series, title, extra=None):
+    """One panel per axis ``[T θ]`` of the (n, 6) arrays ``series`` (label → array)
+    against ``ms`` (time of each row, ms), and of ``extra`` (label → (ms, array)) rows
+    of their own times; NaN rows are gaps."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(14, 7), sharex=True)
+    every = [(label, ms, values) for label, values in series.items()] + \
+        [(label, *times_values) for label, times_values in (extra or {}).items()]
     for k, (ax, name) in enumerate(zip(axes.ravel(), UNKNOWNS)):
         scale, unit = _UNITS[k]
-        for label, values in series.items():
-            ax.plot(ms, scale * values[:, k], ".", ms=2, label=label)
+        for label, times, values in every:
+            ax.plot(times, scale * values[:, k], ".", ms=2, label=label)
         ax.set_title(f"{name} ({unit})", fontsize=9)
         ax.grid(alpha=0.3)
     for ax in axes[1]:
@@ -51,12 +55,14 @@ def emulator_camera_confidence(config, result):
     return conf.reshape(len(rows), config.router.cameras, -1).max(axis=-1)
 
 
-def plot_confidence(path, golden_ms, golden_conf, emulator_ms, emulator_conf):
-    """Per-camera confidence over time: the golden tracker's best segment confidence and
-    the emulator's largest routed confidence (the solver's weight)."""
+def plot_confidence(path, golden_ms, golden_conf, emulator_ms, emulator_conf,
+                    golden_label="golden tracker"):
+    """Per-camera confidence over time: the golden tracker's (``golden_label``) best
+    segment confidence and the emulator's largest routed confidence (the solver's
+    weight)."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 1, figsize=(13, 7), sharex=True)
-    for ax, ms, conf, title in ((axes[0], golden_ms, golden_conf, "golden tracker: best "
+    for ax, ms, conf, title in ((axes[0], golden_ms, golden_conf, f"{golden_label}: best "
                                  "segment confidence"),
                                 (axes[1], emulator_ms, emulator_conf, "emulator: largest "
                                  "routed confidence (solver weight)")):

@@ -5,8 +5,9 @@ The same run as ``make run`` (stereo20 640×480, four frames of the papers' moti
 ``pose_rate_hz`` and ``latency_us`` at the co-simulation's clock, ``emulator_rows_per_s``,
 ``hdl_cycles_per_s``, ``hdl_rows_per_s`` and their ratio ``speed_ratio`` (camera rows per
 second of the emulator over those of the HDL simulation), and the accuracy figures
-(golden tracker, emulator and the float hardware scheme against truth; emulator against
-the float scheme). ``hdl_cycles_per_s`` and ``speed_ratio`` use the wall time of the
+(the hardware path's closed loop and golden (b) with the same loop delay against truth,
+the default golden tracker; the emulator against float64 on its own measurements).
+``hdl_cycles_per_s`` and ``speed_ratio`` use the wall time of the
 simulation itself (:attr:`emulator.cosim.CosimResult.wall_s`, not the model build).
 """
 
@@ -43,7 +44,7 @@ Rig `{f['rig']}`: {f['cameras']} cameras, {f['rows']} rows, {f['frames']} frames
 
 {accuracy_section(f)}
 
-## Emulator ↔ golden scheme tolerance
+## Hardware path ↔ truth and golden (b): tolerances
 
 {tolerance_section(f)}
 """
