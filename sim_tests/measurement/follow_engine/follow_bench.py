@@ -1,0 +1,87 @@
+"""cocotb bench for the closed-loop ("follow") MeasurementEngine: a small stereo20 slice's
+simulated rows as row sets and the emulator closed loop's forecasts as the ``forecast``
+stream, every solver transfer and the final counters against
+emulator.measurement.engine.run_engine, and (clean forecasts) against the closed loop of
+emulator/pipeline.py itself."""
+
+import os
+import random
+
+import cocotb
+import numpy as np
+from cocotb.triggers import ClockCycles
+
+from emulator.hdl_sim.clocking import reset, start_clock
+from emulator.hdl_sim.cocotb_env import load_params, load_sidecar
+from emulator.hdl_sim.payload import pack, unpack
+from emulator.hdl_sim.streams import StreamSink, StreamSource
+from emulator.measurement.engine import row_set_columns, run_engine
+from golden.dataset import Dataset
+from hdl.measurement.engine_params import engine_config_layout, engine_status_layout
+from hdl.pose_solver import measurement_layout
+
+from sim_tests.measurement.follow_engine.stimulus import (closed_loop, configs,
+                                                          damage_forecast, priming)
+from sim_tests.measurement.measurement_engine.engine_bench import (_indexed, _row_latencies,
+                                                                   _wrapped)
+
+FRAMES = 3
+
+
+@cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"],
+                    forecast=["clean", "damaged"])
+async def follow_engine_matches_model(dut, traffic, forecast):
+    """Three frames of the slice after a priming frame; the forecast stream as the
+    closed loop produced it, or with an older key, a lost, a stale and a malformed row;
+    free-running or random sources (rows and forecasts) and sink."""
+    params = load_params()
+    busy = traffic == "full_rate"
+    rng = random.Random(cocotb.RANDOM_SEED)
+    loop = closed_loop(Dataset.load(os.environ["ROWTRACK_FE_DATASET"]), FRAMES)
+    fc = loop.forecast
+    if forecast == "damaged":
+        fc = damage_forecast(params, fc, np.random.default_rng(cocotb.RANDOM_SEED))
+    # Reset keeps the ring stores' bits: a priming frame sets them as in a fresh model.
+    prime_sets, prime_fc = priming(params, (1 << params.temporal.frame_bits) - 3)
+    skip = len(run_engine(params, prime_sets, configs(params, len(prime_sets)),
+                          prime_fc).transfers)
+    row_sets = prime_sets + loop.row_sets
+    cfg = configs(params, len(row_sets))
+    expected = run_engine(params, row_sets, cfg, prime_fc + fc)
+    if forecast == "clean":     # the model's transfers are the closed loop's
+        assert expected.transfers[skip:] == loop.result.transfers
+
+    clock = start_clock(dut)
+    rows = StreamSource(dut, "rows", params.aligned_layout(), clock, rng=rng,
+                        valid_prob=1.0 if busy else 0.8)
+    forecasts = StreamSource(dut, "forecast", params.forecast_layout(), clock,
+                             rng=random.Random(rng.random()), valid_prob=1.0 if busy else 0.5)
+    sink = StreamSink(dut, "o", measurement_layout(params.router.solver), clock, rng=rng,
+                      ready_prob=1.0 if busy else 0.5)
+    dut.cfg.value = pack(engine_config_layout(params), _indexed(cfg[0]))
+    await reset(dut)
+    feeder = cocotb.start_soon(forecasts.send(prime_fc + fc))
+    columns = [_indexed(c) for s in row_sets for c in row_set_columns(params, s)]
+    await rows.send(columns)
+    await sink.wait_for(len(expected.transfers), timeout_cycles=20 * len(columns) + 5000)
+    await ClockCycles(dut.clk, 500)                       # nothing more may come
+    feeder.kill()
+    got = [payload for _, payload in sink.received]
+    assert len(got) == len(expected.transfers), \
+        f"{len(got)} transfers, model {len(expected.transfers)}"
+    for n, (g, e) in enumerate(zip(got, expected.transfers)):
+        assert g == e, f"transfer {n}: hardware {g} != model {e}"
+    status = unpack(engine_status_layout(params), dut.status.value)
+    assert status == _wrapped(_indexed(expected.status), params.count_bits), \
+        f"status {status} != model {expected.status}"
+    cycles = [c for c, _ in rows.sent]
+    rate = len(cycles) / (cycles[-1] - cycles[0] + 1)
+    dut._log.info(f"{len(got)} transfers ({skip} priming), {len(columns)} columns at "
+                  f"{rate:.3f} columns/clock, status {expected.status}")
+    if busy and forecast == "clean":     # one column per clock, the forecast never late
+        assert cycles == list(range(cycles[0], cycles[0] + len(cycles))), \
+            f"the engine stalled its input: {rate:.3f} columns per clock"
+        latency = _row_latencies(rows.sent, sink.received)
+        dut._log.info(f"latency from a set's last column to its first transfer: "
+                      f"{min(latency)} to {max(latency)} clocks")
+        assert set(latency) == {load_sidecar()["latency"]}, "latency differs from the block's"
