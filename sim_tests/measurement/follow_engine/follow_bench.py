@@ -48,8 +48,12 @@ async def follow_engine_matches_model(dut, traffic, forecast):
     row_sets = prime_sets + loop.row_sets
     cfg = configs(params, len(row_sets))
     expected = run_engine(params, row_sets, cfg, prime_fc + fc)
-    if forecast == "clean":     # the model's transfers are the closed loop's
-        assert expected.transfers[skip:] == loop.result.transfers
+    if forecast == "clean":
+        # the model's transfers are the closed loop's, from the first frame with a
+        # reference (before it, the shifts of reference-less rows depend on the ring's
+        # bits, which the priming frame set and a fresh pipeline has at zero)
+        frame = params.temporal.height * params.router.solver.slots
+        assert expected.transfers[skip + frame:] == loop.result.transfers[frame:]
 
     clock = start_clock(dut)
     rows = StreamSource(dut, "rows", params.aligned_layout(), clock, rng=rng,
@@ -70,7 +74,8 @@ async def follow_engine_matches_model(dut, traffic, forecast):
     assert len(got) == len(expected.transfers), \
         f"{len(got)} transfers, model {len(expected.transfers)}"
     for n, (g, e) in enumerate(zip(got, expected.transfers)):
-        assert g == e, f"transfer {n}: hardware {g} != model {e}"
+        # the priming frame's rows meet what an earlier test left in the ring stores
+        assert n < skip or g == e, f"transfer {n}: hardware {g} != model {e}"
     status = unpack(engine_status_layout(params), dut.status.value)
     assert status == _wrapped(_indexed(expected.status), params.count_bits), \
         f"status {status} != model {expected.status}"
