@@ -54,12 +54,14 @@ def _ticks(dataset, camera, frame, row, config, t0):
     return ticks % (1 << lane.timestamp_bits)
 
 
-def row_sets(config, dataset, frames):
+def row_sets(config, dataset, frames, frame0=0):
     """Every row of the first ``frames`` frames as a row set, as the pipeline frames
-    them (frame numbers from 0, its time stamps)."""
+    them (its time stamps; frame numbers from ``frame0``, the pipeline's 0: only the
+    ring stores' tags see the numbers, and they compare them with each other)."""
     lane = config.router.temporal
     t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
-    return [{k: row_beats(cam.rows[f, y], camera=k, frame=f % (1 << lane.frame_bits), row=y,
+    return [{k: row_beats(cam.rows[f, y], camera=k,
+                          frame=(frame0 + f) % (1 << lane.frame_bits), row=y,
                           t_first=_ticks(dataset, k, f, y, config, t0))
              for k, cam in enumerate(dataset.cameras)}
             for f in range(frames) for y in range(lane.height)]
@@ -76,15 +78,16 @@ def forecast_transfers(loop):
     return out
 
 
-def closed_loop(dataset, frames):
+def closed_loop(dataset, frames, frame0=0):
     """The emulator's closed loop (no consistency stage: the engine's output is the
-    router's) on ``frames`` frames of ``dataset``, with its row sets and forecasts."""
+    router's) on ``frames`` frames of ``dataset``, with its row sets (numbered from
+    ``frame0``) and forecasts."""
     config, params = follow_config(dataset.rig)
     result = run(config, dataset, frames, forecast=config.forecast(loop_delay_rows=1),
                  initial_motion=true_steps(dataset, [1], [0])[0], consistency=None,
                  cue_fallback=True)
     return Loop(config=config, params=params, result=result,
-                row_sets=row_sets(config, dataset, frames),
+                row_sets=row_sets(config, dataset, frames, frame0),
                 forecast=forecast_transfers(result.loop))
 
 
