@@ -124,14 +124,15 @@ class MeasurementEngine(wiring.Component):
         """Clocks from a row set's last column to its row's first solver transfer when
         nothing stalls: the register slice on ``rows``, the later of the lanes' last
         measurements (temporal segment K − 1; stereo segment K_s − 1 after the stereo
-        lanes' input slices), then the router,
-        whose count from a ticket includes the clock a measurement takes into its lane
-        FIFO."""
+        lanes' input slices), then the router, whose count from a ticket includes the
+        clock a measurement takes into its lane FIFO and the K_s clocks that take the
+        stereo measurements, all but the last overlapping their arrival (66 clocks with
+        K_s = 1, 67 with K_s = 2 on 256-pixel rows, measured in the cocotb benches)."""
         t, s = self.params.temporal, self.params.stereo
         lanes = max(self.temporal_lanes[0].latency + t.segments - 1,
                     self.stereo_slices[0][0].latency + self.stereo_lanes[0].latency
                     + s.segments - 1)
-        return self.rows_slice.latency + lanes + self.router.latency - 1
+        return self.rows_slice.latency + lanes + self.router.latency - s.segments
 
     def elaborate(self, platform):
         m = Module()

@@ -124,7 +124,7 @@ def test_parameter_checks():
 
 
 def closed_loop_row_sets(params):
-    return priming(params, 0)[0][:1]
+    return priming(params, 8)[0][:1]
 
 
 def test_ports_follow_the_option():

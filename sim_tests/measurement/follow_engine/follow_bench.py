@@ -38,17 +38,17 @@ async def follow_engine_matches_model(dut, traffic, forecast):
     params = load_params()
     busy = traffic == "full_rate"
     rng = random.Random(cocotb.RANDOM_SEED)
-    # Reset keeps the ring stores' bits and tags: each case numbers its frames apart, so
-    # a slot a dropped set leaves unwritten holds no earlier case's tag that matches, and
-    # starts with a priming frame that sets the bits its first frame reads as in a
-    # fresh model.
+    # Reset keeps the ring stores' bits and tags: each case numbers its frames apart (no
+    # earlier case's tag matches) and starts with priming frames that write every ring
+    # slot, so the bits a reference-less row reads (also where a dropped set left its
+    # slot unwritten) are the fresh model's.
     case = 2 * TRAFFIC.index(traffic) + FORECAST.index(forecast)
     frame0 = (4096 * case + 8) % (1 << params.temporal.frame_bits)
     loop = closed_loop(Dataset.load(os.environ["ROWTRACK_FE_DATASET"]), FRAMES, frame0)
     fc = loop.forecast
     if forecast == "damaged":
         fc = damage_forecast(params, fc, np.random.default_rng(cocotb.RANDOM_SEED))
-    prime_sets, prime_fc = priming(params, frame0 - 3)
+    prime_sets, prime_fc = priming(params, frame0)
     skip = len(run_engine(params, prime_sets, configs(params, len(prime_sets)),
                           prime_fc).transfers)
     row_sets = prime_sets + loop.row_sets

@@ -96,15 +96,22 @@ def configs(params, n, enable=1):
     return [{"stereo": [0] * len(params.pairs), "enable": enable}] * n
 
 
-def priming(params, frame):
-    """A frame of black rows numbered ``frame`` with forecasts centre 0, source = row:
-    it sets every lane's ring store (which reset keeps) as in a fresh model."""
-    black = np.zeros(params.temporal.width, dtype=np.uint8)
-    sets = [{k: row_beats(black, camera=k, frame=frame, row=y) for k in range(params.cameras)}
-            for y in range(params.temporal.height)]
-    forecast = [{"camera": k, "centre": 0, "source_row": y, "row": y,
-                 "last": int(k == params.cameras - 1)}
-                for y in range(params.temporal.height) for k in range(params.cameras)]
+def priming(params, frame0):
+    """Frames of black rows, enough to write every slot of the lanes' ring stores (which
+    reset keeps), numbered up to ``frame0 − 2`` (no reference for frame ``frame0``),
+    with forecasts centre 0, source = row: ``(row sets, forecast transfers)`` that set
+    the rings' bits as in a fresh model."""
+    lane = params.temporal
+    frames = -(-lane.ring_rows // lane.height)
+    black = np.zeros(lane.width, dtype=np.uint8)
+    sets, forecast = [], []
+    for f in range(frames):
+        frame = (frame0 - 1 - frames + f) % (1 << lane.frame_bits)
+        for y in range(lane.height):
+            sets.append({k: row_beats(black, camera=k, frame=frame, row=y)
+                         for k in range(params.cameras)})
+            forecast += [{"camera": k, "centre": 0, "source_row": y, "row": y,
+                          "last": int(k == params.cameras - 1)} for k in range(params.cameras)]
     return sets, forecast
 
 
