@@ -38,4 +38,4 @@ def test_follow_engine_verilator(dataset_path):
 
 def test_follow_engine_icarus(dataset_path):
     _run("icarus", dataset_path,
-         testcase=["follow_engine_matches_model/traffic=1/forecast=1"])
+         testcase=["follow_engine_matches_model/traffic=1/forecast=damaged"])
