@@ -45,7 +45,7 @@ from hdl.measurement.row_set_fork import RowSetFork
 from hdl.register_slice import RegisterSlice
 
 __all__ = ["EngineParams", "MeasurementEngine", "default_engine_params", "engine_config_layout",
-           "engine_status_layout"]
+           "engine_status_layout", "default_follow_engine"]
 
 
 def default_engine_params():
@@ -53,6 +53,16 @@ def default_engine_params():
     camera = CameraParams(n_cameras=4)
     solver = PoseSolverParams(slots=16, rows=camera.max_height)
     return EngineParams.for_cameras(camera, solver, ((0, 1), (2, 3)))
+
+
+def default_follow_engine():
+    """The closed-loop engine of one 640×480 stereo pair: K = 4 temporal segments, K_s =
+    4 stereo segments, following lanes, the router's cue fallback (the catalog's
+    ``follow_engine``, a small build for its resources)."""
+    camera = CameraParams(n_cameras=2)
+    solver = PoseSolverParams(slots=8, rows=camera.max_height)
+    return MeasurementEngine(EngineParams.for_cameras(
+        camera, solver, ((0, 1),), stereo_segments=4, follow=True, cue_fallback=True))
 
 
 class MeasurementEngine(wiring.Component):

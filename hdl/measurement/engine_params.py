@@ -65,6 +65,10 @@ class EngineParams:
         check_int("count_bits", self.count_bits, 1, 32)
         if not isinstance(self.follow, bool):
             raise TypeError(f"follow must be a bool, not {self.follow!r}")
+        if self.follow and self.router.temporal.radius < 3:
+            raise ValueError(f"follow needs router.temporal.radius at least 3 (the ring "
+                             f"store computes its addresses meanwhile), not "
+                             f"{self.router.temporal.radius}")
         t, s = self.router.temporal, self.router.stereo
         for name in _BEAT_FIELDS:
             if getattr(t, name) != getattr(s, name):

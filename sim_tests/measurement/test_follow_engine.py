@@ -115,6 +115,11 @@ def test_parameter_checks():
     params = closed_loop_params()
     with pytest.raises(TypeError, match="follow must be a bool, not 1"):
         params.replace(follow=1)
+    narrow = replace(params.temporal, descriptor=replace(params.temporal.descriptor, sigma=0.6))
+    with pytest.raises(ValueError, match="follow needs router.temporal.radius at least 3 "
+                                         r"\(the ring store computes its addresses "
+                                         r"meanwhile\), not 2"):
+        params.replace(router=replace(params.router, temporal=narrow))
     with pytest.raises(ValueError, match="params.follow must be True for a forecast input"):
         ForecastRows(params.replace(follow=False))
     with pytest.raises(ValueError, match="forecast must be given exactly when params.follow"):
