@@ -32,13 +32,9 @@ def loop():
 
 
 def _rows(transfers):
-    rows, current = [], []
-    for t in transfers:
-        current.append(t)
-        if t["last"]:
-            rows.append(current)
-            current = []
-    return rows
+    """The transfers split after each ``last``."""
+    ends = [n + 1 for n, t in enumerate(transfers) if t["last"]]
+    return [transfers[a:b] for a, b in zip([0] + ends, ends)]
 
 
 def test_model_equals_the_closed_loop(loop):
