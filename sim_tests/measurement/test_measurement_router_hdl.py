@@ -100,6 +100,26 @@ def test_random_streams_bit_exact(gaps):
     assert any(t["conf"] == 0 for t in want) and any(t["conf"] for t in want)
 
 
+@pytest.mark.parametrize("gaps", [False, True])
+def test_cue_fallback_bit_exact(gaps):
+    """With the cue store: failed stereo segments take the row's last usable cue; the
+    store's sweep after reset delays the first ticket, nothing else."""
+    print(f"SEED={SEED}")
+    params = dataclasses.replace(PARAMS, cue_fallback=True)
+    rng = np.random.default_rng(SEED + 1)
+    tickets, temporal, stereo = synthetic(params, rng, 80)
+    want, want_status = expected(params, tickets, temporal, stereo)
+    without, _ = expected(PARAMS, tickets, temporal, stereo)
+    lent = sum(w["conf"] != o["conf"] or w["cue"] != o["cue"] for w, o in zip(want, without))
+    print(f"{lent} of {len(want)} transfers take a stored cue")
+    assert lent > 0
+    got = simulate(params, tickets, temporal, stereo, seed=SEED, gaps=gaps)
+    assert len(got["transfers"]) == len(want)
+    for n, (g, w) in enumerate(zip(got["transfers"], want)):
+        assert g == w, f"transfer {n}: hardware {g}, model {w}"
+    assert got["status"] == want_status
+
+
 def test_latency_and_throughput():
     """Measurements buffered before the tickets: the first transfer ``latency`` clocks
     after the first ticket, one per clock within a row, ``latency − 1`` from a row's
@@ -138,6 +158,11 @@ def test_parameter_checks(changes, error, message):
     test_pipeline_router.py)."""
     with pytest.raises(error, match=message):
         dataclasses.replace(PARAMS, **changes)
+
+
+def test_cue_fallback_must_be_a_bool():
+    with pytest.raises(TypeError, match="cue_fallback must be a bool, not 1"):
+        dataclasses.replace(PARAMS, cue_fallback=1)
 
 
 def test_component_rejects_other_params():
