@@ -23,12 +23,10 @@ from golden.rig import preset
 from golden.scene import default_scene_spec
 from golden.simulator import simulate
 from golden.trajectory import make_trajectory
-from hdl.measurement.consistency import (COUNTS, ConsistencyStage,
-                                         forecast_layout)
+from hdl.measurement.consistency import COUNTS, ConsistencyStage, judge_layout
 from hdl.pipeline_config import PipelineConfig
-from hdl.pose.accumulator import measurement_layout
 from sim_tests.measurement.consistency.stimulus import (LARGE, SMALL, check_against_model,
-                                                       random_rows)
+                                                       judge_inputs, random_rows)
 
 SEED = int(os.environ.get("SEED", "1"))
 FIELDS = ("slot", "row", "time", "shift", "cue", "conf", "last")
@@ -41,7 +39,7 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
     dut = ConsistencyStage(params, bits_per_clock=bits_per_clock)
     rng = random.Random(seed)
     prob = 0.6 if gaps else 1.0
-    layout, fc_layout = measurement_layout(params.solver), forecast_layout(params)
+    layout = judge_layout(params)
     count = sum(len(t) for t, _, _ in rows)
     out = {"transfers": [], "gated": [], "in_cycles": [], "out_cycles": []}
     clock = Signal(32)                  # the sink's clock count, for the sources' records
@@ -80,13 +78,8 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
-    flat = [t for transfers, _, _ in rows for t in transfers]
-    forecasts = [{"predicted": dict(enumerate(map(int, pr))),
-                  "delta": dict(enumerate(map(int, de)))} for _, pr, de in rows]
-    sim.add_testbench(source(dut.i, layout, flat, random.Random(rng.random()),
-                             out["in_cycles"]), background=True)
-    sim.add_testbench(source(dut.forecast, fc_layout, forecasts, random.Random(rng.random())),
-                      background=True)
+    sim.add_testbench(source(dut.i, layout, judge_inputs(params, rows),
+                             random.Random(rng.random()), out["in_cycles"]), background=True)
     sim.add_testbench(sink)
     sim.run()
     return out

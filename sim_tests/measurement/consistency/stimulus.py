@@ -41,6 +41,14 @@ def check_against_model(params, rows, got):
     return model
 
 
+def judge_inputs(params, rows):
+    """The stage's input transfers of rows ``(transfers, predicted, delta)``: each
+    transfer with its slot's ``predicted`` shift and its camera's ``delta``."""
+    return [{**t, "predicted": int(predicted[t["slot"]]),
+             "delta": int(delta[t["slot"] // params.segments])}
+            for transfers, predicted, delta in rows for t in transfers]
+
+
 def random_rows(params, rng, count):
     """Rows of distinct slots in slot order, every field over its format's range (and
     beyond for the offsets: far cameras), confidences often 0 or the largest."""
