@@ -19,7 +19,7 @@ import numpy as np
 from hdl.fixed import SQ
 from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import PoseFlag, PoseSolverParams
-from emulator.pose.forecast import ForecastModel
+from emulator.pose.forecast import ForecastModel, output_transfers
 
 __all__ = ["random_case", "closed_loop_case", "expected_outputs", "record", "saturations",
            "CACHE"]
@@ -38,17 +38,10 @@ def expected_outputs(params, coefficients, row_coefficients, initial, requests, 
     """Per request, the per-camera outputs and Ŷ of the model in its order (predict the
     row, then take its record)."""
     model = ForecastModel(params, coefficients, row_coefficients, initial)
-    k = params.segments
     outputs, motions = [], []
     for request, rec in zip(requests, records):
         out = model.predict(request["slot"], request["row"], np.array(request["cue"]))
-        outputs.append([{
-            "camera": c, "centre": int(out["centre"][c]), "source_row": int(out["source_row"][c]),
-            "centre_saturated": int(out["centre_saturated"][c]),
-            "row_saturated": int(out["row_saturated"][c]),
-            "shift_saturated": _bits(out["shift_saturated"][c * k:(c + 1) * k]),
-            "across_saturated": _bits(out["across_saturated"][c * k:(c + 1) * k]),
-            "last": int(c == params.cameras - 1)} for c in range(params.cameras)])
+        outputs.append(output_transfers(params, out, request["row"]))
         motions.append([int(v) for v in out["motion"]])
         model.take(request["slot"], np.array(rec["step"]) if rec["flags"] == 0 else None)
     return outputs, motions
@@ -60,10 +53,6 @@ def saturations(outputs):
             "row": sum(o["row_saturated"] for o in outputs),
             "segment": sum(bin(o["shift_saturated"]).count("1")
                            + bin(o["across_saturated"]).count("1") for o in outputs)}
-
-
-def _bits(flags):
-    return sum(int(bool(f)) << n for n, f in enumerate(flags))
 
 
 def _finish(case):
