@@ -100,6 +100,11 @@ class RowPredictor(wiring.Component):
     idle : Out(1)
     o : Out(stream.Signature(output_layout(params)))
     counters : Out(counters_layout(params))
+    coef_addr : In(range(slots · rows)); coef_data : Out(ArrayLayout(signed, 9))
+        With ``shared_port``: a second read port of the solver's store (the shift along
+        the row), entry ``slot · rows + row``, data one clock after the address (the
+        block RAM's second port: :class:`hdl.pose.measured_shift.MeasuredShift` reads
+        it).
 
     Timing: a camera takes ``6K`` issue clocks, its result appears :attr:`drain` clocks
     after its last term, and the next camera starts the clock after its transfer
@@ -110,7 +115,7 @@ class RowPredictor(wiring.Component):
     #: a, a × Ŷ, exact sum, rounding and camera sum, mean and saturation.
     drain = 7
 
-    def __init__(self, params, coefficients, row_coefficients):
+    def __init__(self, params, coefficients, row_coefficients, *, shared_port=False):
         if not isinstance(params, ForecastParams):
             raise TypeError(f"params must be a ForecastParams, not {params!r}")
         k = params.segments
@@ -121,7 +126,12 @@ class RowPredictor(wiring.Component):
         self.stores = (check_store("coefficients", params.solver, coefficients),
                        check_store("row_coefficients", params.row_store, row_coefficients))
         s = params.solver
+        self.shared_port = shared_port
+        shared = {"coef_addr": In(range(s.slots * s.rows)),
+                  "coef_data": Out(data.ArrayLayout(signed(s.coef_width), 9))} \
+            if shared_port else {}
         super().__init__({
+            **shared,
             "start": In(1), "row": In(s.row_bits),
             "cue": In(data.ArrayLayout(s.cue_fmt.shape(), s.slots)),
             "motion": In(data.ArrayLayout(params.motion_fmt.shape(), 6)),
@@ -220,6 +230,9 @@ class RowPredictor(wiring.Component):
         m.submodules[f"store{lane}"] = memory
         read = memory.read_port()
         m.d.comb += read.addr.eq(addr)
+        if lane == 0 and self.shared_port:
+            second = memory.read_port()
+            m.d.comb += [second.addr.eq(self.coef_addr), self.coef_data.eq(second.data)]
         value, over = displacement_terms(m, p, store, read.data, tags, cue1, y2, f"{lane}")
         dst = p.displacement_fmt
         shift = (k - 1).bit_length()
