@@ -39,7 +39,8 @@ def run_loop(case, *, seed, gaps, limit=400000):
     rng = random.Random(seed)
     prob = 0.6 if gaps else 1.0
     want_out = sum(len(e) for e in case["expected"])
-    got = {"o": [], "records": [], "inputs": [], "counts": None}
+    got = {"o": [], "records": [], "inputs": [], "lasts": [], "requests": [], "counts": None}
+    requests = dut._requests.o
 
     async def bench(ctx):
         ctx.set(dut.initial, [int(v) for v in case["initial"]])
@@ -56,9 +57,11 @@ def run_loop(case, *, seed, gaps, limit=400000):
             ready = rng.random() < prob
             ctx.set(dut.o.ready, ready)
             if valid and ctx.get(dut.i.ready):
-                queue.pop(0)
                 got["inputs"].append(cycle)
+                got["lasts"] += [cycle] if queue.pop(0)["last"] else []
                 valid = False
+            if ctx.get(requests.valid) and ctx.get(requests.ready):
+                got["requests"].append(cycle)
             if ready and ctx.get(dut.o.valid):
                 payload = ctx.get(dut.o.payload)
                 got["o"].append((cycle, {n: getattr(payload, n) for n in OUT_FIELDS}))
@@ -110,3 +113,34 @@ def test_small_closed_loop_bit_exact(gaps):
     print(f"{len(got['o'])} forecast transfers, {len(flags)} records "
           f"({flags.count(0)} solved) bit-exact; counts {got['counts']}")
     assert flags.count(0) > 0 and case["counts"]["gated_rows"] > 0
+
+
+def test_loop_latency():
+    """At full rate: clocks from a request's transfer to its first forecast transfer
+    (the forecast's ``latency`` whenever it was idle), from a row's last measurement to
+    its record, and from a record to the first forecast transfer of the row that waited
+    for it (``loop_delay_rows + 1`` rows later)."""
+    case = closed_loop_case(rows=8, frames=3)
+    dut, got = run_loop(case, seed=SEED, gaps=False)
+    check(case, got)
+    p = case["params"]
+    cams, delay = p.cameras, p.loop_delay_rows
+    firsts = [c for c, _ in got["o"][::cams]]
+    lasts = [c for c, _ in got["o"][cams - 1::cams]]
+    starts = got["requests"][:len(firsts)]
+    idle = [n for n in range(len(starts)) if n == 0 or lasts[n - 1] < starts[n]]
+    request_to_out = sorted({firsts[n] - starts[n] for n in idle})
+    records = [c for c, _ in got["records"]]
+    measure_to_record = [r - m for m, r in zip(got["lasts"], records)]
+    waited = [n for n in range(delay + 1, len(firsts))
+              if starts[n] > max(records[n - delay - 1], lasts[n - 1])]
+    record_to_out = [firsts[n] - records[n - delay - 1] for n in waited]
+    solver = dut._solver
+    print(f"request → first forecast transfer: {request_to_out} clocks "
+          f"(forecast latency {dut._forecast.latency}, row {dut._forecast.row_clocks}); "
+          f"last measurement → record: {min(measure_to_record)}…{max(measure_to_record)} "
+          f"(solver latency {solver.latency}, stage {dut._stage.latency}, shift "
+          f"{dut._shift.latency}); record → forecast of the row that waited: "
+          f"{sorted(set(record_to_out))}; rows {len(firsts)} in {firsts[-1]} clocks")
+    assert request_to_out == [dut._forecast.latency]
+    assert waited and min(measure_to_record) >= solver.latency
