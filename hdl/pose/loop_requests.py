@@ -54,7 +54,11 @@ class RequestGenerator(wiring.Component):
     frame_rows : In(unsigned(slot_bits)), reset ``frame_rows``
         Row periods per frame period, at least ``height``; change it with ``restart``.
     restart : In(1)
-        The next request is row 0 of slot 0 (the store keeps its contents).
+        The next request is row 0 of slot 0, the store is cleared (the model's
+        construction).
+
+    After reset or ``restart`` the store is cleared first, one word per clock (``height``
+    clocks); requests wait for it (block RAM contents survive a reset).
     """
 
     def __init__(self, params, frame_rows, *, slot_bits=DEFAULT_SLOT_BITS):
@@ -83,22 +87,30 @@ class RequestGenerator(wiring.Component):
         m.submodules.cues = store = Memory(
             shape=data.ArrayLayout(s.cue_fmt.shape(), s.slots), depth=p.height, init=[])
         read, write = store.read_port(), store.write_port(granularity=1)
-        m.d.comb += [write.addr.eq(self.write_row),
-                     write.en.eq(Mux(self.write_en, 1 << self.write_slot, 0)),
-                     *[write.data[k].eq(self.write_cue) for k in range(s.slots)]]
+        clearing, clear_addr = Signal(init=1), Signal(range(p.height))
+        with m.If(clearing):
+            m.d.comb += [write.addr.eq(clear_addr), write.en.eq((1 << s.slots) - 1)]
+            m.d.sync += clear_addr.eq(clear_addr + 1)
+            with m.If(clear_addr == p.height - 1):
+                m.d.sync += [clearing.eq(0), clear_addr.eq(0)]
+        with m.Else():
+            m.d.comb += [write.addr.eq(self.write_row),
+                         write.en.eq(Mux(self.write_en, 1 << self.write_slot, 0)),
+                         *[write.data[k].eq(self.write_cue) for k in range(s.slots)]]
 
         row, slot = Signal(range(p.height)), Signal(self.slot_bits)
-        fetch = Signal(init=1)           # read the row's cues in this clock
-        m.d.comb += [read.addr.eq(row), read.en.eq(fetch),
+        fetch = Signal()                 # read the row's cues in this clock
+        m.d.comb += [fetch.eq(~clearing & ~self.o.valid),
+                     read.addr.eq(row), read.en.eq(fetch),
                      self.o.payload.row.eq(row), self.o.payload.slot.eq(slot),
                      self.o.payload.cue.eq(read.data)]
-        m.d.sync += fetch.eq(0)
         with m.If(fetch):
             m.d.sync += self.o.valid.eq(1)
         with m.If(self.o.valid & self.o.ready):
             last = row == p.height - 1
-            m.d.sync += [self.o.valid.eq(0), fetch.eq(1), row.eq(Mux(last, 0, row + 1)),
+            m.d.sync += [self.o.valid.eq(0), row.eq(Mux(last, 0, row + 1)),
                          slot.eq(slot + Mux(last, self.frame_rows - (p.height - 1), 1))]
         with m.If(self.restart):
-            m.d.sync += [row.eq(0), slot.eq(0), self.o.valid.eq(0), fetch.eq(1)]
+            m.d.sync += [row.eq(0), slot.eq(0), self.o.valid.eq(0), clearing.eq(1),
+                         clear_addr.eq(0)]
         return m
