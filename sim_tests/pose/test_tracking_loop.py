@@ -144,3 +144,37 @@ def test_loop_latency():
           f"{sorted(set(record_to_out))}; rows {len(firsts)} in {firsts[-1]} clocks")
     assert request_to_out == [dut._forecast.latency]
     assert waited and min(measure_to_record) >= solver.latency
+
+
+def _checks():
+    from hdl.fixed import SQ
+    from hdl.pose.loop_requests import RequestGenerator
+    from hdl.pose.measured_shift import MeasuredShift
+    case = closed_loop_case(rows=8, frames=2)
+    p, stage = case["params"], case["stage"]
+    stores = (case["coefficients"], case["row_coefficients"], case["solver_store"])
+    return [
+        (lambda: TrackingLoop("nope", stage, *stores), TypeError,
+         "params must be a ForecastParams, not 'nope'"),
+        (lambda: TrackingLoop(p, "nope", *stores), TypeError,
+         "stage must be a ConsistencyParams, not 'nope'"),
+        (lambda: TrackingLoop(p, stage.replace(segments=2), *stores), ValueError,
+         "stage must have the forecast's solver and segments"),
+        (lambda: TrackingLoop(p, stage.replace(frame_rows=8.5), *stores), ValueError,
+         "the stage's frame_rows must be a whole number of row periods"),
+        (lambda: RequestGenerator(p.replace(loop_delay_rows=7), 8), ValueError,
+         "height 8 must be at least loop_delay_rows \\+ 2 = 9"),
+        (lambda: RequestGenerator(p, 7), ValueError,
+         "frame_rows must be a whole number of row periods from height 8 to 65535, not 7"),
+        (lambda: RequestGenerator("nope", 8), TypeError,
+         "params must be a ForecastParams, not 'nope'"),
+        (lambda: MeasuredShift(p, stage.replace(predicted_fmt=SQ(9, 8))), ValueError,
+         "the stage's predicted_fmt .* must be the forecast's displacement_fmt"),
+    ]
+
+
+@pytest.mark.parametrize("index", range(8))
+def test_parameter_checks(index):
+    build_it, error, message = _checks()[index]
+    with pytest.raises(error, match=message):
+        build_it()

@@ -22,7 +22,7 @@ from hdl.pose.params import PoseFlag, PoseSolverParams
 from emulator.pose.forecast import ForecastModel, output_transfers
 
 __all__ = ["random_case", "closed_loop_case", "expected_outputs", "record", "saturations",
-           "CACHE"]
+           "cached", "CACHE"]
 
 CACHE = Path(__file__).resolve().parents[3] / "build" / "forecast_stimulus"
 
@@ -109,12 +109,17 @@ def closed_loop_case(rows=32, frames=3, seed=1, delay=1):
     """The closed loop of ``emulator.pipeline.run`` on stereo20 cut to ``rows`` rows:
     per row set in order its slot, row, the cues the loop's forecast used and the
     solver's record (flag EMPTY for a row without measurements). Cached under build/."""
-    path = CACHE / f"stereo20_r{rows}_f{frames}_s{seed}_d{delay}.pkl"
+    return cached(CACHE / f"stereo20_r{rows}_f{frames}_s{seed}_d{delay}.pkl",
+                  lambda: _closed_loop(rows, frames, seed, delay))
+
+
+def cached(path, build):
+    """The case pickled at ``path``, or ``build()``'s, pickled there."""
     if path.exists():
         with open(path, "rb") as f:
             return pickle.load(f)
-    case = _closed_loop(rows, frames, seed, delay)
-    CACHE.mkdir(parents=True, exist_ok=True)
+    case = build()
+    path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
         pickle.dump(case, f)
     return case

@@ -13,7 +13,6 @@ and ``rows`` (the model's row slot and camera row of each row), ``counts`` (the 
 counters at the end).
 """
 
-import pickle
 from functools import lru_cache
 from pathlib import Path
 from unittest import mock
@@ -22,6 +21,7 @@ import numpy as np
 
 from emulator.pose.forecast import output_transfers
 from emulator.pose.tracking_loop import TrackingLoopModel
+from sim_tests.pose.forecast.stimulus import cached
 
 __all__ = ["closed_loop_case", "PAIRS", "CACHE"]
 
@@ -46,15 +46,8 @@ def closed_loop_case(rows=32, frames=3, seed=1, pairs=PAIRS):
     """The closed loop on ``cut_rig(rows, pairs)``, ``frames`` frames of the papers'
     motion (seed ``seed``), started at the true motion of the first row (as the
     benchmark). Cached under build/."""
-    path = CACHE / f"stereo20_p{''.join(map(str, pairs))}_r{rows}_f{frames}_s{seed}.pkl"
-    if path.exists():
-        with open(path, "rb") as f:
-            return pickle.load(f)
-    case = _closed_loop(rows, frames, seed, pairs)
-    CACHE.mkdir(parents=True, exist_ok=True)
-    with open(path, "wb") as f:
-        pickle.dump(case, f)
-    return case
+    return cached(CACHE / f"stereo20_p{''.join(map(str, pairs))}_r{rows}_f{frames}_s{seed}.pkl",
+                  lambda: _closed_loop(rows, frames, seed, pairs))
 
 
 def _closed_loop(rows, frames, seed, pairs):

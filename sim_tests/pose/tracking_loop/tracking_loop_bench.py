@@ -22,6 +22,8 @@ from hdl.measurement.consistency import counts_layout, settings_init, settings_l
 from hdl.pose.forecast_predictor import output_layout
 from hdl.pose_solver import measurement_layout, record_layout
 
+from sim_tests.pose.forecast.forecast_bench import _indexed
+
 
 async def _watch_records(dut, layout, clock, records):
     """Every record the forecast takes (``record_valid``), with its clock."""
@@ -30,14 +32,6 @@ async def _watch_records(dut, layout, clock, records):
         if int(dut.record_valid.value):
             records.append((clock.cycle, unpack(layout, dut.record.value)))
         await RisingEdge(clock.clk)
-
-
-def _indexed(payload):
-    if isinstance(payload, dict):
-        return {name: _indexed(value) for name, value in payload.items()}
-    if isinstance(payload, list):
-        return {k: _indexed(value) for k, value in enumerate(payload)}
-    return payload
 
 
 @cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"])
