@@ -39,8 +39,9 @@ def run_loop(case, *, seed, gaps, limit=400000):
     rng = random.Random(seed)
     prob = 0.6 if gaps else 1.0
     want_out = sum(len(e) for e in case["expected"])
-    got = {"o": [], "records": [], "inputs": [], "lasts": [], "requests": [], "counts": None}
-    requests = dut._requests.o
+    got = {"o": [], "records": [], "inputs": [], "lasts": [], "requests": [], "judged": [],
+           "predicted": [], "counts": None}
+    requests, judged, predicted = dut._requests.o, dut._stage.i, dut._shift.o
 
     async def bench(ctx):
         ctx.set(dut.initial, [int(v) for v in case["initial"]])
@@ -48,7 +49,7 @@ def run_loop(case, *, seed, gaps, limit=400000):
         await ctx.tick()
         ctx.set(dut.restart, 0)
         queue, cycle = list(case["inputs"]), 0
-        valid = False
+        valid = was_shown = False
         while (len(got["o"]) < want_out or len(got["records"]) < len(case["records"])):
             if not valid and queue and rng.random() < prob:
                 ctx.set(dut.i.payload, queue[0])
@@ -62,6 +63,12 @@ def run_loop(case, *, seed, gaps, limit=400000):
                 valid = False
             if ctx.get(requests.valid) and ctx.get(requests.ready):
                 got["requests"].append(cycle)
+            if ctx.get(judged.valid) and ctx.get(judged.ready):
+                got["judged"].append(cycle)
+            shown = ctx.get(predicted.valid)
+            if shown and not was_shown:
+                got["predicted"].append(cycle)     # the clock a result appeared
+            was_shown = shown and not ctx.get(predicted.ready)
             if ready and ctx.get(dut.o.valid):
                 payload = ctx.get(dut.o.payload)
                 got["o"].append((cycle, {n: getattr(payload, n) for n in OUT_FIELDS}))
@@ -135,7 +142,19 @@ def test_loop_latency():
     waited = [n for n in range(delay + 1, len(firsts))
               if starts[n] > max(records[n - delay - 1], lasts[n - 1])]
     record_to_out = [firsts[n] - records[n - delay - 1] for n in waited]
+    # each measurement's prediction: ready ``MeasuredShift.latency`` clocks after its
+    # transfer; then the clocks it waited for the stage (the unit's latency is hidden
+    # where the stage was still busy with the previous measurement)
+    waits = [j - r for r, j in zip(got["predicted"], got["judged"])]
+    assert [r - i for i, r in zip(got["inputs"], got["predicted"])] == \
+        [dut._shift.latency] * len(got["inputs"])
+    firsts_of_rows = [0] + [k + 1 for k, t in enumerate(case["inputs"][:-1]) if t["last"]]
+    lasts_of_rows = [k for k, t in enumerate(case["inputs"]) if t["last"]]
     solver = dut._solver
+    print(f"prediction waited for the stage: first measurement of a row "
+          f"{min(waits[k] for k in firsts_of_rows)}…{max(waits[k] for k in firsts_of_rows)}, "
+          f"last {min(waits[k] for k in lasts_of_rows)}…{max(waits[k] for k in lasts_of_rows)}, "
+          f"all {min(waits)}…{max(waits)} clocks")
     print(f"request → first forecast transfer: {request_to_out} clocks "
           f"(forecast latency {dut._forecast.latency}, row {dut._forecast.row_clocks}); "
           f"last measurement → record: {min(measure_to_record)}…{max(measure_to_record)} "
