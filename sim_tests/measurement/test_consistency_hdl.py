@@ -17,6 +17,7 @@ from amaranth.hdl import Signal
 from amaranth.sim import Simulator
 
 import emulator.pipeline as pipeline
+import emulator.pose.tracking_loop as tracking_loop
 from emulator.hdl_sim.payload import pack
 from emulator.measurement.consistency import ConsistencyModel
 from golden.rig import preset
@@ -131,13 +132,13 @@ def recorded():
             calls.append(([dict(t) for t in transfers], np.array(predicted), np.array(delta)))
             return super().apply(transfers, predicted, delta)
 
-    original = pipeline.ConsistencyModel
-    pipeline.ConsistencyModel = Recording
+    original = tracking_loop.ConsistencyModel
+    tracking_loop.ConsistencyModel = Recording
     try:
         pipeline.run(config, dataset, frames=2, forecast=config.forecast(loop_delay_rows=1),
                      initial_motion=np.zeros(6), consistency=params, cue_fallback=True)
     finally:
-        pipeline.ConsistencyModel = original
+        tracking_loop.ConsistencyModel = original
     return params, calls
 
 
