@@ -116,6 +116,12 @@ class ConsistencyStage(wiring.Component):
     o : Out(stream.Signature(measurement_layout(params.solver)))
         The same transfers, ``shift`` and ``conf`` judged (the model's verdict before the
         row gates); one per input transfer.
+    judged, outlier : Out(1)
+        With ``o.valid``: the measurement's confidence into the judge was not 0 (after a
+        far camera's zeroing; its scale was updated), and it was an outlier whose shift
+        was replaced by the prediction (the model's ``verdict["outlier"]``). With
+        ``o.payload.conf != 0`` these are the per-measurement verdict bits the tracking
+        status counts (``measurement_verdicts``).
     gated : Out(1)
         With ``o.valid`` and ``o.payload.last``: the row failed the gates (the model sets
         all its confidences to 0).
@@ -144,6 +150,7 @@ class ConsistencyStage(wiring.Component):
         super().__init__({
             "i": In(stream.Signature(judge_layout(params))),
             "o": Out(stream.Signature(layout)), "gated": Out(1),
+            "judged": Out(1), "outlier": Out(1),
             "settings": In(settings_layout(params), init=settings_init(params)),
             "counts": Out(counts_layout())})
 
@@ -290,6 +297,7 @@ class ConsistencyStage(wiring.Component):
                                  self.o.payload.shift.eq(Mux(replaced, replacement, scaled)),
                                  self.o.payload.conf.eq(conf_out),
                                  self.gated.eq(meas.last & gated_now),
+                                 self.judged.eq(ok), self.outlier.eq(replaced),
                                  counts.outliers.eq(counts.outliers + replaced),
                                  counts.shift_saturated.eq(counts.shift_saturated
                                                            + (replaced & replacement_sat)),

@@ -47,7 +47,14 @@ from hdl.pose.loop_requests import RequestGenerator
 from hdl.pose.measured_shift import MeasuredShift
 from hdl.pose_solver import PoseSolver, measurement_layout, record_layout
 
-__all__ = ["TrackingLoop", "loop_counters_layout"]
+__all__ = ["TrackingLoop", "loop_counters_layout", "verdict_layout"]
+
+
+def verdict_layout():
+    """A judged measurement's verdict: its confidence into the judge was not 0
+    (``judged``), it was an outlier replaced by the prediction (``outliers``), its
+    confidence out is not 0 (``confident``, before the row's gates), and ``last``."""
+    return data.StructLayout({"judged": 1, "outliers": 1, "confident": 1, "last": 1})
 
 
 def loop_counters_layout(params):
@@ -82,6 +89,9 @@ class TrackingLoop(wiring.Component):
         The forecast: per row ``cameras`` transfers with the ``row`` they are for.
     record : Out(record_layout(solver)); record_valid : Out(1)
         Each pose record, strobed when the forecast takes it.
+    verdict : Out(verdict_layout()); verdict_valid : Out(1)
+        Each judged measurement's verdict bits, strobed as the solver takes it: the
+        tracking status' row counts (``judged``, ``outliers``, ``confident``, ``last``).
     alpha, beta, initial, restart : In
         The forecast's (:class:`hdl.pose.forecast.Forecast`); ``restart`` also restarts
         the requests at row 0, slot 0.
@@ -115,6 +125,7 @@ class TrackingLoop(wiring.Component):
             "i": In(stream.Signature(measurement_layout(s))),
             "o": Out(stream.Signature(output_layout(params))),
             "record": Out(record_layout(s)), "record_valid": Out(1),
+            "verdict": Out(verdict_layout()), "verdict_valid": Out(1),
             "alpha": f["alpha"], "beta": f["beta"], "initial": f["initial"],
             "restart": f["restart"],
             "settings": In(settings_layout(stage), init=settings_init(stage)),
@@ -195,6 +206,11 @@ class TrackingLoop(wiring.Component):
         connect(m, solver.o, forecast.records)
         m.d.comb += [solver.gated.eq(stage.gated), stage.settings.eq(self.settings),
                      self.counts.eq(stage.counts), self.solver_counters.eq(solver.counters),
+                     self.verdict.judged.eq(stage.judged),
+                     self.verdict.outliers.eq(stage.outlier),
+                     self.verdict.confident.eq(stage.o.payload.conf != 0),
+                     self.verdict.last.eq(stage.o.payload.last),
+                     self.verdict_valid.eq(stage.o.valid & stage.o.ready),
                      self.record.eq(solver.o.payload),
                      self.record_valid.eq(solver.o.valid & solver.o.ready)]
         return m

@@ -42,7 +42,8 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
     prob = 0.6 if gaps else 1.0
     layout = judge_layout(params)
     count = sum(len(t) for t, _, _ in rows)
-    out = {"transfers": [], "gated": [], "in_cycles": [], "out_cycles": []}
+    out = {"transfers": [], "gated": [], "judged": [], "outlier": [], "in_cycles": [],
+           "out_cycles": []}
     clock = Signal(32)                  # the sink's clock count, for the sources' records
 
     def source(port, lay, items, rng, record=None):
@@ -64,11 +65,13 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
             ready = rng.random() < prob
             ctx.set(dut.o.ready, ready)
             ctx.set(clock, cycle)
-            *_, valid, payload, gated = await ctx.tick().sample(dut.o.valid, dut.o.payload,
-                                                                  dut.gated)
+            *_, valid, payload, gated, judged, outlier = await ctx.tick().sample(
+                dut.o.valid, dut.o.payload, dut.gated, dut.judged, dut.outlier)
             if valid and ready:
                 out["transfers"].append({n: int(getattr(payload, n)) for n in FIELDS})
                 out["gated"].append(int(gated))
+                out["judged"].append(int(judged))
+                out["outlier"].append(int(outlier))
                 out["out_cycles"].append(cycle)
             cycle += 1
             assert cycle < 100 * count + 1000, "stage hung"

@@ -40,7 +40,7 @@ def run_loop(case, *, seed, gaps, limit=400000):
     prob = 0.6 if gaps else 1.0
     want_out = sum(len(e) for e in case["expected"])
     got = {"o": [], "records": [], "inputs": [], "lasts": [], "requests": [], "judged": [],
-           "predicted": [], "counts": None}
+           "predicted": [], "verdicts": [], "counts": None}
     requests, judged, predicted = dut._requests.o, dut._stage.i, dut._shift.o
 
     async def bench(ctx):
@@ -72,6 +72,10 @@ def run_loop(case, *, seed, gaps, limit=400000):
             if ready and ctx.get(dut.o.valid):
                 payload = ctx.get(dut.o.payload)
                 got["o"].append((cycle, {n: getattr(payload, n) for n in OUT_FIELDS}))
+            if ctx.get(dut.verdict_valid):
+                verdict = ctx.get(dut.verdict)
+                got["verdicts"].append((verdict.judged, verdict.outliers, verdict.confident,
+                                        verdict.last))
             if ctx.get(dut.record_valid):
                 got["records"].append((cycle, record_dict(ctx.get(dut.record))))
             await ctx.tick()
@@ -106,6 +110,12 @@ def check(case, got):
     for n, ((_, g), e) in enumerate(zip(got["records"], case["records"])):
         assert g == e, f"record {n}: hardware {g}, model {e}"
     assert got["counts"] == case["counts"]
+    # one verdict per measurement; the outliers are the stage's count
+    verdicts = np.array(got["verdicts"])
+    assert len(verdicts) == len(case["inputs"])
+    assert verdicts[:, 1].sum() == case["counts"]["outliers"]
+    assert verdicts[:, 3].tolist() == [t["last"] for t in case["inputs"]]
+    assert np.all(verdicts[:, 2] <= verdicts[:, 0])          # confident only if judged
     assert got["counters"] == {"mismatched": 0, "predicted_saturated": 0}
 
 
