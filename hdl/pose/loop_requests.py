@@ -29,6 +29,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from golden.checks import check_int
 from hdl.pose.forecast import request_layout
 from hdl.pose.forecast_filter import DEFAULT_SLOT_BITS
 from hdl.pose.forecast_params import ForecastParams
@@ -68,9 +69,7 @@ class RequestGenerator(wiring.Component):
             raise ValueError(f"height {params.height} must be at least loop_delay_rows + 2 "
                              f"= {params.loop_delay_rows + 2} (the cue store is read one "
                              f"request ahead)")
-        if not isinstance(frame_rows, int) or not params.height <= frame_rows < 2 ** slot_bits:
-            raise ValueError(f"frame_rows must be a whole number of row periods from height "
-                             f"{params.height} to {2 ** slot_bits - 1}, not {frame_rows!r}")
+        check_int("frame_rows", frame_rows, params.height, 2 ** slot_bits - 1)
         self.params, self.slot_bits = params, slot_bits
         s = params.solver
         super().__init__({

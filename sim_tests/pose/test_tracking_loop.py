@@ -194,7 +194,7 @@ def _checks():
         (lambda: RequestGenerator(p.replace(loop_delay_rows=7), 8), ValueError,
          "height 8 must be at least loop_delay_rows \\+ 2 = 9"),
         (lambda: RequestGenerator(p, 7), ValueError,
-         "frame_rows must be a whole number of row periods from height 8 to 65535, not 7"),
+         "frame_rows must be an integer between 8 and 65535, not 7"),
         (lambda: RequestGenerator("nope", 8), TypeError,
          "params must be a ForecastParams, not 'nope'"),
         (lambda: MeasuredShift(p, stage.replace(predicted_fmt=SQ(9, 8))), ValueError,
