@@ -1,9 +1,9 @@
 """The back half of the closed loop in gateware (hdl/pose/tracking_loop.py) in the Amaranth
 simulator, bit-exact with the loop's model: fed the measurement stream of a real
-closed-loop run (stereo20 cut to three pairs and 8 rows, three frames), every forecast
-transfer and every pose record equal the model's, with and without valid gaps and ready
-backpressure (SEED printed); the model's row slots are the generator's; the parameter
-checks. The longer runs are the cocotb bench's (sim_tests/pose/tracking_loop/)."""
+closed-loop run (stereo20 cut to three pairs and 8 rows, three frames, loop delay 1 and
+2), every forecast transfer and every pose record equal the model's, with and without
+valid gaps and ready backpressure (SEED printed); the model's row slots are the
+generator's; the latency; the parameter checks. The longer runs are the cocotb bench's (sim_tests/pose/tracking_loop/)."""
 
 import os
 import random
@@ -119,10 +119,10 @@ def check(case, got):
     assert got["counters"] == {"mismatched": 0, "predicted_saturated": 0}
 
 
-@pytest.mark.parametrize("gaps", [False, True])
-def test_small_closed_loop_bit_exact(gaps):
+@pytest.mark.parametrize("gaps, delay", [(False, 1), (True, 1), (True, 2)])
+def test_small_closed_loop_bit_exact(gaps, delay):
     print(f"SEED={SEED}")
-    case = closed_loop_case(rows=8, frames=3)
+    case = closed_loop_case(rows=8, frames=3, delay=delay)
     assert case["slots"] == list(range(len(case["slots"])))     # f·frame_rows + r
     _, got = run_loop(case, seed=SEED, gaps=gaps)
     check(case, got)

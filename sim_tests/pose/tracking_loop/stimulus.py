@@ -42,15 +42,15 @@ def cut_rig(rows, pairs=PAIRS):
 
 
 @lru_cache(maxsize=None)
-def closed_loop_case(rows=32, frames=3, seed=1, pairs=PAIRS):
+def closed_loop_case(rows=32, frames=3, seed=1, pairs=PAIRS, delay=1):
     """The closed loop on ``cut_rig(rows, pairs)``, ``frames`` frames of the papers'
-    motion (seed ``seed``), started at the true motion of the first row (as the
-    benchmark). Cached under build/."""
-    return cached(CACHE / f"stereo20_p{''.join(map(str, pairs))}_r{rows}_f{frames}_s{seed}.pkl",
-                  lambda: _closed_loop(rows, frames, seed, pairs))
+    motion (seed ``seed``), loop delay ``delay`` rows, started at the true motion of the
+    first row (as the benchmark). Cached under build/."""
+    name = f"stereo20_p{''.join(map(str, pairs))}_r{rows}_f{frames}_s{seed}_d{delay}.pkl"
+    return cached(CACHE / name, lambda: _closed_loop(rows, frames, seed, pairs, delay))
 
 
-def _closed_loop(rows, frames, seed, pairs):
+def _closed_loop(rows, frames, seed, pairs, delay):
     from emulator.e2e import true_steps
     from emulator.pipeline import run
     from golden.scene import default_scene_spec
@@ -63,7 +63,7 @@ def _closed_loop(rows, frames, seed, pairs):
                        seed=seed)
     config = PipelineConfig.for_rig(rig, segments=4, stereo_segments=4)
     # rows compared up to half a frame off (the default 16 with 32 rows and more)
-    params = config.forecast(loop_delay_rows=1)
+    params = config.forecast(loop_delay_rows=delay)
     stage = config.consistency(max_row_offset=min(16, rows // 2))
     inputs, expected = [], []
     request, close = TrackingLoopModel.request, TrackingLoopModel.close
