@@ -75,6 +75,7 @@ def test_model_equals_the_closed_loop_on_stereo20():
     """The whole stereo20 rig (20 cameras, 10 pairs, 640-pixel rows) cut to 32 rows, three
     frames, K = K_s = 4 as the hw_tracking bench: the model's transfers are the closed
     loop's (no consistency stage), transfer by transfer."""
+    print(f"SEED={SEED}")
     rows, frames = 32, 3
     rig = preset("stereo20").replace_cameras(height=rows, cy=(rows - 1) / 2,
                                              t_r=1 / (120 * rows))
