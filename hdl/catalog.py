@@ -28,6 +28,7 @@ BLOCKS = {
     "row_descriptor": "hdl.row_descriptor:RowDescriptor",
     "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",
     "measurement_engine": "hdl.measurement.engine:MeasurementEngine",
+    "follow_engine": "hdl.measurement.engine:default_follow_engine",
     "measurement_router": "hdl.measurement.router:default_router",
 }
 
