@@ -49,6 +49,9 @@ class Forecast(wiring.Component):
         ``PipelineConfig.coef_raw`` and ``.row_coef_raw``).
     slot_bits : int
         Width of the row slot (see :class:`MotionFilter`).
+    shared_port : bool
+        Expose a second read port of the solver's store: ``coef_addr``/``coef_data``
+        (see :class:`RowPredictor`).
 
     Members
     -------
@@ -72,12 +75,17 @@ class Forecast(wiring.Component):
     outputs are taken at once. Records take :attr:`record_clocks` clocks each.
     """
 
-    def __init__(self, params, coefficients, row_coefficients, *, slot_bits=DEFAULT_SLOT_BITS):
+    def __init__(self, params, coefficients, row_coefficients, *, slot_bits=DEFAULT_SLOT_BITS,
+                 shared_port=False):
         self._filter = MotionFilter(params, slot_bits=slot_bits)
-        self._predictor = RowPredictor(params, coefficients, row_coefficients)
+        self._predictor = RowPredictor(params, coefficients, row_coefficients,
+                                       shared_port=shared_port)
         self.params, self.slot_bits = params, slot_bits
         f = self._filter.signature.members
+        shared = {name: self._predictor.signature.members[name]
+                  for name in ("coef_addr", "coef_data")} if shared_port else {}
         super().__init__({
+            **shared,
             "requests": In(stream.Signature(request_layout(params, slot_bits))),
             "records": f["records"],
             "o": Out(stream.Signature(output_layout(params))),
@@ -118,6 +126,9 @@ class Forecast(wiring.Component):
         ]
         connect(m, flipped(self.records), motion.records)
         connect(m, predictor.o, flipped(self.o))
+        if "coef_addr" in self.signature.members:
+            m.d.comb += [predictor.coef_addr.eq(self.coef_addr),
+                         self.coef_data.eq(predictor.coef_data)]
         return m
 
 

@@ -24,7 +24,8 @@ from amaranth.lib.wiring import In, Out
 from hdl.fixed import SQ, Overflow, QFormat, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
 from hdl.pose.forecast_params import ForecastParams
 
-__all__ = ["RowPredictor", "output_layout", "counters_layout", "check_store"]
+__all__ = ["RowPredictor", "output_layout", "counters_layout", "check_store", "term_tag",
+           "displacement_terms", "store_memory"]
 
 
 def counters_layout(params):
@@ -41,6 +42,8 @@ def output_layout(params):
     Fields
     ------
     camera : unsigned
+    row : unsigned(row_bits)
+        The camera row the forecast is for (the request's).
     centre : signed
         Window centre (pixels), saturated to ``±centre_range``.
     source_row : unsigned(row_bits)
@@ -53,7 +56,8 @@ def output_layout(params):
     last : 1
     """
     return data.StructLayout({
-        "camera": range(params.cameras), "centre": signed(params.centre_range.bit_length() + 1),
+        "camera": range(params.cameras), "row": params.solver.row_bits,
+        "centre": signed(params.centre_range.bit_length() + 1),
         "source_row": params.solver.row_bits, "centre_saturated": 1, "row_saturated": 1,
         "shift_saturated": params.segments, "across_saturated": params.segments, "last": 1,
     })
@@ -96,6 +100,11 @@ class RowPredictor(wiring.Component):
     idle : Out(1)
     o : Out(stream.Signature(output_layout(params)))
     counters : Out(counters_layout(params))
+    coef_addr : In(range(slots · rows)); coef_data : Out(ArrayLayout(signed, 9))
+        With ``shared_port``: a second read port of the solver's store (the shift along
+        the row), entry ``slot · rows + row``, data one clock after the address (the
+        block RAM's second port: :class:`hdl.pose.measured_shift.MeasuredShift` reads
+        it).
 
     Timing: a camera takes ``6K`` issue clocks, its result appears :attr:`drain` clocks
     after its last term, and the next camera starts the clock after its transfer
@@ -106,7 +115,7 @@ class RowPredictor(wiring.Component):
     #: a, a × Ŷ, exact sum, rounding and camera sum, mean and saturation.
     drain = 7
 
-    def __init__(self, params, coefficients, row_coefficients):
+    def __init__(self, params, coefficients, row_coefficients, *, shared_port=False):
         if not isinstance(params, ForecastParams):
             raise TypeError(f"params must be a ForecastParams, not {params!r}")
         k = params.segments
@@ -117,7 +126,12 @@ class RowPredictor(wiring.Component):
         self.stores = (check_store("coefficients", params.solver, coefficients),
                        check_store("row_coefficients", params.row_store, row_coefficients))
         s = params.solver
+        self.shared_port = shared_port
+        shared = {"coef_addr": In(range(s.slots * s.rows)),
+                  "coef_data": Out(data.ArrayLayout(signed(s.coef_width), 9))} \
+            if shared_port else {}
         super().__init__({
+            **shared,
             "start": In(1), "row": In(s.row_bits),
             "cue": In(data.ArrayLayout(s.cue_fmt.shape(), s.slots)),
             "motion": In(data.ArrayLayout(params.motion_fmt.shape(), 6)),
@@ -164,9 +178,7 @@ class RowPredictor(wiring.Component):
                 m.d.sync += [segment.eq(0), issuing.eq(0)]
 
         # stage tags: valid, term, segment, end of camera (stages 1..6)
-        tag = data.StructLayout({"valid": 1, "term": range(6), "segment": range(k),
-                                 "end": 1})
-        tags = [Signal(tag, name=f"tag{n}") for n in range(7)]
+        tags = [Signal(term_tag(p), name=f"tag{n}") for n in range(7)]
         m.d.comb += [tags[0].valid.eq(issuing), tags[0].term.eq(term),
                      tags[0].segment.eq(segment), tags[0].end.eq(end_of_camera)]
         m.d.sync += [tags[n + 1].eq(tags[n]) for n in range(6)]
@@ -192,6 +204,7 @@ class RowPredictor(wiring.Component):
         with m.If(tags[6].valid & tags[6].end):
             m.d.sync += [
                 self.o.valid.eq(1), self.o.p.camera.eq(camera), self.o.p.last.eq(last_camera),
+                self.o.p.row.eq(row),
                 self.o.p.centre.eq(_clamp(centre, -p.centre_range, p.centre_range)),
                 self.o.p.centre_saturated.eq(centre_over),
                 self.o.p.source_row.eq(_clamp(source, 0, p.height - 1)),
@@ -212,49 +225,16 @@ class RowPredictor(wiring.Component):
     def _lane(self, m, lane, store, contents, tags, cue1, y2, addr):
         """One store's datapath; returns (the camera mean of its displacements, rounded
         half-up to pixels; the per-segment saturation flags)."""
-        p, a_fmt, k = self.params, self.params.solver.a_fmt, self.params.segments
-        width = store.coef_width
-        # one entry per slot and row (the solver's ``entries`` may count a compressed
-        # store's terms instead)
-        memory = Memory(shape=data.ArrayLayout(signed(width), 9),
-                        depth=store.slots * store.rows,
-                        init=[[int(v) for v in entry] for entry in contents.reshape(-1, 9)])
+        p, k = self.params, self.params.segments
+        memory = store_memory(store, contents)
         m.submodules[f"store{lane}"] = memory
         read = memory.read_port()
         m.d.comb += read.addr.eq(addr)
-
-        # stage 1 → 2: coef × cue, and a_R for the rotation terms
-        t_fmt = mul_format(store.coef_t_fmt, store.cue_fmt)
-        c_fmt = mul_format(store.coef_c_fmt, store.cue_fmt)    # the same raw width
-        product = Signal(t_fmt.shape(), name=f"coef_cue{lane}")
-        rotation = Signal(signed(width), name=f"coef_r{lane}")
-        m.d.sync += [product.eq(hdl_mul(read.data[tags[1].term], store.coef_t_fmt, cue1,
-                                        store.cue_fmt)[0]),
-                     rotation.eq(read.data[tags[1].term + 3])]
-        # stage 2 → 3: the design entry a (the solver's rounding and saturation)
-        total, total_fmt = hdl_add(rotation, store.coef_r_fmt, product, c_fmt)
-        a = Signal(a_fmt.shape(), name=f"a{lane}")
-        y3 = Signal(p.motion_fmt.shape(), name=f"y3_{lane}")
-        m.d.sync += [a.eq(Mux(tags[2].term < 3,
-                               hdl_resize(product, t_fmt, a_fmt, Rounding.HALF_EVEN,
-                                          Overflow.SATURATE),
-                               hdl_resize(total, total_fmt, a_fmt, Rounding.HALF_EVEN,
-                                          Overflow.SATURATE))),
-                     y3.eq(y2)]
-        # stage 3 → 4: a × Ŷ; 4 → 5: exact sum of the six terms
-        term_value, term_fmt = hdl_mul(a, a_fmt, y3, p.motion_fmt)
-        term = Signal(term_fmt.shape(), name=f"term{lane}")
-        m.d.sync += term.eq(term_value)
-        sum_fmt = QFormat(True, term_fmt.int_bits + 4, term_fmt.frac_bits)
-        acc = Signal(sum_fmt.shape(), name=f"sum{lane}")
-        with m.If(tags[4].valid):
-            m.d.sync += acc.eq(Mux(tags[4].term == 0, 0, acc) + term)
-        # stage 5 → 6: one half-even rounding into displacement_fmt, flagged; camera sum
+        if lane == 0 and self.shared_port:
+            second = memory.read_port()
+            m.d.comb += [second.addr.eq(self.coef_addr), self.coef_data.eq(second.data)]
+        value, over = displacement_terms(m, p, store, read.data, tags, cue1, y2, f"{lane}")
         dst = p.displacement_fmt
-        wide_fmt = SQ(max(sum_fmt.int_bits, dst.int_bits) + 2, dst.frac_bits)
-        wide = hdl_resize(acc, sum_fmt, wide_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
-        over = (wide > dst.max_raw) | (wide < dst.min_raw)
-        value = hdl_resize(wide, wide_fmt, dst, Rounding.FLOOR, Overflow.SATURATE)
         shift = (k - 1).bit_length()
         camera_fmt = QFormat(True, dst.int_bits + shift + 1, dst.frac_bits + shift)
         camera_sum = Signal(camera_fmt.shape(), name=f"camera_sum{lane}")
@@ -267,6 +247,68 @@ class RowPredictor(wiring.Component):
         mean = hdl_resize(camera_sum, camera_fmt, SQ(camera_fmt.int_bits, 0), Rounding.HALF_UP,
                           Overflow.ERROR)
         return mean, flags
+
+
+def term_tag(params):
+    """A term's tag along :func:`displacement_terms`' stages: valid, which of the six
+    terms, the segment and the end of a camera (the row predictor's)."""
+    return data.StructLayout({"valid": 1, "term": range(6), "segment": range(params.segments),
+                              "end": 1})
+
+
+def store_memory(store, contents):
+    """A coefficient store as a memory: one entry of nine coefficients per slot and row,
+    entry ``slot · rows + row`` (the solver's ``entries`` may count a compressed store's
+    terms instead)."""
+    return Memory(shape=data.ArrayLayout(signed(store.coef_width), 9),
+                  depth=store.slots * store.rows,
+                  init=[[int(v) for v in entry] for entry in contents.reshape(-1, 9)])
+
+
+def displacement_terms(m, params, store, coefficients, tags, cue1, y2, name):
+    """A segment's predicted displacement ``a·Ŷ``, one term per clock: the design entry
+    ``a_i`` of the solver's arithmetic from the store's ``coefficients`` (a read port's
+    data, one clock after the address of term ``tags[0]``), the product ``a_i·Ŷ_i``
+    summed exactly and rounded once, half-even, into ``displacement_fmt`` (saturated).
+
+    ``tags`` are seven registered stages of :func:`term_tag` (``tags[n]`` the term
+    ``n`` clocks after its issue); ``cue1`` is the segment's cue and ``y2`` the term's
+    ``Ŷ_i``, registered one and two clocks after the issue. Returns (value, saturated),
+    combinational, valid while ``tags[5]`` holds the sixth term."""
+    p, a_fmt = params, params.solver.a_fmt
+    width = store.coef_width
+    # stage 1 → 2: coef × cue, and a_R for the rotation terms
+    t_fmt = mul_format(store.coef_t_fmt, store.cue_fmt)
+    c_fmt = mul_format(store.coef_c_fmt, store.cue_fmt)    # the same raw width
+    product = Signal(t_fmt.shape(), name=f"coef_cue{name}")
+    rotation = Signal(signed(width), name=f"coef_r{name}")
+    m.d.sync += [product.eq(hdl_mul(coefficients[tags[1].term], store.coef_t_fmt, cue1,
+                                    store.cue_fmt)[0]),
+                 rotation.eq(coefficients[tags[1].term + 3])]
+    # stage 2 → 3: the design entry a (the solver's rounding and saturation)
+    total, total_fmt = hdl_add(rotation, store.coef_r_fmt, product, c_fmt)
+    a = Signal(a_fmt.shape(), name=f"a{name}")
+    y3 = Signal(p.motion_fmt.shape(), name=f"y3_{name}")
+    m.d.sync += [a.eq(Mux(tags[2].term < 3,
+                           hdl_resize(product, t_fmt, a_fmt, Rounding.HALF_EVEN,
+                                      Overflow.SATURATE),
+                           hdl_resize(total, total_fmt, a_fmt, Rounding.HALF_EVEN,
+                                      Overflow.SATURATE))),
+                 y3.eq(y2)]
+    # stage 3 → 4: a × Ŷ; 4 → 5: exact sum of the six terms
+    term_value, term_fmt = hdl_mul(a, a_fmt, y3, p.motion_fmt)
+    term = Signal(term_fmt.shape(), name=f"term{name}")
+    m.d.sync += term.eq(term_value)
+    sum_fmt = QFormat(True, term_fmt.int_bits + 4, term_fmt.frac_bits)
+    acc = Signal(sum_fmt.shape(), name=f"sum{name}")
+    with m.If(tags[4].valid):
+        m.d.sync += acc.eq(Mux(tags[4].term == 0, 0, acc) + term)
+    # stage 5: one half-even rounding into displacement_fmt, flagged
+    dst = p.displacement_fmt
+    wide_fmt = SQ(max(sum_fmt.int_bits, dst.int_bits) + 2, dst.frac_bits)
+    wide = hdl_resize(acc, sum_fmt, wide_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+    over = (wide > dst.max_raw) | (wide < dst.min_raw)
+    return hdl_resize(wide, wide_fmt, dst, Rounding.FLOOR, Overflow.SATURATE), over
 
 
 def _clamp(value, low, high):

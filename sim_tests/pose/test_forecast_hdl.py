@@ -46,7 +46,8 @@ def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_
                 if payload.camera == 0:
                     motions.append([ctx.get(dut.motion[i]) for i in range(6)])
                 outputs.append((cycle, {name: getattr(payload, name) for name in
-                                        ("camera", "centre", "source_row", "centre_saturated",
+                                        ("camera", "row", "centre", "source_row",
+                                         "centre_saturated",
                                          "row_saturated", "shift_saturated",
                                          "across_saturated", "last")}))
             await ctx.tick()

@@ -19,10 +19,10 @@ import numpy as np
 from hdl.fixed import SQ
 from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import PoseFlag, PoseSolverParams
-from emulator.pose.forecast import ForecastModel
+from emulator.pose.forecast import ForecastModel, output_transfers
 
 __all__ = ["random_case", "closed_loop_case", "expected_outputs", "record", "saturations",
-           "CACHE"]
+           "cached", "CACHE"]
 
 CACHE = Path(__file__).resolve().parents[3] / "build" / "forecast_stimulus"
 
@@ -38,17 +38,10 @@ def expected_outputs(params, coefficients, row_coefficients, initial, requests, 
     """Per request, the per-camera outputs and Ŷ of the model in its order (predict the
     row, then take its record)."""
     model = ForecastModel(params, coefficients, row_coefficients, initial)
-    k = params.segments
     outputs, motions = [], []
     for request, rec in zip(requests, records):
         out = model.predict(request["slot"], request["row"], np.array(request["cue"]))
-        outputs.append([{
-            "camera": c, "centre": int(out["centre"][c]), "source_row": int(out["source_row"][c]),
-            "centre_saturated": int(out["centre_saturated"][c]),
-            "row_saturated": int(out["row_saturated"][c]),
-            "shift_saturated": _bits(out["shift_saturated"][c * k:(c + 1) * k]),
-            "across_saturated": _bits(out["across_saturated"][c * k:(c + 1) * k]),
-            "last": int(c == params.cameras - 1)} for c in range(params.cameras)])
+        outputs.append(output_transfers(params, out, request["row"]))
         motions.append([int(v) for v in out["motion"]])
         model.take(request["slot"], np.array(rec["step"]) if rec["flags"] == 0 else None)
     return outputs, motions
@@ -60,10 +53,6 @@ def saturations(outputs):
             "row": sum(o["row_saturated"] for o in outputs),
             "segment": sum(bin(o["shift_saturated"]).count("1")
                            + bin(o["across_saturated"]).count("1") for o in outputs)}
-
-
-def _bits(flags):
-    return sum(int(bool(f)) << n for n, f in enumerate(flags))
 
 
 def _finish(case):
@@ -120,12 +109,17 @@ def closed_loop_case(rows=32, frames=3, seed=1, delay=1):
     """The closed loop of ``emulator.pipeline.run`` on stereo20 cut to ``rows`` rows:
     per row set in order its slot, row, the cues the loop's forecast used and the
     solver's record (flag EMPTY for a row without measurements). Cached under build/."""
-    path = CACHE / f"stereo20_r{rows}_f{frames}_s{seed}_d{delay}.pkl"
+    return cached(CACHE / f"stereo20_r{rows}_f{frames}_s{seed}_d{delay}.pkl",
+                  lambda: _closed_loop(rows, frames, seed, delay))
+
+
+def cached(path, build):
+    """The case pickled at ``path``, or ``build()``'s, pickled there."""
     if path.exists():
         with open(path, "rb") as f:
             return pickle.load(f)
-    case = _closed_loop(rows, frames, seed, delay)
-    CACHE.mkdir(parents=True, exist_ok=True)
+    case = build()
+    path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
         pickle.dump(case, f)
     return case
