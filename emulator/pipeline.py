@@ -63,7 +63,9 @@ class PipelineResult:
         ``slot``, the forecast ``centre`` and ``source_row`` (n, cameras) it used and its
         saturation flags, and ``level`` (n, 6) the filter's level after the row's step
         (raw ``motion_fmt``); with a consistency stage also ``counts``, its counters
-        (:class:`emulator.measurement.consistency.ConsistencyModel`).
+        (:class:`emulator.measurement.consistency.ConsistencyModel`), and ``row_counts``
+        (records, 3): each record's row's ``(judged, outliers, confident)``, the
+        tracking-status unit's per-row input.
     """
     temporal: list
     stereo: list
@@ -182,7 +184,7 @@ class _Loop:
                                        consistency)
         self.time, self.t0 = dataset.cameras[0].time, t0
         self.t_r = dataset.rig.cameras[0].t_r
-        self.log = []
+        self.log, self.row_counts = [], []
 
     def slot(self, frame, row):
         return int(round((self.time[frame, row] - self.t0) / self.t_r))
@@ -205,6 +207,8 @@ class _Loop:
         p = self.model.prediction
         self.log.append((frame, row, slot, p["centre"], p["centre_saturated"],
                          p["source_row"], p["row_saturated"], level))
+        if self.model.row_counts is not None:
+            self.row_counts.append(self.model.row_counts)
         return transfers
 
     def history(self):
@@ -214,4 +218,5 @@ class _Loop:
                for k, name in enumerate(names)}
         if self.model.consistency is not None:
             out["counts"] = self.model.counts
+            out["row_counts"] = np.array(self.row_counts, dtype=np.int64).reshape(-1, 3)
         return out

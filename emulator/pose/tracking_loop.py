@@ -23,6 +23,7 @@ import numpy as np
 from emulator.measurement.consistency import ConsistencyModel
 from emulator.measurement.router import pose_rows
 from emulator.pose.forecast import ForecastModel
+from emulator.pose.tracking_status import row_counts
 from emulator.pose_solver import solve_rows
 
 __all__ = ["TrackingLoopModel"]
@@ -49,6 +50,10 @@ class TrackingLoopModel:
         self.consistency = None if consistency is None else ConsistencyModel(consistency)
         self.cues = np.zeros((params.solver.slots, params.height), dtype=np.int64)
         self.prediction = None
+        #: The last judged row's ``(judged, outliers, confident)``, the tracking-status
+        #: unit's row counts (:func:`emulator.pose.tracking_status.row_counts`); None
+        #: without a consistency stage or for a row without transfers.
+        self.row_counts = None
 
     @property
     def counts(self):
@@ -67,13 +72,15 @@ class TrackingLoopModel:
         row's :meth:`request`: returns ``(judged transfers, level)``, the transfers the
         solver takes and the filter's level after the row's step (raw ``motion_fmt``;
         a flagged row, or one without transfers, gives the filter no step)."""
-        step = None
+        step, self.row_counts = None, None
         if self.consistency is not None and transfers:
             cue = np.zeros(self.params.solver.slots, dtype=np.int64)
             cue[[t["slot"] for t in transfers]] = [t["cue"] for t in transfers]
             predicted = self.forecast.predict(slot, row, cue)["shift"]
             delta = self.prediction["source_row"] - row
-            transfers, _ = self.consistency.apply(transfers, predicted, delta)
+            transfers, verdict = self.consistency.apply(transfers, predicted, delta)
+            self.row_counts = row_counts(verdict["conf_in"], verdict,
+                                         self.params.solver.slots)
         for t in transfers:
             if t["cue"]:                          # 0: no stereo cue for that segment
                 self.cues[t["slot"], row] = t["cue"]

@@ -95,7 +95,8 @@ class MeasurementEngine(wiring.Component):
         ``out_of_range[k]`` (the lanes' ring stores, saturating).
 
     Latency :attr:`latency` clocks from a row set's last column to its first solver
-    transfer (66 for 640-pixel rows; checked in the cocotb bench). Throughput: one column per clock while the lanes and ``o`` keep up (the
+    transfer (66 with K_s = 1, 67 with K_s = 2 on 256-pixel rows; checked in the cocotb
+    benches). Throughput: one column per clock while the lanes and ``o`` keep up (the
     router needs K · cameras + a few clocks per row, far fewer than the row width).
     Backpressure on ``o`` fills the router's lane FIFOs, then stalls the lanes, the
     fork and ``rows``. With ``follow`` a row set's first column also waits for its

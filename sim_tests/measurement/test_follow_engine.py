@@ -12,13 +12,21 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from emulator.e2e import true_steps
 from emulator.measurement.engine import forecast_rows, run_engine
+from emulator.pipeline import run
+from golden.rig import preset
+from golden.scene import default_scene_spec
+from golden.simulator import simulate
+from golden.trajectory import make_trajectory
+from hdl.pipeline_config import PipelineConfig
 from hdl.measurement.engine import MeasurementEngine
 from hdl.measurement.engine_params import engine_config_layout
 from hdl.measurement.forecast_rows import ForecastRows
 from sim_tests.measurement.follow_engine.stimulus import (closed_loop, configs,
                                                           damage_forecast, follow_config,
-                                                          forecast_transfers, priming)
+                                                          forecast_transfers, priming,
+                                                          row_sets)
 from sim_tests.measurement.measurement_engine.stimulus import simulated_dataset, small_rig
 
 SEED = int(os.environ.get("SEED", "1"))
@@ -61,6 +69,30 @@ def test_model_equals_the_closed_loop(loop):
     fixed = [{**t, "centre": 0, "source_row": t["row"]} for t in loop.forecast]
     other = run_engine(params, loop.row_sets, configs(params, len(loop.row_sets)), fixed)
     assert other.transfers != got.transfers
+
+
+def test_model_equals_the_closed_loop_on_stereo20():
+    """The whole stereo20 rig (20 cameras, 10 pairs, 640-pixel rows) cut to 32 rows, three
+    frames, K = K_s = 4 as the hw_tracking bench: the model's transfers are the closed
+    loop's (no consistency stage), transfer by transfer."""
+    print(f"SEED={SEED}")
+    rows, frames = 32, 3
+    rig = preset("stereo20").replace_cameras(height=rows, cy=(rows - 1) / 2,
+                                             t_r=1 / (120 * rows))
+    dataset = simulate(rig, default_scene_spec(SEED), make_trajectory("paper"), frames / 120,
+                       seed=SEED)
+    config = PipelineConfig.for_rig(rig, segments=4, stereo_segments=4)
+    params = config.top.engine.replace(
+        follow=True, router=replace(config.router, cue_fallback=True))
+    result = run(config, dataset, frames, forecast=config.forecast(loop_delay_rows=1),
+                 initial_motion=true_steps(dataset, [1], [0])[0], consistency=None,
+                 cue_fallback=True)
+    sets = row_sets(config, dataset, frames)
+    got = run_engine(params, sets, configs(params, len(sets)), forecast_transfers(result.loop))
+    assert len(got.transfers) == len(result.transfers) == frames * rows * 80
+    for n, (g, e) in enumerate(zip(got.transfers, result.transfers)):
+        assert g == e, f"transfer {n}: engine model {g}, pipeline {e}"
+    print(f"{sum(t['conf'] > 0 for t in got.transfers)} of {len(got.transfers)} weighted")
 
 
 def test_damaged_forecasts_are_counted_and_never_misapplied(loop):

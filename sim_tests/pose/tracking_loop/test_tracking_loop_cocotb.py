@@ -1,8 +1,12 @@
 """Runs the tracking loop's cocotb bench on a real closed loop (stereo20 cut to pairs 0, 1
 and 4): on Verilator 32 rows, three frames (96 rows, 2,304 measurements); on Icarus 8
-rows, two frames. The case is built once (a few seconds) and kept under build/."""
+rows, two frames; with RUN_SLOW=1 also 64 rows, three frames at loop delay 2. The case
+is built once (a few seconds) and kept under build/."""
 
+import os
 import pickle
+
+import pytest
 
 from emulator.hdl_sim.runner import run_cocotb
 from hdl.pose.tracking_loop import TrackingLoop
@@ -30,3 +34,8 @@ def test_tracking_loop_verilator_closed_loop():
 
 def test_tracking_loop_icarus_small():
     _run("icarus", closed_loop_case(rows=8, frames=2), "p014_r8_f2")
+
+
+@pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="the longer loop runs with RUN_SLOW=1")
+def test_tracking_loop_verilator_long_delay_2():
+    _run("verilator", closed_loop_case(rows=64, frames=3, delay=2), "p014_r64_f3_d2")
