@@ -181,9 +181,11 @@ class PipelineConfig:
         others (e.g. ``huber_k``, ``min_cameras``)."""
         if self.top.closed_loop:
             return replace(self.top.consistency, **changes)
+        bound = fields_default(ConsistencyParams, "max_row_offset")
         derived = dict(solver=self.top.solver, segments=self.segments,
                        predicted_fmt=self.forecast().displacement_fmt,
-                       frame_rows=self.frame_rows)
+                       frame_rows=self.frame_rows,
+                       max_row_offset=min(bound, self.top.solver.rows - 1))
         return ConsistencyParams(**{**derived, **changes})
 
     def window(self, rows, **top_changes):
@@ -220,6 +222,11 @@ class PipelineConfig:
     @property
     def clk_hz(self):
         return self.top.clk_hz
+
+
+def fields_default(cls, name):
+    """The default of dataclass ``cls``'s field ``name``."""
+    return next(f.default for f in fields(cls) if f.name == name)
 
 
 def _store(solver, table, degree, rig_name):

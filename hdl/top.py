@@ -29,7 +29,9 @@ from amaranth.lib.wiring import In, Out
 from hdl.front_end.camera_sync import CameraFrontEnd
 from hdl.measurement.engine import MeasurementEngine
 from hdl.output.link import PoseLink
+from hdl.pose.row_counter import RowCounter
 from hdl.pose.status_params import top_status_params
+from hdl.pose.status_unit import StatusUnit
 from hdl.pose.tracking_loop import TrackingLoop
 from hdl.pose_solver import PoseSolver
 from hdl.bus.axi4lite import AXI4LiteSignature
@@ -150,13 +152,19 @@ class RowtrackTop(wiring.Component):
 
     def _wire_loop(self, m, regs, engine, link):
         """Closed loop: the engine's measurements into the tracking loop, its forecast
-        back into the engine, its status-flagged records to the pose output."""
+        back into the engine, its records through the tracking-status unit (with the
+        per-row counts of the loop's verdicts) to the pose output."""
         p = self.params
-        m.submodules.loop = loop = TrackingLoop(
-            p.forecast, p.consistency, *self.forecast_stores, self.coefficients,
-            status=top_status_params(p))
+        status_params = top_status_params(p)
+        m.submodules.loop = loop = TrackingLoop(p.forecast, p.consistency,
+                                                *self.forecast_stores, self.coefficients)
+        m.submodules.row_counter = counter = RowCounter(status_params)
+        m.submodules.status = status = StatusUnit(status_params, p.solver)
         wiring.connect(m, engine.o, loop.i)
-        wiring.connect(m, loop.records, link.pose)
+        wiring.connect(m, loop.verdicts, counter.i)
+        wiring.connect(m, counter.o, status.row)
+        wiring.connect(m, loop.records, status.i)
+        wiring.connect(m, status.o, link.pose)
         ahead, fed = loop.o, engine.forecast
         m.d.comb += [fed.valid.eq(ahead.valid), ahead.ready.eq(fed.ready),
                      fed.payload.camera.eq(ahead.payload.camera),
@@ -165,13 +173,13 @@ class RowtrackTop(wiring.Component):
                      fed.payload.row.eq(ahead.payload.row),
                      fed.payload.last.eq(ahead.payload.last)]
         self._wire_coefficient_load(m, regs, loop.coef_write)
-        settings, status = regs.loop, regs.status
+        settings, state = regs.loop, regs.status
         m.d.comb += [
             loop.alpha.eq(settings.alpha), loop.beta.eq(settings.beta),
             loop.initial.eq(settings.initial), loop.restart.eq(settings.restart.stb),
             loop.frame_rows.eq(settings.frame_rows), loop.settings.eq(settings.consistency),
             settings.counts.eq(loop.counts), settings.forecast_counters.eq(loop.forecast_counters),
             settings.counters.eq(loop.counters), regs.solver.counters.eq(loop.solver_counters),
-            loop.status_settings.eq(status.settings), loop.status_clear.eq(status.clear.stb),
-            status.state.eq(loop.status_state),
+            status.settings.eq(state.settings), status.clear.eq(state.clear.stb),
+            state.state.eq(status.state),
         ]
