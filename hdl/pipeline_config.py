@@ -100,14 +100,16 @@ class PipelineConfig:
     @classmethod
     def for_rig(cls, rig, *, segments=DEFAULT_SEGMENTS, coef_width=DEFAULT_COEF_WIDTH,
                 coef_degree=DEFAULT_COEF_DEGREE, clk_hz=DEFAULT_CLK_HZ,
-                camera=CameraParams(), **top_changes):
+                camera=CameraParams(), closed_loop=False, **top_changes):
         """The pipeline for ``rig``: its cameras (one image size), each in the rectified
         stereo pair :func:`golden.depth.stereo_pairs` finds, temporal lanes of
         ``segments`` segments, a ``coef_width``-bit coefficient store whose formats hold
         the rig's table — as polynomials of ``coef_degree`` in the row (``None``: every
         row stored) —, time stamps in clocks of ``clk_hz``. ``camera`` gives the front
         end's other widths (its count and size come from the rig); ``top_changes`` go to
-        :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``).
+        :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``). ``closed_loop``:
+        the top closes the measurement loop with the default :meth:`forecast` and
+        :meth:`consistency` of the rig (``TopParams.forecast``/``.consistency``).
 
         Raises
         ------
@@ -141,11 +143,14 @@ class PipelineConfig:
                                   clk_hz=clk_hz, **top_changes)
         row_table = coefficient_table(rig, shape.engine.temporal, scales, axis=1)
         row_store = replace(solver, **coefficient_formats(row_table, coef_width))
-        return cls(top=top, table=table, coef_raw=coef_raw, coef_store=coef_store,
-                   coef_error_lsb=error, row_table=row_table,
-                   row_coef_raw=quantize_coefficients(row_store, row_table),
-                   rig_name=rig.name,
-                   frame_rows=1.0 / (rig.cameras[0].fps * rig.cameras[0].t_r))
+        config = cls(top=top, table=table, coef_raw=coef_raw, coef_store=coef_store,
+                     coef_error_lsb=error, row_table=row_table,
+                     row_coef_raw=quantize_coefficients(row_store, row_table),
+                     rig_name=rig.name,
+                     frame_rows=1.0 / (rig.cameras[0].fps * rig.cameras[0].t_r))
+        if not closed_loop:
+            return config
+        return replace(config, top=top.closing(config.forecast(), config.consistency()))
 
     def store_window(self, first_row, rows):
         """The solver store's contents for a window of ``rows`` camera rows from
@@ -161,6 +166,8 @@ class PipelineConfig:
         """The motion forecast of this pipeline (:class:`ForecastParams`): its solver,
         segments, rows and the lanes' centre range, the across-rows store's formats;
         ``changes`` set the others (e.g. ``loop_delay_rows``, ``alpha``)."""
+        if self.top.closed_loop:
+            return replace(self.top.forecast, **changes)
         formats = coefficient_formats(self.row_table, self.top.solver.coef_width)
         lane = self.router.temporal
         derived = dict(solver=self.top.solver, segments=self.segments, height=lane.height,
@@ -172,9 +179,13 @@ class PipelineConfig:
         """The robust consistency stage of this pipeline (:class:`ConsistencyParams`): its
         solver and segments, the forecast's predicted-shift format; ``changes`` set the
         others (e.g. ``huber_k``, ``min_cameras``)."""
+        if self.top.closed_loop:
+            return replace(self.top.consistency, **changes)
+        bound = fields_default(ConsistencyParams, "max_row_offset")
         derived = dict(solver=self.top.solver, segments=self.segments,
                        predicted_fmt=self.forecast().displacement_fmt,
-                       frame_rows=self.frame_rows)
+                       frame_rows=self.frame_rows,
+                       max_row_offset=min(bound, self.top.solver.rows - 1))
         return ConsistencyParams(**{**derived, **changes})
 
     def window(self, rows, **top_changes):
@@ -185,9 +196,17 @@ class PipelineConfig:
         check_int("rows", rows, 1, top.camera.max_height)
         kept = {f.name: getattr(top, f.name) for f in fields(top)
                 if f.init and f.name not in ("camera", "pairs", "segments", "solver")}
-        return TopParams.for_pairs(top.pairs, segments=top.segments,
-                                   camera=replace(top.camera, max_height=rows),
-                                   solver=top.solver, **{**kept, **top_changes})
+        kept.update(forecast=None, consistency=None)
+        window = TopParams.for_pairs(top.pairs, segments=top.segments,
+                                     camera=replace(top.camera, max_height=rows),
+                                     solver=top.solver, **{**kept, **top_changes})
+        if not top.closed_loop:
+            return window
+        # the loop's solver is the window's; the forecast and the stage address its rows
+        stage = top.consistency
+        return window.closing(replace(top.forecast, solver=window.solver, height=rows),
+                              replace(stage, solver=window.solver,
+                                      max_row_offset=min(stage.max_row_offset, rows - 1)))
 
     # --- the parts each model reads ------------------------------------------------------
 
@@ -203,6 +222,11 @@ class PipelineConfig:
     @property
     def clk_hz(self):
         return self.top.clk_hz
+
+
+def fields_default(cls, name):
+    """The default of dataclass ``cls``'s field ``name``."""
+    return next(f.default for f in fields(cls) if f.name == name)
 
 
 def _store(solver, table, degree, rig_name):

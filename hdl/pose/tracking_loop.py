@@ -46,6 +46,7 @@ from hdl.pose.forecast_predictor import output_layout
 from hdl.pose.loop_requests import RequestGenerator
 from hdl.pose.measured_shift import MeasuredShift
 from hdl.pose_solver import PoseSolver, measurement_layout, record_layout
+from hdl.stream_fork import StreamFork
 
 __all__ = ["TrackingLoop", "loop_counters_layout", "verdict_layout"]
 
@@ -87,11 +88,15 @@ class TrackingLoop(wiring.Component):
         The engine's measurements, a row's slots distinct, ``last`` on its final one.
     o : Out(stream.Signature(output_layout(params)))
         The forecast: per row ``cameras`` transfers with the ``row`` they are for.
-    record : Out(record_layout(solver)); record_valid : Out(1)
-        Each pose record, strobed when the forecast takes it.
-    verdict : Out(verdict_layout()); verdict_valid : Out(1)
-        Each judged measurement's verdict bits, strobed as the solver takes it: the
-        tracking status' row counts (``judged``, ``outliers``, ``confident``, ``last``).
+    records : Out(stream.Signature(record_layout(solver)))
+        Every pose record (the forecast takes each too; a record leaves the solver once
+        both have: a stalled ``records`` stalls the loop).
+    verdicts : Out(stream.Signature(verdict_layout()))
+        Each judged measurement's verdict bits, offered as the solver is offered the
+        measurement (a stalled ``verdicts`` stalls the solver's input): the tracking
+        status' row counts (``judged``, ``outliers``, ``confident``, ``last``).
+    coef_write : In(coef_write_signature(solver))
+        The solver's coefficient store load (:class:`hdl.pose_solver.PoseSolver`).
     alpha, beta, initial, restart : In
         The forecast's (:class:`hdl.pose.forecast.Forecast`); ``restart`` also restarts
         the requests at row 0, slot 0.
@@ -124,8 +129,9 @@ class TrackingLoop(wiring.Component):
         super().__init__({
             "i": In(stream.Signature(measurement_layout(s))),
             "o": Out(stream.Signature(output_layout(params))),
-            "record": Out(record_layout(s)), "record_valid": Out(1),
-            "verdict": Out(verdict_layout()), "verdict_valid": Out(1),
+            "records": Out(stream.Signature(record_layout(s))),
+            "verdicts": Out(stream.Signature(verdict_layout())),
+            "coef_write": self._solver.signature.members["coef_write"],
             "alpha": f["alpha"], "beta": f["beta"], "initial": f["initial"],
             "restart": f["restart"],
             "settings": In(settings_layout(stage), init=settings_init(stage)),
@@ -202,15 +208,30 @@ class TrackingLoop(wiring.Component):
 
         # --- judged → solver (with the row's verdict) → records → forecast
         connect(m, shift.o, stage.i)
-        connect(m, stage.o, solver.i)
-        connect(m, solver.o, forecast.records)
+        # the judged measurements to the solver and, as verdicts, to the status' counts
+        judged = data.StructLayout({"measurement": stage.o.payload.shape(), "judged": 1,
+                                    "outlier": 1})
+        m.submodules.judged_fork = judged_fork = StreamFork(judged, 2)
+        to_solver, to_status = judged_fork.o
+        m.d.comb += [judged_fork.i.valid.eq(stage.o.valid), stage.o.ready.eq(judged_fork.i.ready),
+                     judged_fork.i.payload.measurement.eq(stage.o.payload),
+                     judged_fork.i.payload.judged.eq(stage.judged),
+                     judged_fork.i.payload.outlier.eq(stage.outlier),
+                     solver.i.valid.eq(to_solver.valid), to_solver.ready.eq(solver.i.ready),
+                     solver.i.payload.eq(to_solver.payload.measurement),
+                     self.verdicts.valid.eq(to_status.valid),
+                     to_status.ready.eq(self.verdicts.ready),
+                     self.verdicts.payload.judged.eq(to_status.payload.judged),
+                     self.verdicts.payload.outliers.eq(to_status.payload.outlier),
+                     self.verdicts.payload.confident.eq(
+                         to_status.payload.measurement.conf != 0),
+                     self.verdicts.payload.last.eq(to_status.payload.measurement.last)]
+        # every record to the forecast and out
+        m.submodules.record_fork = record_fork = StreamFork(solver.o.payload.shape(), 2)
+        connect(m, solver.o, record_fork.i)
+        connect(m, record_fork.o[0], forecast.records)
+        connect(m, record_fork.o[1], flipped(self.records))
         m.d.comb += [solver.gated.eq(stage.gated), stage.settings.eq(self.settings),
-                     self.counts.eq(stage.counts), self.solver_counters.eq(solver.counters),
-                     self.verdict.judged.eq(stage.judged),
-                     self.verdict.outliers.eq(stage.outlier),
-                     self.verdict.confident.eq(stage.o.payload.conf != 0),
-                     self.verdict.last.eq(stage.o.payload.last),
-                     self.verdict_valid.eq(stage.o.valid & stage.o.ready),
-                     self.record.eq(solver.o.payload),
-                     self.record_valid.eq(solver.o.valid & solver.o.ready)]
+                     self.counts.eq(stage.counts), self.solver_counters.eq(solver.counters)]
+        connect(m, flipped(self.coef_write), solver.coef_write)
         return m

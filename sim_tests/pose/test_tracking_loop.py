@@ -72,12 +72,15 @@ def run_loop(case, *, seed, gaps, limit=400000):
             if ready and ctx.get(dut.o.valid):
                 payload = ctx.get(dut.o.payload)
                 got["o"].append((cycle, {n: getattr(payload, n) for n in OUT_FIELDS}))
-            if ctx.get(dut.verdict_valid):
-                verdict = ctx.get(dut.verdict)
+            taking = [rng.random() < prob for _ in range(2)]
+            ctx.set(dut.verdicts.ready, taking[0])
+            ctx.set(dut.records.ready, taking[1])
+            if taking[0] and ctx.get(dut.verdicts.valid):
+                verdict = ctx.get(dut.verdicts.payload)
                 got["verdicts"].append((verdict.judged, verdict.outliers, verdict.confident,
                                         verdict.last))
-            if ctx.get(dut.record_valid):
-                got["records"].append((cycle, record_dict(ctx.get(dut.record))))
+            if taking[1] and ctx.get(dut.records.valid):
+                got["records"].append((cycle, record_dict(ctx.get(dut.records.payload))))
             await ctx.tick()
             cycle += 1
             assert cycle < limit, (f"loop hung: {len(got['o'])} forecast transfers, "

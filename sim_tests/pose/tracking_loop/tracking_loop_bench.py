@@ -13,25 +13,17 @@ import random
 
 import cocotb
 from amaranth.lib import data
-from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
+from cocotb.triggers import ClockCycles, RisingEdge
 
 from emulator.hdl_sim.clocking import reset, start_clock
 from emulator.hdl_sim.payload import pack, unpack
 from emulator.hdl_sim.streams import StreamSink, StreamSource
 from hdl.measurement.consistency import counts_layout, settings_init, settings_layout
 from hdl.pose.forecast_predictor import output_layout
+from hdl.pose.tracking_loop import verdict_layout
 from hdl.pose_solver import measurement_layout, record_layout
 
 from sim_tests.pose.forecast.forecast_bench import _indexed
-
-
-async def _watch_records(dut, layout, clock, records):
-    """Every record the forecast takes (``record_valid``), with its clock."""
-    while True:
-        await ReadOnly()
-        if int(dut.record_valid.value):
-            records.append((clock.cycle, unpack(layout, dut.record.value)))
-        await RisingEdge(clock.clk)
 
 
 @cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"])
@@ -53,29 +45,32 @@ async def loop_matches_model(dut, traffic):
                           valid_prob=1.0 if busy else 0.6)
     sink = StreamSink(dut, "o", output_layout(params), clock, rng=rng,
                       ready_prob=1.0 if busy else 0.4)
-    records = []
+    records = StreamSink(dut, "records", record_layout(s), clock, rng=rng,
+                         ready_prob=1.0 if busy else 0.5)
+    verdicts = StreamSink(dut, "verdicts", verdict_layout(), clock, rng=rng,
+                          ready_prob=1.0 if busy else 0.7)
     await reset(dut)
     dut.restart.value = 1
     await RisingEdge(dut.clk)
     dut.restart.value = 0
-    cocotb.start_soon(_watch_records(dut, record_layout(s), clock, records))
     cocotb.start_soon(source.send(case["inputs"]))
     flat = [o for outs in case["expected"] for o in outs]
     await sink.wait_for(len(flat), timeout_cycles=2000 * len(case["expected"]))
-    while len(records) < len(case["records"]):
-        await RisingEdge(dut.clk)
+    await records.wait_for(len(case["records"]), timeout_cycles=2000 * len(case["expected"]))
     await ClockCycles(dut.clk, 100)          # the last scale update is counted
     got = [payload for _, payload in sink.received]
     for n, (g, e) in enumerate(zip(got, flat)):
         assert g == e, f"forecast transfer {n} (row {n // params.cameras}): hardware {g}, model {e}"
     extra = got[len(flat):]
     assert len(extra) <= (params.loop_delay_rows + 1) * params.cameras, len(extra)
-    assert len(records) == len(case["records"])
-    for n, ((_, g), e) in enumerate(zip(records, case["records"])):
+    assert len(records.received) == len(case["records"])
+    assert len(verdicts.received) == len(case["inputs"]), "one verdict per measurement"
+    for n, ((_, g), e) in enumerate(zip(records.received, case["records"])):
         assert g == _indexed(e), f"record {n}: hardware {g}, model {e}"
     counts = unpack(counts_layout(), dut.counts.value)
     assert counts == case["counts"], counts
     solved = sum(r["flags"] == 0 for r in case["records"])
     dut._log.info(f"{traffic}: {len(case['inputs'])} measurements, {len(flat)} forecast "
-                  f"transfers, {len(records)} records ({solved} solved) bit-exact; counts "
-                  f"{counts}; last record at clock {records[-1][0]}")
+                  f"transfers, {len(records.received)} records ({solved} solved) bit-exact, "
+                  f"{len(verdicts.received)} verdicts; counts {counts}; last record at clock "
+                  f"{records.received[-1][0]}")
