@@ -37,14 +37,25 @@ from hdl.pose_solver import PoseSolver
 from hdl.bus.axi4lite import AXI4LiteSignature
 from hdl.bus.register_file import RegisterFile
 from hdl.streams import dvp_signature
-from hdl.top_params import TopParams
+from hdl.top_params import DEFAULT_SEGMENTS, TopParams
 
-__all__ = ["RowtrackTop", "register_file"]
+__all__ = ["RowtrackTop", "register_file", "closed_loop_top"]
 
 
 def register_file(params=TopParams()):
     """The register file of the top built with ``params`` (a catalog entry of its own)."""
     return RegisterFile(params.regmap())
+
+
+def closed_loop_top(rig_name="stereo8-board"):
+    """The closed-loop top of preset rig ``rig_name`` (its cameras, pairs and coefficient
+    stores, K = K_s = 4): the catalog's ``top_closed``, the build a board user loads."""
+    from golden.rig import preset
+    from hdl.pipeline_config import PipelineConfig
+    config = PipelineConfig.for_rig(preset(rig_name), closed_loop=True,
+                                    stereo_segments=DEFAULT_SEGMENTS)
+    return RowtrackTop(config.top, coefficients=config.coef_store,
+                       forecast_stores=(config.coef_raw, config.row_coef_raw))
 
 
 class RowtrackTop(wiring.Component):
