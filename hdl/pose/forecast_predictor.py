@@ -3,11 +3,13 @@ cue of each of its segments, each camera's window centre and source row address
 (:meth:`emulator.pose.forecast.ForecastModel.predict` in gateware, bit for bit).
 
 Two lanes run side by side, one per coefficient store: the solver's store (the shift
-along the row) and the across-rows store (the displacement across rows), each a
-:class:`hdl.pose.coef_store.CoefficientStore` with the solver's layout — polynomials in
+along the row) and the across-rows store (the displacement across rows), each in
+the solver's store layout — polynomials in
 the row evaluated by Horner (``PipelineConfig.coef_store``, ``.row_coef_store``), or
-every row — without the run-time write port. The lane of the faster store has its
-address delayed so both lanes' coefficients arrive together. Per segment and
+every row — as a :class:`hdl.pose.coef_term_store.TermStore`: only the two coefficients
+of the term in progress are evaluated, without the run-time write port. The lane of the
+faster store has its address delayed so both lanes' coefficients arrive together. Per
+segment and
 lane, six terms, one per clock: the design entry ``a_i`` of the solver's arithmetic
 (``w·a_T`` or ``a_R + w·a_C``, rounded half-even into ``a_fmt``, saturated), then
 ``a_i·Ŷ_i`` summed exactly and rounded once into ``displacement_fmt`` (saturation
@@ -24,7 +26,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out, connect, flipped
 
 from hdl.fixed import SQ, Overflow, QFormat, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
-from hdl.pose.coef_store import CoefficientStore, coef_read_signature
+from hdl.pose.coef_term_store import TermStore, term_read_signature
 from hdl.pose.forecast_params import ForecastParams
 
 __all__ = ["RowPredictor", "output_layout", "counters_layout", "term_tag",
@@ -92,10 +94,10 @@ class RowPredictor(wiring.Component):
     idle : Out(1)
     o : Out(stream.Signature(output_layout(params)))
     counters : Out(counters_layout(params))
-    coef : In(coef_read_signature(solver))
+    coef : In(term_read_signature(solver))
         With ``shared_port``: the second read port of the solver's store (the shift along
         the row; the memories' second port and its own Horner datapath), data
-        ``solver.coef_latency`` clocks after the (slot, row):
+        ``solver.coef_latency`` clocks after the (slot, row, term):
         :class:`hdl.pose.measured_shift.MeasuredShift` reads it.
 
     Timing: a camera takes ``6K`` issue clocks, its result appears :attr:`drain` clocks
@@ -112,14 +114,13 @@ class RowPredictor(wiring.Component):
                              f"camera mean is a shift), not {k}")
         self.params = params
         s = params.solver
-        self.stores = (CoefficientStore(s, coefficients, name="coefficients",
-                                        second_read=shared_port, writable=False),
-                       CoefficientStore(params.row_store, row_coefficients,
-                                        name="row_coefficients", writable=False))
+        self.stores = (TermStore(s, coefficients, name="coefficients",
+                                 second_read=shared_port),
+                       TermStore(params.row_store, row_coefficients, name="row_coefficients"))
         #: Clocks from a term's (slot, row) to its coefficients, both lanes.
         self.store_latency = max(store.params.coef_latency for store in self.stores)
         self.shared_port = shared_port
-        shared = {"coef": In(coef_read_signature(s))} if shared_port else {}
+        shared = {"coef": In(term_read_signature(s))} if shared_port else {}
         super().__init__({
             **shared,
             "start": In(1), "row": In(s.row_bits),
@@ -190,15 +191,17 @@ class RowPredictor(wiring.Component):
         means, flags = [], []
         for lane, store in enumerate(self.stores):
             m.submodules[f"store{lane}"] = store
-            slot, at = channel, row
+            slot, at, index = channel, row, tags[0].term
             for n in range(latency - store.params.coef_latency):   # meet the slower lane
-                slot, at = _delayed(m, slot, f"slot{lane}_{n}"), _delayed(m, at, f"row{lane}_{n}")
-            m.d.comb += [store.slot.eq(slot), store.row.eq(at)]
-            mean, flag = self._lane(m, lane, store.params, store.data, stages, cue1, y2)
+                slot, at, index = (_delayed(m, slot, f"slot{lane}_{n}"),
+                                   _delayed(m, at, f"row{lane}_{n}"),
+                                   _delayed(m, index, f"term{lane}_{n}"))
+            m.d.comb += [store.slot.eq(slot), store.row.eq(at), store.term.eq(index)]
+            mean, flag = self._lane(m, lane, store, stages, cue1, y2)
             means.append(mean)
             flags.append(flag)
         if self.shared_port:
-            connect(m, flipped(self.coef), self.stores[0].second)
+            connect(m, flipped(self.coef), self.stores[0].second_port)
 
         # --- the camera's result: saturate, hold until taken
         centre, source = means[0], row - means[1]
@@ -228,11 +231,12 @@ class RowPredictor(wiring.Component):
                 m.d.sync += issuing.eq(1)
         return m
 
-    def _lane(self, m, lane, store, coefficients, tags, cue1, y2):
+    def _lane(self, m, lane, store, tags, cue1, y2):
         """One store's datapath from its coefficients; returns (the camera mean of its
         displacements, rounded half-up to pixels; the per-segment saturation flags)."""
         p, k = self.params, self.params.segments
-        value, over = displacement_terms(m, p, store, coefficients, tags, cue1, y2, f"{lane}")
+        value, over = displacement_terms(m, p, store.params, store.first, store.second, tags,
+                                         cue1, y2, f"{lane}")
         dst = p.displacement_fmt
         shift = (k - 1).bit_length()
         camera_fmt = QFormat(True, dst.int_bits + shift + 1, dst.frac_bits + shift)
@@ -255,11 +259,12 @@ def term_tag(params):
                               "end": 1})
 
 
-def displacement_terms(m, params, store, coefficients, tags, cue1, y2, name):
+def displacement_terms(m, params, store, first, second, tags, cue1, y2, name):
     """A segment's predicted displacement ``a·Ŷ``, one term per clock: the design entry
-    ``a_i`` of the solver's arithmetic from the store's ``coefficients`` (a read port's
-    data, there while ``tags[1]`` holds the term), the product ``a_i·Ŷ_i`` summed exactly
-    and rounded once, half-even, into ``displacement_fmt`` (saturated).
+    ``a_i`` of the solver's arithmetic from the store's coefficients of the term,
+    ``first`` and ``second`` (a :class:`hdl.pose.coef_term_store.TermStore` port's data,
+    there while ``tags[1]`` holds the term), the product ``a_i·Ŷ_i`` summed exactly and
+    rounded once, half-even, into ``displacement_fmt`` (saturated).
 
     ``tags`` are ``TERM_STAGES + 1`` registered stages of :func:`term_tag` (``tags[n]``
     the term ``n`` clocks after the clock before its coefficients arrive: its issue for a
@@ -273,9 +278,8 @@ def displacement_terms(m, params, store, coefficients, tags, cue1, y2, name):
     c_fmt = mul_format(store.coef_c_fmt, store.cue_fmt)    # the same raw width
     product = Signal(t_fmt.shape(), name=f"coef_cue{name}")
     rotation = Signal(signed(width), name=f"coef_r{name}")
-    m.d.sync += [product.eq(hdl_mul(coefficients[tags[1].term], store.coef_t_fmt, cue1,
-                                    store.cue_fmt)[0]),
-                 rotation.eq(coefficients[tags[1].term + 3])]
+    m.d.sync += [product.eq(hdl_mul(first, store.coef_t_fmt, cue1, store.cue_fmt)[0]),
+                 rotation.eq(second)]
     # stage 2 → 3: the design entry a (the solver's rounding and saturation)
     total, total_fmt = hdl_add(rotation, store.coef_r_fmt, product, c_fmt)
     a = Signal(a_fmt.shape(), name=f"a{name}")

@@ -25,7 +25,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from hdl.measurement.consistency import judge_layout
-from hdl.pose.coef_store import coef_read_signature
+from hdl.pose.coef_term_store import term_read_signature
 from hdl.pose.forecast_predictor import TERM_STAGES, displacement_terms, term_tag
 
 __all__ = ["MeasuredShift", "query_layout"]
@@ -56,9 +56,9 @@ class MeasuredShift(wiring.Component):
         The measurement with ``predicted`` (``displacement_fmt``, saturated).
     saturated : Out(1)
         With ``o.valid``: ``predicted`` was saturated.
-    coef : Out(coef_read_signature(solver))
+    coef : Out(term_read_signature(solver))
         The solver's store (the forecast's copy), data ``solver.coef_latency`` clocks
-        after the (slot, row).
+        after the (slot, row, term).
     """
 
     def __init__(self, params, stage):
@@ -70,7 +70,7 @@ class MeasuredShift(wiring.Component):
             "i": In(stream.Signature(query_layout(params, stage))),
             "o": Out(stream.Signature(judge_layout(stage))),
             "saturated": Out(1),
-            "coef": Out(coef_read_signature(params.solver)),
+            "coef": Out(term_read_signature(params.solver)),
         })
 
     @property
@@ -87,7 +87,8 @@ class MeasuredShift(wiring.Component):
         take = Signal()
         m.d.comb += [self.i.ready.eq(~active & (~self.o.valid | self.o.ready)),
                      take.eq(self.i.valid & self.i.ready),
-                     self.coef.slot.eq(held.slot), self.coef.row.eq(held.row)]
+                     self.coef.slot.eq(held.slot), self.coef.row.eq(held.row),
+                     self.coef.term.eq(term)]
         with m.If(self.o.valid & self.o.ready):
             m.d.sync += self.o.valid.eq(0)
         with m.If(take):
@@ -105,7 +106,8 @@ class MeasuredShift(wiring.Component):
         stages = tags[latency - 1:]
         cue1, y2 = Signal(s.cue_fmt.shape()), Signal(p.motion_fmt.shape())
         m.d.sync += [cue1.eq(held.cue), y2.eq(held.motion[stages[1].term])]
-        value, over = displacement_terms(m, p, s, self.coef.data, stages, cue1, y2, "")
+        value, over = displacement_terms(m, p, s, self.coef.first, self.coef.second, stages,
+                                         cue1, y2, "")
         with m.If(stages[5].valid & (stages[5].term == 5)):
             m.d.sync += [self.o.valid.eq(1), self.o.payload.predicted.eq(value),
                          self.saturated.eq(over), active.eq(0),

@@ -14,6 +14,7 @@ from golden.rig import preset
 from hdl.fixed import SQ, Overflow
 from hdl.pipeline_config import COEF_POLYNOMIAL_TOLERANCE_LSB, PipelineConfig
 from hdl.pose.coef_store import CoefficientStore
+from hdl.pose.coef_term_store import TermStore, second_index
 from hdl.pose.params import PoseSolverParams, quantize_coefficients
 from hdl.pose.row_polynomials import (evaluate_polynomials, fit_row_polynomials,
                                       polynomial_formats, quantize_polynomials,
@@ -250,9 +251,11 @@ def test_the_across_rows_store_is_three_terms_within_one_lsb_of_the_row_table():
 
 
 @pytest.mark.parametrize("degree", [None, 1, 2])
-def test_a_second_read_port_reads_the_same_store(degree):
-    """The forecast's copy: no write port, a second read port with its own (slot, row)
-    and the same latency; both equal the model (random terms, extremes included)."""
+def test_the_term_store_reads_the_two_coefficients_of_a_term_on_two_ports(degree):
+    """The forecast's copy (TermStore): per port a (slot, row, term) in, coefficient
+    ``term`` and ``second_index(term)`` out with the store's latency, equal to the model
+    (random terms, extremes included: the selected chains round and saturate as the
+    nine-chain store does)."""
     rng = np.random.default_rng(SEED)
     print("seed", SEED)
     params = _params(degree) if degree else _params(1, coef_poly_fmts=())
@@ -262,30 +265,36 @@ def test_a_second_read_port_reads_the_same_store(degree):
     else:
         contents = rng.integers(-1 << 17, 1 << 17, (params.slots, params.rows, 9))
         table = contents
-    dut = CoefficientStore(params, contents, second_read=True, writable=False)
+    dut = TermStore(params, contents, second_read=True)
     assert "write" not in dut.signature.members
-    reads = [[(int(rng.integers(params.slots)), int(rng.integers(params.rows)))
-              for _ in range(30)] for _ in range(2)]
+    reads = [[(int(rng.integers(params.slots)), int(rng.integers(params.rows)),
+               int(rng.integers(6))) for _ in range(60)] for _ in range(2)]
     seen = [[], []]
-    ports = [(dut.slot, dut.row, dut.data), (dut.second.slot, dut.second.row, dut.second.data)]
+    q = dut.second_port
+    ports = [(dut.slot, dut.row, dut.term, dut.first, dut.second),
+             (q.slot, q.row, q.term, q.first, q.second)]
 
     async def bench(ctx):
-        for clock in range(30 + params.coef_latency):
-            for (slot, row, _), port in zip(ports, reads):
-                if clock < 30:
-                    ctx.set(slot, port[clock][0])
-                    ctx.set(row, port[clock][1])
+        for clock in range(60 + params.coef_latency):
+            for (slot, row, term, *_), port in zip(ports, reads):
+                if clock < 60:
+                    for signal, value in zip((slot, row, term), port[clock]):
+                        ctx.set(signal, value)
             await ctx.tick()
             if clock + 1 >= params.coef_latency:
-                for (_, _, data), got in zip(ports, seen):
-                    got.append([ctx.get(data[k]) for k in range(9)])
+                for (*_, first, second), got in zip(ports, seen):
+                    got.append([ctx.get(first), ctx.get(second)])
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
     sim.add_testbench(bench)
     sim.run()
     for port, got in zip(reads, seen):
-        np.testing.assert_array_equal(np.array(got[:30]), [table[s, r] for s, r in port])
+        np.testing.assert_array_equal(np.array(got[:60]), [
+            [table[s, r, t], table[s, r, second_index(t)]] for s, r, t in port])
+    if degree:
+        coef_max = [f.max_raw for f in FMTS for _ in range(3)]
+        assert (np.abs(table) >= np.array(coef_max)).any(), "no saturation exercised"
 
 
 def test_store_contents_that_do_not_fit_name_the_store():
