@@ -17,6 +17,7 @@ BLOCKS = {
     "regs": "hdl.top:register_file",
     "gp0_bridge": "hdl.board.gp0:GP0ToAXI4Lite",
     "top": "hdl.top:RowtrackTop",
+    "top_closed": "hdl.top:closed_loop_top",
     "camera_input": "hdl.front_end.camera_input:CameraInput",
     "camera_sync": "hdl.front_end.camera_sync:CameraSync",
     "row_aligner": "hdl.front_end.row_aligner:RowAligner",

@@ -37,14 +37,25 @@ from hdl.pose_solver import PoseSolver
 from hdl.bus.axi4lite import AXI4LiteSignature
 from hdl.bus.register_file import RegisterFile
 from hdl.streams import dvp_signature
-from hdl.top_params import TopParams
+from hdl.top_params import DEFAULT_SEGMENTS, TopParams
 
-__all__ = ["RowtrackTop", "register_file"]
+__all__ = ["RowtrackTop", "register_file", "closed_loop_top"]
 
 
 def register_file(params=TopParams()):
     """The register file of the top built with ``params`` (a catalog entry of its own)."""
     return RegisterFile(params.regmap())
+
+
+def closed_loop_top(rig_name="stereo8-board"):
+    """The closed-loop top of preset rig ``rig_name`` (its cameras, pairs and coefficient
+    stores, K = K_s = 4): the catalog's ``top_closed``, the build a board user loads."""
+    from golden.rig import preset
+    from hdl.pipeline_config import PipelineConfig
+    config = PipelineConfig.for_rig(preset(rig_name), closed_loop=True,
+                                    stereo_segments=DEFAULT_SEGMENTS)
+    return RowtrackTop(config.top, coefficients=config.coef_store,
+                       forecast_stores=config.forecast_stores)
 
 
 class RowtrackTop(wiring.Component):
@@ -59,9 +70,11 @@ class RowtrackTop(wiring.Component):
         Initial contents of the solver's coefficient store (raw; default zeros, loaded
         through the registers), e.g. a rig's ``PipelineConfig.coef_store``.
     forecast_stores : (ndarray, ndarray), closed loop only
-        The forecast's two stores (raw, (slots, rows, 9)): the shift coefficients of
-        every row and the across-rows ones, ``PipelineConfig.coef_raw`` and
-        ``.row_coef_raw``; fixed at build time (no register load yet).
+        The contents of the forecast's two stores in their layouts (raw,
+        (slots, entries_per_slot, 9)): its copy of the solver's store and the across-rows
+        store, ``PipelineConfig.forecast_stores`` (``.coef_store`` and
+        ``.row_coef_store``: polynomial terms); fixed at build time (no register load
+        yet).
 
     Members
     -------

@@ -191,9 +191,10 @@ def _status(params):
                          f"over the last `window` rows (at most {status.max_window}). "
                          f"Fractions are raw {FRACTION_FMT} (0x10000 = 1), "
                          f"`degraded_measurements` raw {MEASUREMENTS_FMT}; change them "
-                         "between rows (a new `window` restarts the history). Until "
-                         "`hdl/top.py` places the unit between the solver and the pose "
-                         "output, these registers are not connected (`state` reads 0).", [
+                         "between rows (a new `window` restarts the history). The "
+                         "closed-loop top places the unit between the tracking loop and "
+                         "the pose output; in the open-loop top these registers are not "
+                         "connected (`state` reads 0).", [
         Register("settings", status.settings_layout(), Access.RW, "window (rows) and "
                  "thresholds: lost below `lost_update_fraction` of rows solved or above "
                  "`lost_outlier_fraction` of outlier measurements over a full window; "
