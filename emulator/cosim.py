@@ -20,7 +20,7 @@ from hdl.descriptor.params import DEFAULT_SEGMENTS
 
 __all__ = ["RECORD_FIELDS", "CosimResult", "compare_records", "slice_rig", "slice_params",
            "NoSolvingWindow", "solving_window", "checked_input", "camera_stimulus",
-           "run_bench", "latency_clocks", "cosim_slice"]
+           "run_bench", "pin_latencies", "latency_clocks", "cosim_slice"]
 
 #: Fields of the PS FIFO's records compared, element by element (``quaternion`` and
 #: ``position`` are arrays): what a record says of its pose (``seq`` counts records and
@@ -288,16 +288,22 @@ def record_arrays(packet, records):
         for name in RECORD_FIELDS}
 
 
+def pin_latencies(out, sets, frames_of_sets, clocks):
+    """Per row set ``k`` (of the first ``len(clocks)``): clocks from its last pixel at the
+    pins (the latest of its cameras) to ``clocks[k]``."""
+    latencies = []
+    for k, (row_set, clock) in enumerate(zip(sets, clocks)):
+        frame = frames_of_sets[k]
+        row = next(iter(row_set.values()))[0]["row"]
+        latencies.append(clock - max(out["row_end_clocks"][cam][frame, row]
+                                     for cam in row_set))
+    return latencies
+
+
 def latency_clocks(out, sets, frames_of_sets, fifo_clocks):
     """Largest clocks from a row set's last pixel at the pins to its record in the FIFO
     (record ``k`` is set ``k``'s: the router emits one row per set handed on)."""
-    worst = 0
-    for k, (row_set, clock) in enumerate(zip(sets, fifo_clocks)):
-        frame = frames_of_sets[k]
-        row = next(iter(row_set.values()))[0]["row"]
-        pins = max(out["row_end_clocks"][cam][frame, row] for cam in row_set)
-        worst = max(worst, clock - pins)
-    return int(worst)
+    return int(max(pin_latencies(out, sets, frames_of_sets, fifo_clocks), default=0))
 
 
 def _benchmark_times():

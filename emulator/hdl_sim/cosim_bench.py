@@ -9,10 +9,10 @@ at the pins, and the block counters. The stimulus comes from the pickle named by
 ``ROWTRACK_COSIM_IN``; the record goes to ``ROWTRACK_COSIM_OUT``.
 
 A closed-loop top (:func:`emulator.cosim_loop.closed_loop_cosim`, stimulus key ``loop``)
-has its coefficients built in; the PS writes the loop's ``initial`` motion and
-``frame_rows`` and strobes ``restart`` before the cameras start, and the bench also
-records the tracking loop's records (with their steps, in the solver's formats), the
-forecast rows the engine takes, and the clocks a row set waited at the engine's input.
+has its coefficients built in and runs its loop from reset (the filter at rest, the
+registers' reset ``frame_rows``); the bench also records, from reset on, the tracking
+loop's records (with their steps, in the solver's formats) and the forecast transfers
+the engine takes, and the clocks a row set or a forecast waited at the engine's input.
 """
 
 import os
@@ -94,14 +94,6 @@ async def _read_fifo(regs, po, count):
     return records
 
 
-async def start_loop(regs, loop):
-    """The PS's start of the closed loop: the initial motion (raw), the frame period in
-    row periods, then ``restart``."""
-    await regs.write_register("loop", "initial", dict(enumerate(int(v) for v in loop["initial"])))
-    await regs.write_register("loop", "frame_rows", int(loop["frame_rows"]))
-    await regs.write_register("loop", "restart", 1)
-
-
 #: Registers read at the end, (group, register); a closed loop's too.
 STATUS_REGISTERS = (("engine", "status"), ("solver", "counters"), ("pose_out", "status"))
 LOOP_REGISTERS = (("loop", "counts"), ("loop", "forecast_counters"), ("loop", "counters"),
@@ -126,6 +118,10 @@ async def cosim_slice(dut):
     with open(os.environ["ROWTRACK_COSIM_IN"], "rb") as f:
         stim = pickle.load(f)
     params, regmap, regs, clock = await start_top(dut)
+    loop = stim.get("loop")
+    if loop:     # the loop forecasts its first rows right after reset
+        loop_records = stream_monitor(dut, dut.loop, "records", clock)
+        forecasts = stream_monitor(dut, dut.engine, "forecast", clock)
     cam, po = params.camera, params.pose_output
     images = stim["images"]                         # (cameras, frames, rows, width)
     n_cams, n_frames, height, width = images.shape
@@ -133,12 +129,7 @@ async def cosim_slice(dut):
 
     await regs.write_register("camera", "input", {"width": width, "height": height,
                                                   "pclk_timeout": 200})
-    loop = stim.get("loop")
-    if loop:
-        await start_loop(regs, loop)
-        loop_records = stream_monitor(dut, dut.loop, "records", clock)
-        forecasts = stream_monitor(dut, dut.engine, "forecast", clock)
-    else:
+    if not loop:
         await load_coefficients(regs, params.solver, stim["coef"])
     await regs.write(regs.address(regmap.find("pose_out", "uart_divisor")), stim["divisor"])
     uart = UartMonitor(dut, params.uart, stim["divisor"], line="uart_tx")
@@ -180,7 +171,8 @@ async def cosim_slice(dut):
            "clocks": clock.cycle, "wall_s": time.perf_counter() - wall_start,
            "status": status, "engine_stalls": engine_in.stalls}
     if loop:
-        out.update(loop_records=loop_records.columns, forecasts=forecasts.columns)
+        out.update(loop_records=loop_records.columns, forecasts=forecasts.columns,
+                   forecast_stalls=forecasts.stalls)
     with open(os.environ["ROWTRACK_COSIM_OUT"], "wb") as f:
         pickle.dump(out, f)
     dut._log.info(f"{len(engine_in.columns)} columns into the engine, {len(records)} pose "
