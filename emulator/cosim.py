@@ -325,17 +325,37 @@ def checked_input(dataset, sim):
     return Dataset.load(dataset) if isinstance(dataset, (str, os.PathLike)) else dataset
 
 
-def camera_stimulus(images, clk_hz):
+def camera_stimulus(images, clk_hz, row_period_s=None):
     """The bench's camera stimulus for ``images`` (cameras, frames, rows, width): the
-    slice's DVP timing (:data:`PCLK_PS`, :data:`PCLK_STEP_PS`, :data:`HBLANK`), the UART
-    :data:`DIVISOR` and a trigger period a quarter longer than the slowest camera's frame
-    (system clocks of ``clk_hz``)."""
+    slice's DVP timing (:data:`PCLK_PS`, :data:`PCLK_STEP_PS`, :data:`HBLANK`; ``hblank``
+    per camera), the UART :data:`DIVISOR` and a trigger period a quarter longer than the
+    longest camera frame (system clocks of ``clk_hz``).
+
+    With ``row_period_s`` every camera's horizontal blanking is stretched so that its rows
+    last that long (within a PCLK), as the cameras of one rig read their rows at one rate
+    (without it, a faster camera gains ``PCLK_STEP_PS`` per pixel on the slower ones).
+
+    Raises
+    ------
+    ValueError
+        When ``row_period_s`` leaves a camera less than :data:`HBLANK` PCLKs of blanking.
+    """
     from emulator.hdl_sim.dvp import DvpTiming
     cameras, _, rows, width = images.shape
-    timing = DvpTiming(width=width, height=rows, hblank=HBLANK)
     pclk_ps = [PCLK_PS + k * PCLK_STEP_PS for k in range(cameras)]
-    period = timing.frame_pclks * max(pclk_ps) // round(1e12 / clk_hz) * 5 // 4 + 2_000
-    return {"images": images, "divisor": DIVISOR, "hblank": HBLANK, "pclk_ps": pclk_ps,
+    hblank = [HBLANK] * cameras
+    if row_period_s is not None:
+        row_ps = round(row_period_s * 1e12)
+        hblank = [-(-row_ps // p) - width for p in pclk_ps]
+        if min(hblank) < HBLANK:
+            raise ValueError(f"row_period_s must leave every camera {HBLANK} PCLKs of "
+                             f"blanking after its {width} pixels (at least "
+                             f"{(width + HBLANK) * max(pclk_ps) * 1e-12:.3g} s), not "
+                             f"{row_period_s!r}")
+    frame_ps = max(DvpTiming(width=width, height=rows, hblank=h).frame_pclks * p
+                   for h, p in zip(hblank, pclk_ps))
+    period = frame_ps // round(1e12 / clk_hz) * 5 // 4 + 2_000
+    return {"images": images, "divisor": DIVISOR, "hblank": hblank, "pclk_ps": pclk_ps,
             "period": period}
 
 

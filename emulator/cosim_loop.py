@@ -66,6 +66,10 @@ class LoopCosimResult:
     forecasts, forecasts_expected : dict
         The forecast rows the engine took (HDL) and the emulator's,
         :data:`FORECAST_FIELDS` (``centre`` and ``source_row``: (rows, cameras)).
+    forecasts_ahead : int
+        Forecast rows the engine took beyond the played rows (at most
+        ``loop_delay_rows + 1``, left out of ``forecasts``; more are compared, and count
+        as mismatches).
     mismatches, solver_mismatches, forecast_mismatches : int
         Differing fields of the three comparisons (:func:`emulator.cosim.compare_records`).
     first_mismatch : str or None
@@ -84,10 +88,10 @@ class LoopCosimResult:
         Per row set: clocks from its last pixel at the pins to the tracking loop's solver
         record (empty if the counts differ).
     forecast_after_record_clocks : ndarray
-        Per row set followed by a row of the same frame: clocks from its solver record
-        to the next row's forecast first offered to the engine (the forecast of the
-        following row slot includes the step with ``loop_delay_rows`` 1; NaN when that
-        forecast was offered before the record).
+        Per row set ``k`` with a row ``k + 1 + loop_delay_rows`` in its frame: clocks
+        from its solver record to that row's forecast (the first to include ``k``'s step)
+        first offered to the engine; NaN when that forecast was offered before the
+        record.
     forecast_lead_clocks : ndarray
         Per row set: clocks from the engine taking the row's forecast (its last
         transfer) to the row set's first column offered at the engine's input (> 0: the
@@ -109,6 +113,7 @@ class LoopCosimResult:
     solver_expected: dict
     forecasts: dict
     forecasts_expected: dict
+    forecasts_ahead: int
     mismatches: int
     solver_mismatches: int
     forecast_mismatches: int
@@ -233,13 +238,15 @@ def _forecast_rows(layout, columns, stalls):
     return arrays, offered[:len(rows)], taken
 
 
-def _forecast_after_record(record_clocks, forecast_offers, frames_of_sets):
-    """Per row set followed by a row set of its frame: clocks from its solver record to
-    the next row set's forecast first offered (NaN: offered before the record)."""
+def _forecast_after_record(record_clocks, forecast_offers, frames_of_sets, delay):
+    """Per row set ``k`` with a row set ``k + 1 + delay`` in its frame (the first whose
+    forecast includes ``k``'s step at loop delay ``delay``): clocks from ``k``'s solver
+    record to that row's forecast first offered (NaN: offered before the record)."""
     gaps = []
-    for k in range(min(len(record_clocks), len(forecast_offers), len(frames_of_sets)) - 1):
-        if frames_of_sets[k] == frames_of_sets[k + 1]:
-            gap = forecast_offers[k + 1] - record_clocks[k]
+    n = min(len(record_clocks), len(forecast_offers), len(frames_of_sets))
+    for k in range(n - 1 - delay):
+        if frames_of_sets[k] == frames_of_sets[k + 1 + delay]:
+            gap = forecast_offers[k + 1 + delay] - record_clocks[k]
             gaps.append(gap if gap > 0 else np.nan)
     return np.array(gaps, dtype=float)
 
@@ -272,11 +279,16 @@ def _forecast_leads(forecasts, forecast_taken, sets, set_offers):
     return np.array(leads, dtype=float)
 
 
-def closed_loop_cosim(dataset, *, frames=3, sim="verilator", waves=False, seed=None,
-                      build_dir="build/cosim_loop", progress=False):
+def closed_loop_cosim(dataset, *, row_period_s, frames=3, sim="verilator", waves=False,
+                      seed=None, build_dir="build/cosim_loop", progress=False):
     """Co-simulate the first ``frames`` frames of every camera and row of ``dataset``
     (its rig must fit the top's register map, e.g. :func:`cut_rig` of stereo8) through
-    the closed-loop HDL top and compare with the emulator; a :class:`LoopCosimResult`."""
+    the closed-loop HDL top and compare with the emulator; a :class:`LoopCosimResult`.
+
+    ``row_period_s``: how long each camera's row lasts on the pins (the loop needs its
+    rows no faster than it closes; the hardware counts row slots by the row order, not
+    by time, so a cut rig's stretched ``t_r`` need not be played), e.g. the uncut rig's
+    ``t_r``; see :func:`emulator.cosim.camera_stimulus`."""
     from golden.checks import check_int
     from hdl.top import RowtrackTop
     dataset = checked_input(dataset, sim)
@@ -286,9 +298,10 @@ def closed_loop_cosim(dataset, *, frames=3, sim="verilator", waves=False, seed=N
     params = config.top
     say = print if progress else (lambda *_: None)
     images = np.stack([c.rows[:frames] for c in dataset.cameras])
-    stim = {**camera_stimulus(images, params.clk_hz), "loop": True}
+    stim = {**camera_stimulus(images, params.clk_hz, row_period_s), "loop": True}
     say(f"[cosim-loop] {len(images)} cameras × {frames} frames × {height} rows of {width} "
-        f"pixels on {sim}, frame {int(config.frame_rows)} row periods")
+        f"pixels on {sim}, rows of {row_period_s * 1e6:.3g} µs, frame "
+        f"{int(config.frame_rows)} row periods")
     timings = {}
     top = RowtrackTop(params, coefficients=config.coef_store,
                       forecast_stores=config.forecast_stores)
@@ -320,6 +333,10 @@ def judge(config, dataset, frames, out, timings=None):
     solver = _solver_arrays(record_layout(params.solver), out["loop_records"])
     forecasts, forecast_offers, forecast_taken = _forecast_rows(
         params.engine.forecast_layout(), out["forecasts"], out["forecast_stalls"])
+    # the rows after the last one played that the loop delay let the loop forecast
+    ahead = min(max(len(forecasts["row"]) - len(forecasts_expected["row"]), 0),
+                params.forecast.loop_delay_rows + 1)
+    forecasts = {name: value[:len(value) - ahead] for name, value in forecasts.items()}
     frames_of_sets = [k // height for k in range(len(sets))]
     mismatches, first = compare_records(records, expected, frames_of_sets)
     solver_mismatches, solver_first = compare_records(solver, solver_expected,
@@ -333,7 +350,7 @@ def judge(config, dataset, frames, out, timings=None):
     firsts = [first for first, _ in spans]
     return LoopCosimResult(
         records=records, expected=expected, solver=solver, solver_expected=solver_expected,
-        forecasts=forecasts, forecasts_expected=forecasts_expected,
+        forecasts=forecasts, forecasts_expected=forecasts_expected, forecasts_ahead=ahead,
         mismatches=mismatches, solver_mismatches=solver_mismatches,
         forecast_mismatches=forecast_mismatches,
         first_mismatch=first or (solver_first and f"solver {solver_first}")
@@ -346,8 +363,8 @@ def judge(config, dataset, frames, out, timings=None):
         record_latency_clocks=np.array(
             pin_latencies(out, sets, frames_of_sets, record_clocks)
             if len(record_clocks) == len(sets) else [], dtype=float),
-        forecast_after_record_clocks=_forecast_after_record(record_clocks, forecast_offers,
-                                                            frames_of_sets),
+        forecast_after_record_clocks=_forecast_after_record(
+            record_clocks, forecast_offers, frames_of_sets, params.forecast.loop_delay_rows),
         forecast_lead_clocks=_forecast_leads(forecasts, forecast_taken, sets,
                                              [column_offers[first] for first in firsts]),
         clocks_per_row_set=float(np.mean([b - a + 1 for a, b in spans])) if spans else 0.0,

@@ -138,8 +138,9 @@ async def cosim_slice(dut):
 
     # The cameras start after the set-up: their PCLKs are driven from Python, the
     # costliest part of the simulation.
-    timing = DvpTiming(width=width, height=height, hblank=stim["hblank"])
-    players = [DvpPlayer(frames=images[k], timing=timing, period_ps=stim["pclk_ps"][k],
+    players = [DvpPlayer(frames=images[k], period_ps=stim["pclk_ps"][k],
+                         timing=DvpTiming(width=width, height=height,
+                                          hblank=stim["hblank"][k]),
                          phase_ps=3_001 + 2_222 * k, rng=rng) for k in range(n_cams)]
     for k, player in enumerate(players):
         cocotb.start_soon(drive_cocotb(dut, f"dvp__{k}", f"pclk{k}_clk", player,

@@ -1,11 +1,13 @@
 """The whole closed-loop top (issue 16) co-simulated against the emulator's closed loop,
 bit for bit (:func:`emulator.cosim_loop.closed_loop_cosim`): stereo8 cut to a few rows,
-every camera's rows played on the DVP pins, the PS starting the loop over AXI, every
-pose record read from the PS FIFO (flags with the status bits) and every solver record
-(step and pose) compared with :func:`emulator.pipeline.run`'s closed loop.
+every camera's rows played on the DVP pins, the loop running from reset, every pose
+record read from the PS FIFO (flags with the status bits), every solver record (step and
+pose) and every forecast row the engine took (each lane's window centre and source row)
+compared with :func:`emulator.pipeline.run`'s closed loop.
 
-The Verilator case (24 rows × 3 frames: two whole frames of solved rows) takes minutes:
-``RUN_SLOW=1``. The default suite runs a smaller case on Icarus.
+The default suite runs 8 rows × 2 frames (frame 0 and one tracked frame) on Icarus; the
+Verilator case (24 rows × 3 frames: two tracked frames) takes minutes: ``RUN_SLOW=1``.
+Seed: ``SEED`` (printed).
 """
 
 import os
@@ -17,6 +19,9 @@ from golden.rig import preset
 from emulator.cosim_loop import cut_rig
 
 SEED = int(os.environ.get("SEED", "1"))
+#: The cameras' row period on the pins: stereo8's own (the cut rig stretches ``t_r`` to
+#: keep its frame period; the hardware counts row slots by the row order).
+ROW_PERIOD_S = preset("stereo8").cameras[0].t_r
 
 
 def _dataset(rows, frames, seed=SEED):
@@ -37,41 +42,58 @@ def test_the_cut_rig_keeps_a_whole_number_of_row_periods_per_frame():
         assert config.top.consistency.frame_rows == int(config.frame_rows)
 
 
+def _span(values):
+    values = np.asarray(values, dtype=float)
+    finite = values[np.isfinite(values)]
+    return f"{finite.min():.0f}…{finite.max():.0f}" if len(finite) else "none"
+
+
 def _check(result, frames, rows):
-    print(f"SEED={SEED}: {len(result.records['row'])} records ({result.solved} solved), "
-          f"{result.mismatches} FIFO + {result.solver_mismatches} solver mismatches "
-          f"({result.first_mismatch}); latency {result.latency_clocks} clocks; forecast "
-          f"lead {np.nanmin(result.forecast_lead_clocks)}…"
-          f"{np.nanmax(result.forecast_lead_clocks)} clocks; engine stalls "
-          f"{result.engine_stall_clocks} clocks; {result.clocks} clocks in "
+    print(f"SEED={SEED}: {result.row_sets} row sets; {len(result.records['row'])} FIFO, "
+          f"{len(result.solver['row'])} solver records ({result.solved} solved), "
+          f"{len(result.forecasts['row'])} forecast rows (+{result.forecasts_ahead} ahead) "
+          f"compared: {result.mismatches} FIFO + {result.solver_mismatches} solver + "
+          f"{result.forecast_mismatches} forecast mismatches ({result.first_mismatch}); "
+          f"last pixel → PS FIFO ≤ {result.latency_clocks} clocks, → solver record "
+          f"{_span(result.record_latency_clocks)} clocks; record → next forecast "
+          f"{_span(result.forecast_after_record_clocks)} clocks (offered before it: "
+          f"{int(np.isnan(result.forecast_after_record_clocks).sum())}); forecast lead "
+          f"{_span(result.forecast_lead_clocks)} clocks; {result.clocks_per_row_set:.0f} "
+          f"clocks per row set, row period {result.row_period_clocks:.0f} clocks; engine "
+          f"stalls {result.engine_stall_clocks} clocks; {result.clocks} clocks in "
           f"{result.wall_s:.0f} s; {result.status}")
     assert result.rows_match, "the HDL's row sets are not the dataset's rows"
     assert result.row_sets == frames * rows
     assert len(result.records["row"]) == frames * rows
     assert len(result.solver["row"]) == frames * rows
-    assert result.mismatches == 0 and result.solver_mismatches == 0, result.first_mismatch
+    assert len(result.forecasts["row"]) == frames * rows
+    assert result.mismatches == 0, result.first_mismatch
+    assert result.solver_mismatches == 0, result.first_mismatch
+    assert result.forecast_mismatches == 0, result.first_mismatch
+    assert result.uart_packets_match
     assert result.solved > 0, "the emulator solved no row: the solver's steps went unchecked"
-    assert np.all(result.forecast_lead_clocks > 0), "a row set waited for its forecast"
     assert result.status["loop.counters"]["mismatched"] == 0
     for name, fields in result.status.items():
         if name.startswith("camera.inputs["):
-            assert fields["dropped_rows"] == 0, name
+            assert fields["dropped_rows"] == 0 and fields["bad_rows"] == 0, name
 
 
 @pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="minutes on Verilator: RUN_SLOW=1")
 def test_closed_loop_top_equals_the_emulator_on_verilator():
     from emulator.cosim_loop import closed_loop_cosim
     rows, frames = 24, 3
-    result = closed_loop_cosim(_dataset(rows, frames), frames=frames, sim="verilator",
-                               seed=SEED, build_dir="build/cosim_loop_verilator")
+    result = closed_loop_cosim(_dataset(rows, frames), row_period_s=ROW_PERIOD_S,
+                               frames=frames, sim="verilator", seed=SEED,
+                               build_dir="build/cosim_loop_verilator")
     _check(result, frames, rows)
 
 
 def test_closed_loop_top_equals_the_emulator_on_icarus():
     from emulator.cosim_loop import closed_loop_cosim
     rows, frames = 8, 2
-    result = closed_loop_cosim(_dataset(rows, frames), frames=frames, sim="icarus",
-                               seed=SEED, build_dir="build/cosim_loop_icarus")
+    result = closed_loop_cosim(_dataset(rows, frames), row_period_s=ROW_PERIOD_S,
+                               frames=frames, sim="icarus", seed=SEED,
+                               build_dir="build/cosim_loop_icarus")
     _check(result, frames, rows)
 
 
@@ -124,9 +146,21 @@ def test_forecast_rows_are_grouped_compared_and_timed():
     assert first == "record 1 (frame 0, row 1): centre[1] HDL -1 ≠ emulator 1"
 
 
-def test_record_to_next_forecast_within_a_frame_only():
+def test_a_row_period_too_short_for_the_pixels_is_refused():
+    from emulator.cosim import HBLANK, camera_stimulus
+    images = np.zeros((2, 1, 2, 640), dtype=np.uint8)
+    hblank = camera_stimulus(images, 100e6, ROW_PERIOD_S)["hblank"]
+    assert min(hblank) >= HBLANK and hblank[0] > hblank[1]     # camera 1's PCLK is slower
+    with pytest.raises(ValueError, match="row_period_s must leave every camera 16 PCLKs"):
+        camera_stimulus(images, 100e6, 640 * 10.4e-9)
+
+
+def test_record_to_the_forecast_it_enters_within_a_frame_only():
     from emulator.cosim_loop import _forecast_after_record
-    gaps = _forecast_after_record([100, 200, 300, 400], [50, 130, 190, 450], [0, 0, 0, 1])
-    # set 0 → set 1's forecast 30 clocks later; set 1 → set 2's offered before it (NaN);
-    # set 2 is its frame's last
-    assert gaps[0] == 30 and np.isnan(gaps[1]) and len(gaps) == 2
+    records, offers, frames = [100, 200, 300, 400, 500], [50, 130, 190, 310, 450], \
+        [0, 0, 0, 0, 1]
+    assert _forecast_after_record(records, offers, frames, 0)[0] == 30
+    # delay 1: set 0 → set 2's forecast 90 clocks later; set 1 → set 3's 110; set 2 → set
+    # 4 is another frame's
+    assert _forecast_after_record(records, offers, frames, 1).tolist() == [90, 110]
+    assert np.isnan(_forecast_after_record([100, 400, 0], [0, 0, 50], [0, 0, 0], 1)[0])
