@@ -242,16 +242,24 @@ def test_end_to_end_with_the_cosimulation(tmp_path, capsys):
 
 def test_check_closed_loop_can_pass(outcome):
     """The tolerance check gives no line when every bound is met: the tiny run's figures
-    with golden (b) as good as the hardware path on every axis."""
+    with golden (b) as good as the hardware path on every axis (its synchronized cameras
+    fit the row aligner); a front end that cannot form the row sets is one line."""
     from emulator.e2e import check_closed_loop
     figures = dict(outcome.comparison)
     for name in UNKNOWNS:
         figures[f"golden_b_vs_truth.rms.{name}"] = figures[f"emulator_vs_truth.rms.{name}"]
         figures[f"ratio_to_golden_b.{name}"] = 1.0
     assert check_closed_loop(figures) == []
+    assert figures["front_end.trigger_skew_rows"] == 0
+    assert figures["front_end.skew_rows_held"] == 1
+    assert figures["front_end.shortfall"] is None
     figures["solved_fraction"] = 0.5
     assert check_closed_loop(figures) == [
         "hardware path: 50.0% of the rows of frames ≥ 1 solved, below 95%"]
+    figures.update({"solved_fraction": 1.0, "front_end.shortfall": "skew beyond the buffer"})
+    assert check_closed_loop(figures) == [
+        "front end: skew beyond the buffer; the hardware path assumes row sets this front "
+        "end cannot form"]
 
 
 def test_a_dataset_runs_the_same_closed_loop(outcome, tmp_path):
