@@ -243,9 +243,10 @@ def fork_status_layout(params):
 
 
 def engine_status_layout(params):
-    """The fork's counters (:func:`fork_status_layout`), ``half_width_error`` (1 while
-    ``cfg.half_width`` is out of range and the lanes use the built maximum) and the
-    router's counters (``router``); with ``follow`` also ``malformed`` (forecast rows discarded by
+    """The fork's counters (:func:`fork_status_layout`), the router's (``router``) and
+    ``half_width_error`` (1 while ``cfg.half_width`` is out of range and the lanes use
+    the built maximum; last, so that the counters keep their addresses); with
+    ``follow`` also ``malformed`` (forecast rows discarded by
     :class:`hdl.measurement.forecast_rows.ForecastRows`, ``count_bits``, wrapping)
     and ``out_of_range[k]`` (camera ``k``'s lane: rows whose source row the ring
     could not serve, saturating at ``OUT_OF_RANGE_BITS``)."""
@@ -256,5 +257,5 @@ def engine_status_layout(params):
     if params.follow:
         fields["malformed"] = params.count_bits
         fields["out_of_range"] = data.ArrayLayout(OUT_OF_RANGE_BITS, params.cameras)
-    return data.StructLayout({**fields, "half_width_error": 1,
-                              "router": router_status_layout(params.router)})
+    return data.StructLayout({**fields, "router": router_status_layout(params.router),
+                              "half_width_error": 1})
