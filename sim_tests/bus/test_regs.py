@@ -217,8 +217,9 @@ def test_rowtrack_map_binds_every_block():
 
 
 def test_engine_group_binds_the_engine_layouts():
-    """Control is the engine's cfg (enabled after reset, centres 0), status its counters;
-    the group says that the lanes have no run-time thresholds."""
+    """Control is the engine's cfg (enabled after reset, centres 0, the temporal window's
+    half-width the built maximum), status its counters; the group says that the lanes
+    have no run-time thresholds."""
     from amaranth.lib import data
 
     from hdl.measurement.engine_params import engine_config_layout, engine_status_layout
@@ -229,7 +230,10 @@ def test_engine_group_binds_the_engine_layouts():
     assert control.shape == engine_config_layout(params.engine)
     assert status.shape == engine_status_layout(params.engine)
     assert data.Const(control.shape, control.reset_raw).enable == 1
-    assert control.reset_raw == 1 << control.shape["enable"].offset
+    w = params.engine.temporal.max_half_width
+    assert data.Const(control.shape, control.reset_raw).half_width == w == 20
+    assert control.reset_raw == (1 << control.shape["enable"].offset
+                                 | w << control.shape["half_width"].offset)
     geometry = next(r for r in engine.registers if r.name == "geometry")
     assert geometry.value == params.segments | len(params.pairs) << 8 | params.solver.slots << 16
     assert "no run-time thresholds" in engine.doc
