@@ -1,0 +1,316 @@
+"""Where does the hardware path lose accuracy against golden (b)? (issue 16)
+
+Controlled swaps inside the emulator's closed loop (:func:`emulator.pipeline.run`), one
+change each, on a simulated stereo20 cut; and, for the metric and the linearisation,
+the matching swaps inside golden (b). Every figure is a per-row Y RMS against truth over
+the hardware's rows of frames >= 1 (camera 0's row times), divided per axis by golden
+(b)'s trajectory figure on the same rows (the ``rowtrack run`` ratio).
+
+Usage: ``.venv/bin/python scripts/gap_study.py --rows 32 --frames 3 [--seed 1]
+[--trajectory paper] [--only name,name] [--json out.json]``.
+
+Swaps are monkeypatches in this script only (product code untouched):
+
+* ``hw``: the hardware path as ``rowtrack run`` runs it (filter level).
+* ``hw_steps``: the same run's raw solved steps.
+* ``float_solver``: the loop's fixed-point solve replaced by float64 (golden.pose_lsq)
+  on the same routed measurements and float coefficients.
+* ``no_consistency``: the consistency stage (and its P/(P-Δ) time factor) off.
+* ``oracle_cue``: every segment's cue (both cameras of a pair, each its own) replaced
+  by the true disparity f·b·mean(1/Z) over the segment's compared columns.
+* ``float_match``: the lanes' shifts and peak ratios replaced by golden.descriptor.match
+  of the same rows, stored reference row and centre.
+* ``k8``: 8 temporal and 8 stereo segments.
+* ``alpha05``: (filter) the forecast filter's level gain 0.05 instead of 0.1.
+* golden side: ``gb_motion`` (golden (b)'s filter motion instead of its trajectory),
+  ``gb_linear`` (golden (b) with the linear predicted shift A·Ŷ instead of the exact
+  projection g(Ŷ)), ``gb_hwlike`` (segments=4, disparity_blocks=4, shift_sigma=1e6,
+  consistency_k=0, scale_ceiling=1e6).
+"""
+
+import argparse
+import contextlib
+import json
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from golden.pose_lsq import UNKNOWNS
+from hdl.fixed import Overflow, Rounding, resize
+
+
+def make_dataset(rows, frames, seed, trajectory):
+    from golden.rig import load_rig
+    from golden.scene import default_scene_spec
+    from golden.simulator import simulate
+    from golden.trajectory import make_trajectory
+    rig = load_rig("stereo20")
+    if rows is not None:
+        fps = rig.cameras[0].fps
+        rig = rig.replace_cameras(height=rows, cy=(rows - 1) / 2, t_r=1 / (fps * rows))
+    return simulate(rig, default_scene_spec(seed), make_trajectory(trajectory, seed=seed),
+                    frames / rig.cameras[0].fps, seed=seed)
+
+
+def rms(a, b):
+    d = np.asarray(a, float) - np.asarray(b, float)
+    return np.sqrt(np.nanmean(d * d, axis=0))
+
+
+# --- swaps -------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def patched(module, name, value):
+    old = getattr(module, name)
+    setattr(module, name, value)
+    try:
+        yield
+    finally:
+        setattr(module, name, old)
+
+
+def float_solver_patch(config):
+    """tracking_loop.solve_rows -> float64 solve quantized into step_fmt."""
+    import emulator.pose.tracking_loop as tl
+    from emulator.e2e import float_steps
+    from emulator.pose_solver import StepResult
+    fmt = config.router.solver.step_fmt
+
+    def solve(params, coef_raw, rows):
+        step = float_steps(config, rows)
+        ok = np.all(np.isfinite(step), axis=1)
+        raw = np.array([[int(fmt.quantize(v)) for v in s] if o else [0] * 6
+                        for s, o in zip(step, ok)], dtype=np.int64)
+        return StepResult(step=raw, flags=np.where(ok, 0, 1))
+    return patched(tl, "solve_rows", solve)
+
+
+class _Current:
+    """The frame the loop is measuring (set by the patched _Loop.measure)."""
+    frame = 0
+    centres = None
+
+
+def _track_frame():
+    import emulator.pipeline as pl
+    original = pl._Loop.measure
+
+    def measure(self, lanes, rows, frame):
+        _Current.frame = frame
+        out = original(self, lanes, rows, frame)
+        _Current.centres = self.model.prediction["centre"]
+        return out
+    return patched(pl._Loop, "measure", measure)
+
+
+def oracle_cue_patch(dataset, config):
+    """route_row's cues replaced by the true disparity of each camera's segment."""
+    import emulator.pipeline as pl
+    from golden.depth import stereo_pairs
+    from golden.depth_maps import OracleDepth
+    from golden.descriptor import segment_bounds
+    oracle = OracleDepth(dataset)
+    lane, solver = config.router.temporal, config.router.solver
+    fb = {}
+    for a, b, focal_baseline in stereo_pairs(dataset.rig):
+        fb[a] = fb[b] = focal_baseline
+    cache = {}
+    original = pl.route_row
+
+    def inv(n, frame):
+        if (n, frame) not in cache:
+            h = lane.height
+            cache[(n, frame)] = oracle.inverse_depth(n, frame, np.arange(h))
+        return cache[(n, frame)]
+
+    def route_row(params, temporal, stereo, fallback=None):
+        out = original(params, temporal, stereo, fallback)
+        by_slot = {(m["camera"], m["segment"]): m for m in temporal}
+        for t in out:
+            n, k = divmod(t["slot"], lane.segments)
+            m = by_slot[(n, k)]
+            centre = int(_Current.centres[n]) if _Current.centres is not None else 0
+            lo, hi = segment_bounds(lane.width, lane.descriptor, lane.match, centre)[k]
+            z = inv(n, _Current.frame)[t["row"], lo:hi]
+            cue = fb[n] * np.nanmean(z)
+            t["cue"] = int(solver.cue_fmt.quantize(cue))
+            usable = not m["edge_hit"] and np.isfinite(cue)
+            conf = resize(np.array([m["confidence"]]), lane.confidence_fmt, solver.conf_fmt,
+                          Rounding.HALF_EVEN, Overflow.SATURATE)[0]
+            t["conf"] = int(conf) if usable else 0
+        return out
+    stack = contextlib.ExitStack()
+    stack.enter_context(_track_frame())
+    stack.enter_context(patched(pl, "route_row", route_row))
+    return stack
+
+
+def float_match_patch(dataset, config):
+    """The temporal lanes' measurements replaced by the float matcher's on the same
+    current row, stored reference row and centre."""
+    import emulator.row_descriptor as rd
+    from golden.descriptor import describe, match, strength
+    lane = config.router.temporal
+    pixels = {}
+    original = rd.TemporalLaneModel.process_rows
+
+    def desc(n, frame):
+        if (n, frame) not in pixels:
+            p = np.asarray(dataset.cameras[n].rows[frame], dtype=np.float64)
+            pixels[(n, frame)] = (describe(p, lane.descriptor), strength(p, lane.descriptor))
+        return pixels[(n, frame)]
+
+    def process_rows(self, rows, sources=None):
+        out = original(self, rows, sources)
+        if sources is None:
+            return out
+        frame = _Current.frame
+        for r, (row, source) in enumerate(zip(rows, sources)):
+            if frame == 0:
+                continue
+            bits, strong = desc(row.camera, frame)
+            ref, _ = desc(row.camera, frame - 1)
+            m = match(bits[row.row][None], ref[source][None], lane.descriptor, lane.match,
+                      int(row.centre), cur_strong=strong[row.row][None])
+            for k in range(lane.segments):
+                rec = out[r * lane.segments + k]
+                if rec["no_reference"]:
+                    continue
+                good = not (m.textureless[0, k] or m.edge_hit[0, k])
+                if not good:
+                    rec["confidence"] = 0
+                    continue
+                shift = float(m.shift[0, k])
+                integer = int(np.floor(shift + 0.5))
+                rec["shift"] = integer
+                rec["subpixel"] = int(lane.subpixel_fmt.quantize(shift - integer))
+                rec["confidence"] = int(lane.confidence_fmt.quantize(
+                    float(m.peak_ratio[0, k]), overflow=Overflow.SATURATE))
+                rec["edge_hit"] = 0
+        return out
+    stack = contextlib.ExitStack()
+    stack.enter_context(_track_frame())
+    stack.enter_context(patched(rd.TemporalLaneModel, "process_rows", process_rows))
+    return stack
+
+
+# --- runs --------------------------------------------------------------------------------
+
+def hardware(dataset, frames, *, config=None, consistency=True, forecast_changes=None,
+             patch=None):
+    """(frames, rows, level, steps) of a closed-loop run with one swap."""
+    from emulator.hardware_path import first_frame_motion, hardware_config
+    from emulator.pipeline import run
+    config = config or hardware_config(dataset.rig)
+    forecast = config.forecast(**(forecast_changes or {}))
+    with (patch(config) if patch else contextlib.nullcontext()):
+        result = run(config, dataset, frames, forecast=forecast,
+                     initial_motion=first_frame_motion(dataset),
+                     consistency=config.consistency() if consistency else None,
+                     cue_fallback=True)
+    loop = result.loop
+    scored = loop["frame"] > 0
+    level = forecast.motion_fmt.to_float(loop["level"][scored])
+    steps = result.steps(config)
+    later = result.frame > 0
+    return (loop["frame"][scored], loop["row"][scored], level,
+            (result.frame[later], result.records["row"][later], steps[later]))
+
+
+def golden_b(dataset, delay=1, *, linear=False, **changes):
+    from emulator.hardware_path import golden_b_params
+    from golden import tracker as gt
+    params = golden_b_params(delay).replace(**changes) if changes else golden_b_params(delay)
+    if not linear:
+        return gt.track(dataset, params)
+    entry, equations = gt.Tracker._entry, gt.Tracker._equations
+
+    def _entry(self, n, frame, rows, slot_ids, forecasts):
+        e = entry(self, n, frame, rows, slot_ids, forecasts)
+        e.forecasts = forecasts
+        return e
+
+    def _equations(self, e):
+        equations(self, e)
+        e.expected = np.einsum("bkj,bj->bk", e.design, e.forecasts)
+    with patched(gt.Tracker, "_entry", _entry), patched(gt.Tracker, "_equations", _equations):
+        return gt.track(dataset, params)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rows", type=int, default=32)
+    ap.add_argument("--frames", type=int, default=3)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--trajectory", default="paper")
+    ap.add_argument("--only", default=None)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    from emulator.e2e import golden_steps, golden_trajectory_steps, true_steps
+    from hdl.pipeline_config import PipelineConfig
+    t0 = time.time()
+    ds = make_dataset(args.rows, args.frames, args.seed, args.trajectory)
+    print(f"dataset {time.time() - t0:.0f}s", flush=True)
+    base = hardware(ds, args.frames)
+    frames, rows = base[0], base[1]
+    truth = true_steps(ds, frames, rows)
+    gb = golden_b(ds)
+    gold = rms(golden_trajectory_steps(gb, ds, frames, rows), truth)
+    results = {"golden_b": gold.tolist(), "true_motion": rms(truth, 0 * truth).tolist()}
+
+    def report(name, err):
+        ratio = err / gold
+        results[name] = {"rms": err.tolist(), "ratio": ratio.tolist()}
+        print(f"{name:16s} " + " ".join(f"{r:6.2f}" for r in ratio) + "   rms " +
+              " ".join(f"{v:.2e}" for v in err), flush=True)
+
+    print("swap             " + " ".join(f"{a:>6s}" for a in UNKNOWNS))
+    print("golden_b rms     " + " ".join(f"{v:.2e}" for v in gold))
+    report("hw", rms(base[2], truth))
+    sf, sr, st = base[3]
+    report("hw_steps", rms(st, true_steps(ds, sf, sr)))
+    wanted = None if args.only is None else set(args.only.split(","))
+
+    def want(name):
+        return wanted is None or name in wanted
+
+    def level_of(run):
+        return rms(run[2], true_steps(ds, run[0], run[1]))
+
+    swaps = {
+        "float_solver": lambda: hardware(ds, args.frames, patch=float_solver_patch),
+        "no_consistency": lambda: hardware(ds, args.frames, consistency=False),
+        "oracle_cue": lambda: hardware(ds, args.frames,
+                                       patch=lambda c: oracle_cue_patch(ds, c)),
+        "float_match": lambda: hardware(ds, args.frames,
+                                        patch=lambda c: float_match_patch(ds, c)),
+        "k8": lambda: hardware(ds, args.frames, config=PipelineConfig.for_rig(
+            ds.rig, segments=8, stereo_segments=8)),
+        "alpha05": lambda: hardware(ds, args.frames, forecast_changes={"alpha": 0.05}),
+    }
+    for name, fn in swaps.items():
+        if want(name):
+            t = time.time()
+            try:
+                report(name, level_of(fn()))
+            except Exception as exc:   # a swap that cannot run is reported, not fatal
+                print(f"{name}: {exc!r}", flush=True)
+            print(f"   ({time.time() - t:.0f}s)", flush=True)
+    if want("gb_motion"):
+        report("gb_motion", rms(golden_steps(gb, ds, frames, rows), truth))
+    if want("gb_linear"):
+        report("gb_linear", rms(golden_trajectory_steps(golden_b(ds, linear=True), ds,
+                                                        frames, rows), truth))
+    if want("gb_hwlike"):
+        report("gb_hwlike", rms(golden_trajectory_steps(golden_b(
+            ds, segments=4, disparity_blocks=4, shift_sigma=1e6, consistency_k=0.0,
+            scale_ceiling=1e6), ds, frames, rows), truth))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=1)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
