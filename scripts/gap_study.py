@@ -219,24 +219,51 @@ def hardware(dataset, frames, *, config=None, consistency=True, forecast_changes
             (result.frame[later], result.records["row"][later], steps[later]))
 
 
-def golden_b(dataset, delay=1, *, linear=False, **changes):
+def golden_b(dataset, delay=1, *, linear=None, **changes):
+    """Golden (b) run; ``linear`` "plain": predicted shifts ``A·Ŷ`` (the hardware's linear
+    model about 0) instead of the exact projection ``g(Ŷ)``; "time": ``A·Ŷ·(P − Δ)/P``
+    (the followed reference row's time, as the hardware's consistency stage scales)."""
     from emulator.hardware_path import golden_b_params
     from golden import tracker as gt
     params = golden_b_params(delay).replace(**changes) if changes else golden_b_params(delay)
-    if not linear:
+    if linear is None:
         return gt.track(dataset, params)
-    entry, equations = gt.Tracker._entry, gt.Tracker._equations
+    entry, equations, reference = gt.Tracker._entry, gt.Tracker._equations, \
+        gt.Tracker._reference
+
+    def _reference(self, n, frame, rows, rotations, positions, inverse_depth):
+        self._source = np.asarray(rows)
+        original = self.reference.rows
+
+        def rows_of(n_, frame_, source):
+            self._source = np.asarray(source)
+            return original(n_, frame_, source)
+        self.reference.rows = rows_of
+        try:
+            return reference(self, n, frame, rows, rotations, positions, inverse_depth)
+        finally:
+            del self.reference.rows
 
     def _entry(self, n, frame, rows, slot_ids, forecasts):
         e = entry(self, n, frame, rows, slot_ids, forecasts)
-        e.forecasts = forecasts
+        e.forecasts, e.source = forecasts, self._source
         return e
 
     def _equations(self, e):
         equations(self, e)
         e.expected = np.einsum("bkj,bj->bk", e.design, e.forecasts)
-    with patched(gt.Tracker, "_entry", _entry), patched(gt.Tracker, "_equations", _equations):
+        if linear == "time":
+            period = self.slots.period / self.slots.t_r
+            e.expected = e.expected * ((period - (e.source - e.rows)) / period)[:, None]
+    with patched(gt.Tracker, "_entry", _entry), patched(gt.Tracker, "_equations", _equations), \
+            patched(gt.Tracker, "_reference", _reference):
         return gt.track(dataset, params)
+
+
+def _golden_measured(track_result, dataset, frames, rows):
+    """Golden (b)'s raw measured motion ``Ŷ + δ`` of each row's slot (NaN: no step)."""
+    from emulator.e2e import _golden_slots
+    return track_result.measured[_golden_slots(track_result, dataset, frames, rows)]
 
 
 def main(argv=None):
@@ -300,9 +327,12 @@ def main(argv=None):
             print(f"   ({time.time() - t:.0f}s)", flush=True)
     if want("gb_motion"):
         report("gb_motion", rms(golden_steps(gb, ds, frames, rows), truth))
-    if want("gb_linear"):
-        report("gb_linear", rms(golden_trajectory_steps(golden_b(ds, linear=True), ds,
-                                                        frames, rows), truth))
+    if want("gb_steps"):
+        report("gb_steps", rms(_golden_measured(gb, ds, frames, rows), truth))
+    for kind in ("plain", "time"):
+        if want(f"gb_linear_{kind}"):
+            report(f"gb_linear_{kind}", rms(golden_trajectory_steps(
+                golden_b(ds, linear=kind), ds, frames, rows), truth))
     if want("gb_hwlike"):
         report("gb_hwlike", rms(golden_trajectory_steps(golden_b(
             ds, segments=4, disparity_blocks=4, shift_sigma=1e6, consistency_k=0.0,
