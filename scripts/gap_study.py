@@ -196,6 +196,64 @@ def float_match_patch(dataset, config):
     return stack
 
 
+def _cue_scales(rig):
+    from golden.depth import stereo_pairs
+    scales = np.full(len(rig.cameras), np.nan)
+    for a, b, focal_baseline in stereo_pairs(rig):
+        scales[[a, b]] = 1.0 / focal_baseline
+    return scales
+
+
+def coefficient_patch(dataset, config, how):
+    """The loop's solve (float64) with coefficients of each camera's segments at its
+    run-time window centre (the lane's actual compared columns): ``how`` "centre": at
+    the segments' centre columns; "mean": averaged over every column of the segment;
+    "zero": the store's columns (centre 0), the float_solver swap's control."""
+    import emulator.pose.tracking_loop as tl
+    from golden.descriptor import segment_bounds
+    from golden.pose_lsq import ShiftCoefficients, shift_coefficients, solve_step
+    from emulator.pose_solver import StepResult
+    lane, solver = config.router.temporal, config.router.solver
+    rig, k = dataset.rig, lane.segments
+    scales = _cue_scales(rig)
+    rows = np.arange(lane.height, dtype=float)
+    tables = {}
+
+    def table(n, centre):
+        key = (n, centre if how != "zero" else 0)
+        if key not in tables:
+            bounds = segment_bounds(lane.width, lane.descriptor, lane.match, key[1])
+            cam = rig.cameras[n]
+            if how == "mean":
+                out = np.stack([shift_coefficients(
+                    cam, np.arange(lo, hi, dtype=float)[None, :], rows[:, None],
+                    scales[n]).table().mean(axis=1) for lo, hi in bounds])
+            else:
+                columns = np.array([(lo + hi - 1) / 2 for lo, hi in bounds])[:, None]
+                out = shift_coefficients(cam, columns, rows[None, :], scales[n]).table()
+            tables[key] = out                       # (K, rows, 9)
+        return tables[key]
+    fmt = solver.step_fmt
+
+    def solve(params, coef_raw, pose_rows):
+        centres = _Current.centres
+        row = int(pose_rows.row[0])
+        coef = np.stack([table(slot // k, int(centres[slot // k]))[slot % k, row]
+                         for slot in pose_rows.slot[0]])[None]
+        weight = np.where(pose_rows.present, solver.conf_fmt.to_float(pose_rows.conf), 0.0)
+        solution = solve_step(ShiftCoefficients.from_table(coef), solver.cue_fmt.to_float(
+            pose_rows.cue), solver.shift_fmt.to_float(pose_rows.shift), weight)
+        step = np.asarray(solution.step, dtype=float).reshape(-1, 6)
+        ok = np.asarray(solution.ok).reshape(-1) & (weight.sum(axis=1) > 0)
+        raw = np.array([[int(fmt.quantize(v)) for v in st] if o else [0] * 6
+                        for st, o in zip(step, ok)], dtype=np.int64)
+        return StepResult(step=raw, flags=np.where(ok, 0, 1))
+    stack = contextlib.ExitStack()
+    stack.enter_context(_track_frame())
+    stack.enter_context(patched(tl, "solve_rows", solve))
+    return stack
+
+
 # --- runs --------------------------------------------------------------------------------
 
 def hardware(dataset, frames, *, config=None, consistency=True, forecast_changes=None,
@@ -313,6 +371,12 @@ def main(argv=None):
                                        patch=lambda c: oracle_cue_patch(ds, c)),
         "float_match": lambda: hardware(ds, args.frames,
                                         patch=lambda c: float_match_patch(ds, c)),
+        "coef_zero": lambda: hardware(ds, args.frames,
+                                      patch=lambda c: coefficient_patch(ds, c, "zero")),
+        "coef_centre": lambda: hardware(ds, args.frames,
+                                        patch=lambda c: coefficient_patch(ds, c, "centre")),
+        "coef_mean": lambda: hardware(ds, args.frames,
+                                      patch=lambda c: coefficient_patch(ds, c, "mean")),
         "k8": lambda: hardware(ds, args.frames, config=PipelineConfig.for_rig(
             ds.rig, segments=8, stereo_segments=8)),
         "alpha05": lambda: hardware(ds, args.frames, forecast_changes={"alpha": 0.05}),
