@@ -105,8 +105,11 @@ def _track_frame():
     return patched(pl._Loop, "measure", measure)
 
 
-def oracle_cue_patch(dataset, config):
-    """route_row's cues replaced by the true disparity of each camera's segment."""
+def oracle_cue_patch(dataset, config, columns="own"):
+    """route_row's cues replaced by the true disparity: ``columns`` "own": of each
+    camera's own temporal segment (its columns at the run-time centre); "stereo": camera
+    A's over the stereo segment the router maps the temporal segment to, for both
+    cameras of the pair (what a perfect stereo lane would give the hardware)."""
     import emulator.pipeline as pl
     from golden.depth import stereo_pairs
     from golden.depth_maps import OracleDepth
@@ -131,9 +134,16 @@ def oracle_cue_patch(dataset, config):
         for t in out:
             n, k = divmod(t["slot"], lane.segments)
             m = by_slot[(n, k)]
-            centre = int(_Current.centres[n]) if _Current.centres is not None else 0
-            lo, hi = segment_bounds(lane.width, lane.descriptor, lane.match, centre)[k]
-            z = inv(n, _Current.frame)[t["row"], lo:hi]
+            if columns == "own":
+                centre = int(_Current.centres[n]) if _Current.centres is not None else 0
+                lo, hi = segment_bounds(lane.width, lane.descriptor, lane.match, centre)[k]
+                z = inv(n, _Current.frame)[t["row"], lo:hi]
+            else:
+                stereo_lane = params.stereo
+                ks = k * stereo_lane.segments // lane.segments
+                lo, hi = segment_bounds(stereo_lane.width, stereo_lane.descriptor,
+                                        stereo_lane.match)[ks]
+                z = inv(params.pair_of[n], _Current.frame)[t["row"], lo:hi]
             cue = fb[n] * np.nanmean(z)
             t["cue"] = int(solver.cue_fmt.quantize(cue))
             usable = not m["edge_hit"] and np.isfinite(cue)
@@ -270,11 +280,48 @@ def hardware(dataset, frames, *, config=None, consistency=True, forecast_changes
                      cue_fallback=True)
     loop = result.loop
     scored = loop["frame"] > 0
-    level = forecast.motion_fmt.to_float(loop["level"][scored])
+    level = forecast.motion_fmt.to_float(loop["level"])
     steps = result.steps(config)
     later = result.frame > 0
-    return (loop["frame"][scored], loop["row"][scored], level,
-            (result.frame[later], result.records["row"][later], steps[later]))
+    return (loop["frame"][scored], loop["row"][scored], level[scored],
+            (result.frame[later], result.records["row"][later], steps[later]),
+            (loop["frame"], loop["row"], level))
+
+
+def trajectory_steps(dataset, run, levels_all, pose_alpha=0.02):
+    """Y of each scored row from a pose track built like golden (b)'s from the hardware
+    path's own outputs (float; the golden's ``Tracker._step`` pose logic with a scalar
+    pull, no trend term): the first frame's poses given, each row's pose carried on
+    from the previous row's at the filter's current rate (level before the row / frame
+    period) and pulled by ``pose_alpha`` towards the pose the row's solved step gives
+    from the same row one frame earlier. ``levels_all``: (frame, row, level) of every
+    loop row in order, frame 0 included."""
+    from golden.pose_lsq import body_step
+    from golden.tracker_motion import compose
+    rec = dataset.cameras[0]
+    period = 1.0 / dataset.rig.cameras[0].fps
+    frames_all, rows_all, level_all = levels_all
+    (sf, sr, st) = run[3]
+    step_of = {(int(f), int(r)): s for f, r, s in zip(sf, sr, st)}
+    poses = {}
+    last = None
+    current = None
+    for f, r, lev in zip(frames_all, rows_all, level_all):
+        f, r = int(f), int(r)
+        t = rec.time[f, r]
+        if f == 0:
+            poses[(f, r)] = (rec.rotation[f, r], rec.position[f, r])
+        else:
+            rotation, position = compose(*last[:2], current / period * (t - last[2]))
+            step = step_of.get((f, r))
+            if step is not None and np.all(np.isfinite(step)) and (f - 1, r) in poses:
+                target = compose(*poses[(f - 1, r)], step)
+                rotation, position = compose(rotation, position, pose_alpha * body_step(
+                    rotation, position, *target))
+            poses[(f, r)] = (rotation, position)
+        last, current = (*poses[(f, r)], t), lev
+    return np.array([body_step(*poses[(int(f) - 1, int(r))], *poses[(int(f), int(r))])
+                     for f, r in zip(run[0], run[1])])
 
 
 def golden_b(dataset, delay=1, *, linear=None, **changes):
@@ -356,6 +403,7 @@ def main(argv=None):
     report("hw", rms(base[2], truth))
     sf, sr, st = base[3]
     report("hw_steps", rms(st, true_steps(ds, sf, sr)))
+    report("hw_traj", rms(trajectory_steps(ds, base, base[4]), truth))
     wanted = None if args.only is None else set(args.only.split(","))
 
     def want(name):
@@ -369,6 +417,8 @@ def main(argv=None):
         "no_consistency": lambda: hardware(ds, args.frames, consistency=False),
         "oracle_cue": lambda: hardware(ds, args.frames,
                                        patch=lambda c: oracle_cue_patch(ds, c)),
+        "oracle_cue_stereo": lambda: hardware(
+            ds, args.frames, patch=lambda c: oracle_cue_patch(ds, c, "stereo")),
         "float_match": lambda: hardware(ds, args.frames,
                                         patch=lambda c: float_match_patch(ds, c)),
         "coef_zero": lambda: hardware(ds, args.frames,
