@@ -55,7 +55,7 @@ def closed_loop_top(rig_name="stereo8-board"):
     config = PipelineConfig.for_rig(preset(rig_name), closed_loop=True,
                                     stereo_segments=DEFAULT_SEGMENTS)
     return RowtrackTop(config.top, coefficients=config.coef_store,
-                       forecast_stores=(config.coef_raw, config.row_coef_raw))
+                       forecast_stores=config.forecast_stores)
 
 
 class RowtrackTop(wiring.Component):
@@ -70,9 +70,11 @@ class RowtrackTop(wiring.Component):
         Initial contents of the solver's coefficient store (raw; default zeros, loaded
         through the registers), e.g. a rig's ``PipelineConfig.coef_store``.
     forecast_stores : (ndarray, ndarray), closed loop only
-        The forecast's two stores (raw, (slots, rows, 9)): the shift coefficients of
-        every row and the across-rows ones, ``PipelineConfig.coef_raw`` and
-        ``.row_coef_raw``; fixed at build time (no register load yet).
+        The contents of the forecast's two stores in their layouts (raw,
+        (slots, entries_per_slot, 9)): its copy of the solver's store and the across-rows
+        store, ``PipelineConfig.forecast_stores`` (``.coef_store`` and
+        ``.row_coef_store``: polynomial terms); fixed at build time (no register load
+        yet).
 
     Members
     -------

@@ -3,7 +3,13 @@ cue of each of its segments, each camera's window centre and source row address
 (:meth:`emulator.pose.forecast.ForecastModel.predict` in gateware, bit for bit).
 
 Two lanes run side by side, one per coefficient store: the solver's store (the shift
-along the row) and the across-rows store (the displacement across rows). Per segment and
+along the row) and the across-rows store (the displacement across rows), each in
+the solver's store layout — polynomials in
+the row evaluated by Horner (``PipelineConfig.coef_store``, ``.row_coef_store``), or
+every row — as a :class:`hdl.pose.coef_term_store.TermStore`: only the two coefficients
+of the term in progress are evaluated, without the run-time write port. The lane of the
+faster store has its address delayed so both lanes' coefficients arrive together. Per
+segment and
 lane, six terms, one per clock: the design entry ``a_i`` of the solver's arithmetic
 (``w·a_T`` or ``a_R + w·a_C``, rounded half-even into ``a_fmt``, saturated), then
 ``a_i·Ŷ_i`` summed exactly and rounded once into ``displacement_fmt`` (saturation
@@ -15,17 +21,20 @@ Each lane has two multipliers: ``coef × cue`` (18 × 18 bits, one DSP48) and
 with registered operands and product.
 """
 
-import numpy as np
 from amaranth.hdl import Array, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
-from amaranth.lib.memory import Memory
-from amaranth.lib.wiring import In, Out
+from amaranth.lib.wiring import In, Out, connect, flipped
 
 from hdl.fixed import SQ, Overflow, QFormat, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
+from hdl.pose.coef_term_store import TermStore, term_read_signature
 from hdl.pose.forecast_params import ForecastParams
 
-__all__ = ["RowPredictor", "output_layout", "counters_layout", "check_store", "term_tag",
-           "displacement_terms", "store_memory"]
+__all__ = ["RowPredictor", "output_layout", "counters_layout", "term_tag",
+           "displacement_terms", "TERM_STAGES"]
+
+#: Registered stages of a term after its coefficients arrive, up to the camera's output
+#: (:func:`displacement_terms` and the camera sum).
+TERM_STAGES = 6
 
 
 def counters_layout(params):
@@ -63,31 +72,16 @@ def output_layout(params):
     })
 
 
-def check_store(name, solver, coefficients):
-    """``coefficients`` as an int array (slots, rows, 9) that fits ``solver``'s formats;
-    a ValueError naming ``name`` otherwise."""
-    coefficients = np.asarray(coefficients)
-    shape = (solver.slots, solver.rows, 9)
-    if coefficients.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, not {coefficients.shape}")
-    for k in range(9):
-        fmt = solver.coef_fmt(k)
-        try:
-            fmt.raw(coefficients[..., k])
-        except (OverflowError, TypeError) as exc:
-            raise ValueError(f"{name} coefficient {k} does not fit {fmt}: {exc}") from None
-    return coefficients
-
-
 class RowPredictor(wiring.Component):
     """Window centres and source rows of one camera row.
 
     Parameters
     ----------
     params : ForecastParams
-    coefficients, row_coefficients : ndarray (slots, rows, 9)
-        Raw contents of the solver's store and of the across-rows store (each in a
-        ``slots · rows`` × 9 × ``coef_width`` memory, entry ``slot · rows + row``).
+    coefficients, row_coefficients : ndarray (slots, entries_per_slot, 9)
+        Raw contents of the solver's store and of the across-rows store in their
+        layouts (``params.solver``, ``params.row_store``): polynomial terms
+        (``PipelineConfig.coef_store``, ``.row_coef_store``) or every row.
 
     Members
     -------
@@ -100,20 +94,16 @@ class RowPredictor(wiring.Component):
     idle : Out(1)
     o : Out(stream.Signature(output_layout(params)))
     counters : Out(counters_layout(params))
-    coef_addr : In(range(slots · rows)); coef_data : Out(ArrayLayout(signed, 9))
-        With ``shared_port``: a second read port of the solver's store (the shift along
-        the row), entry ``slot · rows + row``, data one clock after the address (the
-        block RAM's second port: :class:`hdl.pose.measured_shift.MeasuredShift` reads
-        it).
+    coef : In(term_read_signature(solver))
+        With ``shared_port``: the second read port of the solver's store (the shift along
+        the row; the memories' second port and its own Horner datapath), data
+        ``solver.coef_latency`` clocks after the (slot, row, term):
+        :class:`hdl.pose.measured_shift.MeasuredShift` reads it.
 
     Timing: a camera takes ``6K`` issue clocks, its result appears :attr:`drain` clocks
     after its last term, and the next camera starts the clock after its transfer
     (:attr:`camera_clocks` per camera).
     """
-
-    #: Clocks from a camera's last issued term to its output: store read, coef × cue,
-    #: a, a × Ŷ, exact sum, rounding and camera sum, mean and saturation.
-    drain = 7
 
     def __init__(self, params, coefficients, row_coefficients, *, shared_port=False):
         if not isinstance(params, ForecastParams):
@@ -123,13 +113,14 @@ class RowPredictor(wiring.Component):
             raise ValueError(f"segments must be a power of two in the gateware (the "
                              f"camera mean is a shift), not {k}")
         self.params = params
-        self.stores = (check_store("coefficients", params.solver, coefficients),
-                       check_store("row_coefficients", params.row_store, row_coefficients))
         s = params.solver
+        self.stores = (TermStore(s, coefficients, name="coefficients",
+                                 second_read=shared_port),
+                       TermStore(params.row_store, row_coefficients, name="row_coefficients"))
+        #: Clocks from a term's (slot, row) to its coefficients, both lanes.
+        self.store_latency = max(store.params.coef_latency for store in self.stores)
         self.shared_port = shared_port
-        shared = {"coef_addr": In(range(s.slots * s.rows)),
-                  "coef_data": Out(data.ArrayLayout(signed(s.coef_width), 9))} \
-            if shared_port else {}
+        shared = {"coef": In(term_read_signature(s))} if shared_port else {}
         super().__init__({
             **shared,
             "start": In(1), "row": In(s.row_bits),
@@ -140,6 +131,13 @@ class RowPredictor(wiring.Component):
             "o": Out(stream.Signature(output_layout(params))),
             "counters": Out(counters_layout(params)),
         })
+
+    @property
+    def drain(self):
+        """Clocks from a camera's last issued term to its output: the stores' latency,
+        then coef × cue, a, a × Ŷ, exact sum, rounding and camera sum, mean and
+        saturation."""
+        return self.store_latency + TERM_STAGES
 
     @property
     def camera_clocks(self):
@@ -177,22 +175,33 @@ class RowPredictor(wiring.Component):
             with m.If(end_of_camera):
                 m.d.sync += [segment.eq(0), issuing.eq(0)]
 
-        # stage tags: valid, term, segment, end of camera (stages 1..6)
-        tags = [Signal(term_tag(p), name=f"tag{n}") for n in range(7)]
+        # stage tags: valid, term, segment, end of camera (stages 1 .. latency + 5); the
+        # coefficients of the term issued at stage 0 arrive at stage ``latency``
+        latency = self.store_latency
+        tags = [Signal(term_tag(p), name=f"tag{n}") for n in range(latency + TERM_STAGES)]
         m.d.comb += [tags[0].valid.eq(issuing), tags[0].term.eq(term),
                      tags[0].segment.eq(segment), tags[0].end.eq(end_of_camera)]
-        m.d.sync += [tags[n + 1].eq(tags[n]) for n in range(6)]
+        m.d.sync += [tags[n + 1].eq(tags[n]) for n in range(len(tags) - 1)]
+        stages = tags[latency - 1:]     # stages[1]: the coefficients are there
         cue1 = Signal(s.cue_fmt.shape())
-        m.d.sync += cue1.eq(Array(cue)[channel])
+        m.d.sync += cue1.eq(Array(cue)[camera * k + stages[0].segment])
         y2 = Signal(p.motion_fmt.shape())
-        m.d.sync += y2.eq(motion[tags[1].term])
+        m.d.sync += y2.eq(motion[stages[1].term])
 
         means, flags = [], []
-        for lane, (store, contents) in enumerate(zip((s, p.row_store), self.stores)):
-            mean, flag = self._lane(m, lane, store, contents, tags, cue1, y2,
-                                    channel * s.rows + row)
+        for lane, store in enumerate(self.stores):
+            m.submodules[f"store{lane}"] = store
+            slot, at, index = channel, row, tags[0].term
+            for n in range(latency - store.params.coef_latency):   # meet the slower lane
+                slot, at, index = (_delayed(m, slot, f"slot{lane}_{n}"),
+                                   _delayed(m, at, f"row{lane}_{n}"),
+                                   _delayed(m, index, f"term{lane}_{n}"))
+            m.d.comb += [store.slot.eq(slot), store.row.eq(at), store.term.eq(index)]
+            mean, flag = self._lane(m, lane, store, stages, cue1, y2)
             means.append(mean)
             flags.append(flag)
+        if self.shared_port:
+            connect(m, flipped(self.coef), self.stores[0].second_port)
 
         # --- the camera's result: saturate, hold until taken
         centre, source = means[0], row - means[1]
@@ -201,7 +210,7 @@ class RowPredictor(wiring.Component):
         segments_over = sum(flag[n] for flag in flags for n in range(k))
         last_camera = camera == cameras - 1
         counters = self.counters
-        with m.If(tags[6].valid & tags[6].end):
+        with m.If(stages[6].valid & stages[6].end):
             m.d.sync += [
                 self.o.valid.eq(1), self.o.p.camera.eq(camera), self.o.p.last.eq(last_camera),
                 self.o.p.row.eq(row),
@@ -222,18 +231,12 @@ class RowPredictor(wiring.Component):
                 m.d.sync += issuing.eq(1)
         return m
 
-    def _lane(self, m, lane, store, contents, tags, cue1, y2, addr):
-        """One store's datapath; returns (the camera mean of its displacements, rounded
-        half-up to pixels; the per-segment saturation flags)."""
+    def _lane(self, m, lane, store, tags, cue1, y2):
+        """One store's datapath from its coefficients; returns (the camera mean of its
+        displacements, rounded half-up to pixels; the per-segment saturation flags)."""
         p, k = self.params, self.params.segments
-        memory = store_memory(store, contents)
-        m.submodules[f"store{lane}"] = memory
-        read = memory.read_port()
-        m.d.comb += read.addr.eq(addr)
-        if lane == 0 and self.shared_port:
-            second = memory.read_port()
-            m.d.comb += [second.addr.eq(self.coef_addr), self.coef_data.eq(second.data)]
-        value, over = displacement_terms(m, p, store, read.data, tags, cue1, y2, f"{lane}")
+        value, over = displacement_terms(m, p, store.params, store.first, store.second, tags,
+                                         cue1, y2, f"{lane}")
         dst = p.displacement_fmt
         shift = (k - 1).bit_length()
         camera_fmt = QFormat(True, dst.int_bits + shift + 1, dst.frac_bits + shift)
@@ -256,25 +259,18 @@ def term_tag(params):
                               "end": 1})
 
 
-def store_memory(store, contents):
-    """A coefficient store as a memory: one entry of nine coefficients per slot and row,
-    entry ``slot · rows + row`` (the solver's ``entries`` may count a compressed store's
-    terms instead)."""
-    return Memory(shape=data.ArrayLayout(signed(store.coef_width), 9),
-                  depth=store.slots * store.rows,
-                  init=[[int(v) for v in entry] for entry in contents.reshape(-1, 9)])
-
-
-def displacement_terms(m, params, store, coefficients, tags, cue1, y2, name):
+def displacement_terms(m, params, store, first, second, tags, cue1, y2, name):
     """A segment's predicted displacement ``a·Ŷ``, one term per clock: the design entry
-    ``a_i`` of the solver's arithmetic from the store's ``coefficients`` (a read port's
-    data, one clock after the address of term ``tags[0]``), the product ``a_i·Ŷ_i``
-    summed exactly and rounded once, half-even, into ``displacement_fmt`` (saturated).
+    ``a_i`` of the solver's arithmetic from the store's coefficients of the term,
+    ``first`` and ``second`` (a :class:`hdl.pose.coef_term_store.TermStore` port's data,
+    there while ``tags[1]`` holds the term), the product ``a_i·Ŷ_i`` summed exactly and
+    rounded once, half-even, into ``displacement_fmt`` (saturated).
 
-    ``tags`` are seven registered stages of :func:`term_tag` (``tags[n]`` the term
-    ``n`` clocks after its issue); ``cue1`` is the segment's cue and ``y2`` the term's
-    ``Ŷ_i``, registered one and two clocks after the issue. Returns (value, saturated),
-    combinational, valid while ``tags[5]`` holds the sixth term."""
+    ``tags`` are ``TERM_STAGES + 1`` registered stages of :func:`term_tag` (``tags[n]``
+    the term ``n`` clocks after the clock before its coefficients arrive: its issue for a
+    store of latency 1); ``cue1`` is the segment's cue and ``y2`` the term's ``Ŷ_i``,
+    valid with ``tags[1]`` and ``tags[2]``. Returns (value, saturated), combinational,
+    valid while ``tags[5]`` holds the sixth term."""
     p, a_fmt = params, params.solver.a_fmt
     width = store.coef_width
     # stage 1 → 2: coef × cue, and a_R for the rotation terms
@@ -282,9 +278,8 @@ def displacement_terms(m, params, store, coefficients, tags, cue1, y2, name):
     c_fmt = mul_format(store.coef_c_fmt, store.cue_fmt)    # the same raw width
     product = Signal(t_fmt.shape(), name=f"coef_cue{name}")
     rotation = Signal(signed(width), name=f"coef_r{name}")
-    m.d.sync += [product.eq(hdl_mul(coefficients[tags[1].term], store.coef_t_fmt, cue1,
-                                    store.cue_fmt)[0]),
-                 rotation.eq(coefficients[tags[1].term + 3])]
+    m.d.sync += [product.eq(hdl_mul(first, store.coef_t_fmt, cue1, store.cue_fmt)[0]),
+                 rotation.eq(second)]
     # stage 2 → 3: the design entry a (the solver's rounding and saturation)
     total, total_fmt = hdl_add(rotation, store.coef_r_fmt, product, c_fmt)
     a = Signal(a_fmt.shape(), name=f"a{name}")
@@ -313,3 +308,9 @@ def displacement_terms(m, params, store, coefficients, tags, cue1, y2, name):
 
 def _clamp(value, low, high):
     return Mux(value < low, low, Mux(value > high, high, value))
+
+
+def _delayed(m, value, name):
+    held = Signal.like(value, name=name)
+    m.d.sync += held.eq(value)
+    return held

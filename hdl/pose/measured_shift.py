@@ -10,8 +10,9 @@ row-wide side input (every slot's prediction, before the row's first measurement
 need the whole row's cues first, i.e. a row of buffering (80 measurements) in the loop.
 Here each measurement gets its prediction as it passes: one term of the design row and
 one product ``a_i·Ŷ_i`` per clock (:func:`hdl.pose.forecast_predictor.displacement_terms`,
-the forecast's own datapath), reading the solver's store through the forecast's second
-block-RAM port (no third copy of the store).
+the forecast's own datapath), reading the solver's store through the second read port of
+the forecast's copy (its memories' second port and its own Horner datapath; no third
+copy of the store).
 
 One measurement at a time: :attr:`latency` clocks from its transfer to ``o.valid``; the
 next is taken when the result has gone or goes in the same clock. The consistency stage
@@ -19,12 +20,13 @@ after it needs more clocks per measurement than that (its ``latency``, 13 at two
 clock), so the unit adds its latency to a row's first measurement only.
 """
 
-from amaranth.hdl import Module, Signal, signed
+from amaranth.hdl import Module, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from hdl.measurement.consistency import judge_layout
-from hdl.pose.forecast_predictor import displacement_terms, term_tag
+from hdl.pose.coef_term_store import term_read_signature
+from hdl.pose.forecast_predictor import TERM_STAGES, displacement_terms, term_tag
 
 __all__ = ["MeasuredShift", "query_layout"]
 
@@ -54,27 +56,28 @@ class MeasuredShift(wiring.Component):
         The measurement with ``predicted`` (``displacement_fmt``, saturated).
     saturated : Out(1)
         With ``o.valid``: ``predicted`` was saturated.
-    coef_addr : Out(range(slots · rows)); coef_data : In(ArrayLayout(signed, 9))
-        The solver's store, entry ``slot · rows + row``, data one clock after the address.
+    coef : Out(term_read_signature(solver))
+        The solver's store (the forecast's copy), data ``solver.coef_latency`` clocks
+        after the (slot, row, term).
     """
-
-    #: Clocks from a transfer on ``i`` to ``o.valid``: six terms issued, then the
-    #: datapath's store read, coef × cue, a, a × Ŷ, sum and the output register.
-    latency = 12
 
     def __init__(self, params, stage):
         if stage.predicted_fmt != params.displacement_fmt:
             raise ValueError(f"the stage's predicted_fmt {stage.predicted_fmt} must be the "
                              f"forecast's displacement_fmt {params.displacement_fmt}")
         self.params, self.stage = params, stage
-        s = params.solver
         super().__init__({
             "i": In(stream.Signature(query_layout(params, stage))),
             "o": Out(stream.Signature(judge_layout(stage))),
             "saturated": Out(1),
-            "coef_addr": Out(range(s.slots * s.rows)),
-            "coef_data": In(data.ArrayLayout(signed(s.coef_width), 9)),
+            "coef": Out(term_read_signature(params.solver)),
         })
+
+    @property
+    def latency(self):
+        """Clocks from a transfer on ``i`` to ``o.valid``: six terms issued, then the
+        store's latency, coef × cue, a, a × Ŷ, sum and the output register."""
+        return 6 + self.params.solver.coef_latency + TERM_STAGES - 1
 
     def elaborate(self, platform):
         p, s = self.params, self.params.solver
@@ -84,7 +87,8 @@ class MeasuredShift(wiring.Component):
         take = Signal()
         m.d.comb += [self.i.ready.eq(~active & (~self.o.valid | self.o.ready)),
                      take.eq(self.i.valid & self.i.ready),
-                     self.coef_addr.eq(held.slot * s.rows + held.row)]
+                     self.coef.slot.eq(held.slot), self.coef.row.eq(held.row),
+                     self.coef.term.eq(term)]
         with m.If(self.o.valid & self.o.ready):
             m.d.sync += self.o.valid.eq(0)
         with m.If(take):
@@ -94,13 +98,17 @@ class MeasuredShift(wiring.Component):
             with m.If(term == 5):
                 m.d.sync += issuing.eq(0)
 
-        tags = [Signal(term_tag(p), name=f"tag{n}") for n in range(7)]
+        # the coefficients of the term issued at stage 0 arrive at stage ``latency``
+        latency = s.coef_latency
+        tags = [Signal(term_tag(p), name=f"tag{n}") for n in range(latency + TERM_STAGES)]
         m.d.comb += [tags[0].valid.eq(issuing), tags[0].term.eq(term)]
-        m.d.sync += [tags[n + 1].eq(tags[n]) for n in range(6)]
+        m.d.sync += [tags[n + 1].eq(tags[n]) for n in range(len(tags) - 1)]
+        stages = tags[latency - 1:]
         cue1, y2 = Signal(s.cue_fmt.shape()), Signal(p.motion_fmt.shape())
-        m.d.sync += [cue1.eq(held.cue), y2.eq(held.motion[tags[1].term])]
-        value, over = displacement_terms(m, p, s, self.coef_data, tags, cue1, y2, "")
-        with m.If(tags[5].valid & (tags[5].term == 5)):
+        m.d.sync += [cue1.eq(held.cue), y2.eq(held.motion[stages[1].term])]
+        value, over = displacement_terms(m, p, s, self.coef.first, self.coef.second, stages,
+                                         cue1, y2, "")
+        with m.If(stages[5].valid & (stages[5].term == 5)):
             m.d.sync += [self.o.valid.eq(1), self.o.payload.predicted.eq(value),
                          self.saturated.eq(over), active.eq(0),
                          *[getattr(self.o.payload, name).eq(getattr(held, name))

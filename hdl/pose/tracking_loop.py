@@ -74,8 +74,10 @@ class TrackingLoop(wiring.Component):
     stage : ConsistencyParams
         Its ``solver`` and ``segments`` are the forecast's; its ``frame_rows`` (a whole
         number) is the request generator's frame period.
-    coefficients, row_coefficients : ndarray (slots, rows, 9)
-        The forecast's stores (``PipelineConfig.coef_raw``, ``.row_coef_raw``).
+    coefficients, row_coefficients : ndarray (slots, entries_per_slot, 9)
+        The forecast's stores in their layouts (``PipelineConfig.coef_store``,
+        ``.row_coef_store``: polynomial terms, or every row); the first is a copy of the
+        solver's store (see ``docs/pose/tracking_loop.md``).
     solver_store : ndarray
         The solver's store contents (``PipelineConfig.coef_store``: rows, or their
         polynomials).
@@ -197,9 +199,8 @@ class TrackingLoop(wiring.Component):
                      requests.write_en.eq(take & (i.payload.cue != 0)),
                      requests.write_slot.eq(i.payload.slot),
                      requests.write_row.eq(i.payload.row),
-                     requests.write_cue.eq(i.payload.cue),
-                     forecast.coef_addr.eq(shift.coef_addr),
-                     shift.coef_data.eq(forecast.coef_data)]
+                     requests.write_cue.eq(i.payload.cue)]
+        connect(m, shift.coef, forecast.coef)
         counters = self.counters
         with m.If(take & (i.payload.row != context.row)):
             m.d.sync += counters.mismatched.eq(counters.mismatched + 1)

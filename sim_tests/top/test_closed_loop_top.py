@@ -59,7 +59,7 @@ def test_forecast_stores_go_with_the_closed_loop_only(config):
         RowtrackTop(config.top)
     open_top = PipelineConfig.for_rig(preset("stereo8")).top
     with pytest.raises(ValueError, match="forecast_stores is for a closed-loop top only"):
-        RowtrackTop(open_top, forecast_stores=(config.coef_raw, config.row_coef_raw))
+        RowtrackTop(open_top, forecast_stores=config.forecast_stores)
 
 
 def test_the_loop_registers_are_in_the_map(config):
@@ -75,7 +75,7 @@ def test_the_loop_registers_are_in_the_map(config):
 
 def test_the_closed_loop_top_elaborates(config):
     top = RowtrackTop(config.top, coefficients=config.coef_store,
-                      forecast_stores=(config.coef_raw, config.row_coef_raw))
+                      forecast_stores=config.forecast_stores)
     text = rtlil.convert(top)
     for block in ("loop", "row_counter", "status", "forecast_rows"):
         assert f"\\{block}" in text or f".{block}" in text, block

@@ -6,7 +6,8 @@ gateware's input, and what the loop's model gave: per row the forecast transfers
 solver's records.
 
 A case is a dict: ``params`` (ForecastParams), ``stage`` (ConsistencyParams),
-``coefficients``, ``row_coefficients``, ``solver_store``, ``initial`` (raw
+``coefficients``, ``row_coefficients`` (the forecast's stores' contents: polynomial
+terms), ``solver_store``, ``initial`` (raw
 ``motion_fmt``), ``inputs`` (the measurement transfers, in order), ``expected`` (per row
 the forecast's per-camera transfers), ``records`` (per row the pose record), ``slots``
 and ``rows`` (the model's row slot and camera row of each row), ``counts`` (the stage's
@@ -21,7 +22,7 @@ import numpy as np
 
 from emulator.pose.forecast import output_transfers
 from emulator.pose.tracking_loop import TrackingLoopModel
-from sim_tests.pose.forecast.stimulus import cached
+from sim_tests.pose.forecast.stimulus import VERSION, cached
 
 __all__ = ["closed_loop_case", "PAIRS", "CACHE"]
 
@@ -46,7 +47,8 @@ def closed_loop_case(rows=32, frames=3, seed=1, pairs=PAIRS, delay=1):
     """The closed loop on ``cut_rig(rows, pairs)``, ``frames`` frames of the papers'
     motion (seed ``seed``), loop delay ``delay`` rows, started at the true motion of the
     first row (as the benchmark). Cached under build/."""
-    name = f"stereo20_p{''.join(map(str, pairs))}_r{rows}_f{frames}_s{seed}_d{delay}.pkl"
+    name = (f"stereo20_p{''.join(map(str, pairs))}_r{rows}_f{frames}_s{seed}_d{delay}_"
+            f"{VERSION}.pkl")
     return cached(CACHE / name, lambda: _closed_loop(rows, frames, seed, pairs, delay))
 
 
@@ -88,8 +90,9 @@ def _closed_loop(rows, frames, seed, pairs, delay):
                 "p": [int(v) for v in rec["p"][k]], "step": [int(v) for v in rec["step"][k]]}
                for k in range(len(rec["row"]))]
     assert len(records) == len(expected) == frames * rows, "a row without measurements"
-    return {"params": params, "stage": stage, "coefficients": config.coef_raw,
-            "row_coefficients": config.row_coef_raw, "solver_store": config.coef_store,
+    coefficients, row_coefficients = config.forecast_stores
+    return {"params": params, "stage": stage, "coefficients": coefficients,
+            "row_coefficients": row_coefficients, "solver_store": config.coef_store,
             "initial": params.motion_fmt.quantize(initial), "inputs": inputs,
             "expected": expected, "records": records,
             "slots": [int(v) for v in out.loop["slot"]], "rows": [int(v) for v in out.loop["row"]],
