@@ -264,6 +264,41 @@ def coefficient_patch(dataset, config, how):
     return stack
 
 
+def scale_ceiling_patch(config, ceiling=1.0):
+    """The consistency stage's robust scale capped at ``ceiling`` pixels (golden (b)'s
+    ``scale_ceiling``; the stage's own bound is its format's maximum)."""
+    from emulator.measurement.consistency import ConsistencyModel
+    original = ConsistencyModel._update
+
+    def _update(self, sigma, t):
+        cap = int(self.params.scale_fmt.quantize(ceiling))
+        return np.minimum(original(self, sigma, t), cap)
+    return patched(ConsistencyModel, "_update", _update)
+
+
+def depth_weight_patch(config, shift_sigma=0.3, disparity_sigma=1.0):
+    """Golden (b)'s depth-sensitivity weight in the consistency stage: each
+    measurement's confidence times ``1 / (1 + (|a_t·T̂| σ_d / shift_sigma)²)`` with
+    ``a_t`` the translation coefficients of its slot and row (pixels of shift per pixel
+    of disparity per metre, the store's: cue scale ``1/(f·b)``) and ``T̂`` the row's
+    forecast translation: how far a disparity error of ``σ_d`` pixels moves its predicted
+    shift (the golden's ``σ_w = σ_d/(f·B)`` with ``B`` the pair's baseline)."""
+    import emulator.pose.tracking_loop as tl
+    forecast_close = tl.TrackingLoopModel.close
+
+    def close(self, transfers, slot, row):
+        if transfers and self.consistency is not None:
+            p = self.params
+            motion = p.motion_fmt.to_float(self.prediction["motion"])
+            coef = config.table[:, row, 0:3]          # (slots, 3)
+            moved = np.abs(coef @ motion[:3]) * disparity_sigma
+            weight = 1.0 / (1.0 + (moved / shift_sigma) ** 2)
+            transfers = [{**t, "conf": int(np.floor(t["conf"] * weight[t["slot"]] + 0.5))}
+                         for t in transfers]
+        return forecast_close(self, transfers, slot, row)
+    return patched(tl.TrackingLoopModel, "close", close)
+
+
 # --- runs --------------------------------------------------------------------------------
 
 def hardware(dataset, frames, *, config=None, consistency=True, forecast_changes=None,
@@ -430,6 +465,8 @@ def main(argv=None):
         "k8": lambda: hardware(ds, args.frames, config=PipelineConfig.for_rig(
             ds.rig, segments=8, stereo_segments=8)),
         "alpha05": lambda: hardware(ds, args.frames, forecast_changes={"alpha": 0.05}),
+        "scale_ceiling": lambda: hardware(ds, args.frames, patch=scale_ceiling_patch),
+        "depth_weight": lambda: hardware(ds, args.frames, patch=depth_weight_patch),
     }
     for name, fn in swaps.items():
         if want(name):
@@ -447,6 +484,13 @@ def main(argv=None):
         if want(f"gb_linear_{kind}"):
             report(f"gb_linear_{kind}", rms(golden_trajectory_steps(
                 golden_b(ds, linear=kind), ds, frames, rows), truth))
+    for name, changes in (("gb_k4", {"segments": 4}), ("gb_blocks4", {"disparity_blocks": 4}),
+                          ("gb_no_depth_weight", {"shift_sigma": 1e6}),
+                          ("gb_no_ceiling", {"scale_ceiling": 1e6}),
+                          ("gb_alpha05", {"alpha": 0.05})):
+        if want(name):
+            report(name, rms(golden_trajectory_steps(golden_b(ds, **changes), ds, frames,
+                                                     rows), truth))
     if want("gb_hwlike"):
         report("gb_hwlike", rms(golden_trajectory_steps(golden_b(
             ds, segments=4, disparity_blocks=4, shift_sigma=1e6, consistency_k=0.0,
