@@ -264,18 +264,6 @@ def coefficient_patch(dataset, config, how):
     return stack
 
 
-def scale_ceiling_patch(config, ceiling=1.0):
-    """The consistency stage's robust scale capped at ``ceiling`` pixels (golden (b)'s
-    ``scale_ceiling``; the stage's own bound is its format's maximum)."""
-    from emulator.measurement.consistency import ConsistencyModel
-    original = ConsistencyModel._update
-
-    def _update(self, sigma, t):
-        cap = int(self.params.scale_fmt.quantize(ceiling))
-        return np.minimum(original(self, sigma, t), cap)
-    return patched(ConsistencyModel, "_update", _update)
-
-
 def depth_weight_patch(config, shift_sigma=0.3, disparity_sigma=1.0):
     """Golden (b)'s depth-sensitivity weight in the consistency stage: each
     measurement's confidence times ``1 / (1 + (|a_t·T̂| σ_d / shift_sigma)²)`` with
@@ -302,7 +290,7 @@ def depth_weight_patch(config, shift_sigma=0.3, disparity_sigma=1.0):
 # --- runs --------------------------------------------------------------------------------
 
 def hardware(dataset, frames, *, config=None, consistency=True, forecast_changes=None,
-             patch=None):
+             consistency_changes=None, patch=None):
     """(frames, rows, level, steps) of a closed-loop run with one swap."""
     from emulator.hardware_path import first_frame_motion, hardware_config
     from emulator.pipeline import run
@@ -311,7 +299,8 @@ def hardware(dataset, frames, *, config=None, consistency=True, forecast_changes
     with (patch(config) if patch else contextlib.nullcontext()):
         result = run(config, dataset, frames, forecast=forecast,
                      initial_motion=first_frame_motion(dataset),
-                     consistency=config.consistency() if consistency else None,
+                     consistency=config.consistency(**(consistency_changes or {}))
+                     if consistency else None,
                      cue_fallback=True)
     loop = result.loop
     scored = loop["frame"] > 0
@@ -447,6 +436,8 @@ def main(argv=None):
     def level_of(run):
         return rms(run[2], true_steps(ds, run[0], run[1]))
 
+    from emulator.hardware_path import hardware_config
+    scale_top = hardware_config(ds.rig).consistency().scale_fmt.max_value
     swaps = {
         "float_solver": lambda: hardware(ds, args.frames, patch=float_solver_patch),
         "no_consistency": lambda: hardware(ds, args.frames, consistency=False),
@@ -465,7 +456,8 @@ def main(argv=None):
         "k8": lambda: hardware(ds, args.frames, config=PipelineConfig.for_rig(
             ds.rig, segments=8, stereo_segments=8)),
         "alpha05": lambda: hardware(ds, args.frames, forecast_changes={"alpha": 0.05}),
-        "scale_ceiling": lambda: hardware(ds, args.frames, patch=scale_ceiling_patch),
+        "no_scale_ceiling": lambda: hardware(
+            ds, args.frames, consistency_changes={"scale_ceiling": scale_top}),
         "depth_weight": lambda: hardware(ds, args.frames, patch=depth_weight_patch),
     }
     for name, fn in swaps.items():
