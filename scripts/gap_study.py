@@ -6,26 +6,40 @@ the matching swaps inside golden (b). Every figure is a per-row Y RMS against tr
 the hardware's rows of frames >= 1 (camera 0's row times), divided per axis by golden
 (b)'s trajectory figure on the same rows (the ``rowtrack run`` ratio).
 
-Usage: ``.venv/bin/python scripts/gap_study.py --rows 32 --frames 3 [--seed 1]
-[--trajectory paper] [--only name,name] [--json out.json]``.
+Usage: ``PYTHONPATH=. .venv/bin/python scripts/gap_study.py --rows 32 --frames 3
+[--seed 1] [--trajectory paper] [--only name,name] [--json out.json]`` (``PYTHONPATH=.``:
+the checkout's own packages, not an installed copy's; the script's own directory comes
+first on ``sys.path``).
 
-Swaps are monkeypatches in this script only (product code untouched):
+Swaps are monkeypatches or parameter changes in this script only (product code
+untouched):
 
 * ``hw``: the hardware path as ``rowtrack run`` runs it (filter level).
 * ``hw_steps``: the same run's raw solved steps.
+* ``hw_traj``: the same run's outputs turned into a pose track as golden (b) builds its
+  own (:func:`trajectory_steps`), scored like golden (b)'s figure.
 * ``float_solver``: the loop's fixed-point solve replaced by float64 (golden.pose_lsq)
   on the same routed measurements and float coefficients.
 * ``no_consistency``: the consistency stage (and its P/(P-Δ) time factor) off.
+* ``no_scale_ceiling``: the consistency stage's scale ceiling at its format's top.
+* ``depth_weight``: golden (b)'s depth-sensitivity weight on the stage's confidences.
 * ``oracle_cue``: every segment's cue (both cameras of a pair, each its own) replaced
-  by the true disparity f·b·mean(1/Z) over the segment's compared columns.
+  by the true disparity f·b·mean(1/Z) over the segment's compared columns;
+  ``oracle_cue_stereo``: the true disparity over the stereo segment the router maps the
+  temporal segment to, camera A's, for both cameras (a perfect stereo lane).
 * ``float_match``: the lanes' shifts and peak ratios replaced by golden.descriptor.match
   of the same rows, stored reference row and centre.
-* ``k8``: 8 temporal and 8 stereo segments.
+* ``coef_zero`` / ``coef_centre`` / ``coef_mean``: float solve with coefficients at
+  centre 0 (control) / at the run-time centre's segment centres / averaged over them.
+* ``k8``: 8 temporal and 8 stereo segments; ``k8_ks4``: 8 temporal, 4 stereo.
 * ``alpha05``: (filter) the forecast filter's level gain 0.05 instead of 0.1.
 * golden side: ``gb_motion`` (golden (b)'s filter motion instead of its trajectory),
-  ``gb_linear`` (golden (b) with the linear predicted shift A·Ŷ instead of the exact
-  projection g(Ŷ)), ``gb_hwlike`` (segments=4, disparity_blocks=4, shift_sigma=1e6,
-  consistency_k=0, scale_ceiling=1e6).
+  ``gb_steps`` (its raw measured ``Ŷ + δ``), ``gb_linear_plain``/``gb_linear_time``
+  (golden (b) with the linear predicted shift A·Ŷ, without/with the reference-time
+  factor, instead of the exact projection g(Ŷ)), one golden feature off at a time
+  (``gb_k4``, ``gb_blocks4``, ``gb_no_depth_weight``, ``gb_no_ceiling``, ``gb_alpha05``)
+  and ``gb_hwlike`` (segments=4, disparity_blocks=4, shift_sigma=1e6, consistency_k=0,
+  scale_ceiling=1e6).
 """
 
 import argparse
@@ -455,6 +469,8 @@ def main(argv=None):
                                       patch=lambda c: coefficient_patch(ds, c, "mean")),
         "k8": lambda: hardware(ds, args.frames, config=PipelineConfig.for_rig(
             ds.rig, segments=8, stereo_segments=8)),
+        "k8_ks4": lambda: hardware(ds, args.frames, config=PipelineConfig.for_rig(
+            ds.rig, segments=8, stereo_segments=4)),
         "alpha05": lambda: hardware(ds, args.frames, forecast_changes={"alpha": 0.05}),
         "no_scale_ceiling": lambda: hardware(
             ds, args.frames, consistency_changes={"scale_ceiling": scale_top}),
