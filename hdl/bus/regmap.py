@@ -24,9 +24,12 @@ __all__ = ["rowtrack_map", "MAGIC", "GROUP_OFFSETS"]
 #: ``ident.magic``: ASCII "RWTK".
 MAGIC = 0x5257544B
 
-#: Byte offset of each block's group in the window.
-GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "camera": 0x200, "solver": 0x400,
-                 "engine": 0x500, "status": 0x600, "loop": 0x700}
+#: Byte offset of each block's group in the window. The camera group grows with the
+#: number of cameras (about 25 bytes each), so it has the window's upper half
+#: (0x800..0xFFF, room for about 75 cameras; stereo20 uses 0x214 bytes); every other
+#: group has 0x100 bytes.
+GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "solver": 0x400, "engine": 0x500,
+                 "status": 0x600, "loop": 0x700, "camera": 0x800}
 
 
 def _package_version():

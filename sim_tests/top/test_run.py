@@ -478,3 +478,15 @@ def test_the_lanes_in_the_loop_equal_the_float_matcher_and_can_fail(outcome):
         if line.startswith("lanes")]
     print(lines)
     assert lines and all(re.search(r"camera [01], segment", line) for line in lines)
+
+
+def test_rows_cut_a_rig_with_vertical_blanking():
+    """stereo8-board reads out over 80 % of its frame period: the cut keeps the frame
+    period, blanking and readout time (it took 1/(fps·rows) per row and was infeasible)."""
+    from golden.rig import preset
+    rig = preset("stereo8-board")
+    cut = run_command._cut_rows(rig, 96)
+    for before, after in zip(rig.cameras, cut.cameras):
+        assert after.height == 96
+        assert after.fps == before.fps and after.t_f == before.t_f
+        assert after.t_r * 96 == pytest.approx(before.t_r * before.height, rel=1e-12)
