@@ -61,8 +61,8 @@ def settings_layout(params):
         "frame_rows": params.frame_rows_fmt.width, "max_row_offset": params.solver.row_bits,
         "huber_k": params.k_fmt.width, "scale_initial": params.scale_fmt.width,
         "scale_floor": params.scale_fmt.width, "scale_ceiling": params.scale_fmt.width,
-        "keep": params.gain_fmt.width, "lam_ck": params.gain_fmt.width, "min_confidence": params.solver.conf_fmt.width,
-        "min_cameras": range(params.cameras + 1)})
+        "keep": params.gain_fmt.width, "lam_ck": params.gain_fmt.width,
+        "min_confidence": params.solver.conf_fmt.width, "min_cameras": range(params.cameras + 1)})
 
 
 def settings_init(params):
