@@ -6,6 +6,7 @@ import numpy as np
 
 from .checks import check_int, check_number
 from .descriptor import DescriptorParams, MatchParams
+from .temporal_filter import SCALE_CEILING
 
 __all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "BOUNDARIES", "TrackerParams",
            "TrackResult"]
@@ -154,7 +155,7 @@ class TrackerParams:
     scale_initial: float = 0.5
     scale_floor: float = 0.1
     scale_smoothing: float = 0.1
-    scale_ceiling: float = 1.0
+    scale_ceiling: float = SCALE_CEILING
     disparity_sigma: float = 1.0
     shift_sigma: float = 0.3
     consistency_k: float = 4.0
