@@ -16,7 +16,7 @@ import numpy as np
 from .depth import stereo_pairs
 from .pose_lsq import normal_equations, solve_normal
 from .temporal_filter import RobustScale, huber_weight
-from .tracker_robust import GroupConsistency, depth_weights, partial_solve
+from .tracker_robust import GroupConsistency, depth_weights, partial_solve, reference_condition
 
 __all__ = ["SlotSolver", "camera_groups", "RECOVERY_SCALES", "TYPICAL_SMOOTHING"]
 
@@ -136,13 +136,22 @@ class SlotSolver:
 
     def _system(self, solved, design, residual, confidence):
         """Solve the weighted system into ``solved``: the full step if it is well
-        conditioned, else (``boundary="partial"``) the step in its determined directions."""
+        conditioned, else (``boundary="partial"``) the step in its determined directions.
+
+        Well conditioned means both Jacobi-scaled (the unknowns against each other within
+        the slot) and scaled by the typical information (once there is one): an unknown
+        the slot barely measures is not determined however its own column scales
+        (:func:`golden.tracker_robust.reference_condition`). ``condition`` reports the
+        larger of the two."""
         p = self.params
         normal, rhs = normal_equations(design, residual, confidence)
         solution = solve_normal(normal, rhs, p.max_condition**2)
-        solved.condition = float(np.sqrt(solution.condition))
+        condition = solution.condition
+        if self.typical is not None:
+            condition = max(condition, reference_condition(normal, self.typical))
+        solved.condition = float(np.sqrt(condition))
         solved.step, solved.normal, solved.partial = None, None, False
-        if solution.ok:
+        if solution.ok and condition <= p.max_condition**2:
             solved.step, solved.normal = solution.step, normal
             self.typical = normal if self.typical is None else \
                 (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
