@@ -129,6 +129,12 @@ class SlotSolver:
                 self._system(solved, design[ok], cleaned[ok], confidence[ok])
             if outlier.sum() > p.lost_outlier_fraction * ok.sum():
                 solved.step = None      # most measurements disagree: not re-acquired
+            elif solved.partial:
+                # a re-acquisition resets the motion filter to this one slot's solution:
+                # it must determine every direction (a partial step keeps the forecast,
+                # i.e. the motion before the loss, in the others, and its kept but weakly
+                # determined directions took 0.3–0.4 rad per frame on the 4-pair rig)
+                solved.step, solved.normal, solved.partial = None, None, False
         reach = p.recovery_window if recovering else p.window
         if solved.step is not None and np.abs(design[ok] @ solved.step).max() > reach:
             solved.step = None          # shifts beyond the search: not what was matched

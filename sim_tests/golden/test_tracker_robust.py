@@ -210,3 +210,29 @@ def test_reference_condition_is_infinite_without_information():
     assert reference_condition(np.zeros((6, 6)), np.eye(6)) == np.inf
     assert reference_condition(np.eye(6), np.diag([1, 1, 1, 1, 1, 0.0])) == np.inf
     assert reference_condition(4 * np.eye(6), np.eye(6)) == pytest.approx(1.0)
+
+
+def test_a_re_acquisition_is_never_a_partial_step(rng):
+    """After a loss the first step found resets the motion filter: a slot that determines
+    only some directions (θz barely measured) is no re-acquisition, while tracking it
+    steps in its determined directions."""
+    from golden.rig import preset
+    from golden.tracker_params import TrackerParams
+    from golden.tracker_solve import SlotSolver
+    m = 40
+    camera = np.arange(m) % 20
+    truth = np.array([0.01, -0.005, 0.003, 0.002, -0.004, 0.001])
+    outcome = {}
+    for recovering in (False, True):
+        solver = SlotSolver(preset("stereo20"), TrackerParams(scale_initial=1000.0,
+                                                              scale_ceiling=1000.0), oracle=True)
+        args = (np.full(m, 2.0), camera, camera * 8, np.zeros((m, 3)), np.zeros(3))
+        design = rng.normal(0, 300, (m, 6))
+        assert solver.solve(design @ truth, design, *args, recovering=False).step is not None
+        design = rng.normal(0, 300, (m, 6))
+        design[:, 5] = 1e-4 * design[:, 4] + 1e-6 * rng.normal(0, 300, m)
+        solved = solver.solve(design @ truth, design, *args, recovering=recovering)
+        outcome[recovering] = solved.step
+    print(outcome)
+    assert outcome[False] is not None and np.allclose(outcome[False][:5], truth[:5], atol=1e-4)
+    assert outcome[True] is None
