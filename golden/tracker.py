@@ -339,6 +339,7 @@ class Tracker:
             unit=np.concatenate([e.unit_translation.reshape(-1, 3) for e in entries]
                                 or [np.zeros((0, 3))]),
             source=[(e, i) for e in entries for i in range(len(e.rows))])
+        self.solver.set_geometry(table.design)
         order = np.argsort(table.slot, kind="stable")
         bounds = np.searchsorted(table.slot[order], np.append(occupied, stop))
         previous = self.track.at(slots.times[occupied] - slots.period)

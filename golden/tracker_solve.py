@@ -67,6 +67,23 @@ class SlotSolver:
                                             params.consistency_smoothing,
                                             params.consistency_share)
         self.typical = None
+        #: Unit-weight information of every segment with a design row in the current
+        #: block (:meth:`set_geometry`): the reference scaling until a typical exists.
+        self.geometry = None
+
+    def set_geometry(self, design):
+        """The block's design rows (M, 6), matched or not: what the cameras could
+        measure. Before the first solved slot it stands in for the typical information
+        when judging which unknowns a slot determines (only its diagonal counts)."""
+        finite = np.all(np.isfinite(design), axis=1)
+        self.geometry, _ = normal_equations(design[finite], np.zeros(finite.sum()),
+                                            np.ones(finite.sum()))
+
+    @property
+    def reference(self):
+        """The information the unknowns are scaled by: the typical slot's, else the
+        block's geometry."""
+        return self.typical if self.typical is not None else self.geometry
 
     def solve(self, residual, design, ratio, camera, channel, unit, translation, recovering):
         """The slot's step from its measurements (innovations ``residual`` (M,) at the
@@ -147,14 +164,14 @@ class SlotSolver:
         Well conditioned means both Jacobi-scaled (the unknowns against each other within
         the slot) and scaled by the typical information (once there is one): an unknown
         the slot barely measures is not determined however its own column scales
-        (:func:`golden.tracker_robust.reference_condition`). ``condition`` reports the
-        larger of the two."""
+        (:func:`golden.tracker_robust.reference_condition`; before the first solved slot,
+        scaled by the block's geometry). ``condition`` reports the larger of the two."""
         p = self.params
         normal, rhs = normal_equations(design, residual, confidence)
         solution = solve_normal(normal, rhs, p.max_condition**2)
         condition = solution.condition
-        if self.typical is not None:
-            condition = max(condition, reference_condition(normal, self.typical))
+        if self.reference is not None:
+            condition = max(condition, reference_condition(normal, self.reference))
         solved.condition = float(np.sqrt(condition))
         solved.step, solved.normal, solved.partial = None, None, False
         if solution.ok and condition <= p.max_condition**2:
@@ -163,5 +180,5 @@ class SlotSolver:
                 (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
         elif p.boundary == "partial":
             solved.step, solved.normal = partial_solve(normal, rhs, p.max_condition,
-                                                       self.typical)
+                                                       self.reference)
             solved.partial = solved.step is not None

@@ -236,3 +236,29 @@ def test_a_re_acquisition_is_never_a_partial_step(rng):
     print(outcome)
     assert outcome[False] is not None and np.allclose(outcome[False][:5], truth[:5], atol=1e-4)
     assert outcome[True] is None
+
+
+def test_before_any_typical_slot_the_block_geometry_is_the_reference(rng):
+    """The first slots of a run have no typical information yet: scaled by their own
+    diagonal, a Tz column of rounding noise took a partial step of 1.6e13 m (stereo8,
+    seed 1, 0.1 ms in). The block's design rows, matched or not, show what the cameras
+    could measure and stand in for the typical information."""
+    from golden.rig import preset
+    from golden.tracker_params import TrackerParams
+    from golden.tracker_solve import SlotSolver
+    m = 40
+    camera = np.arange(m) % 20
+    truth = np.array([0.01, -0.005, 0.003, 0.002, -0.004, 0.001])
+    solver = SlotSolver(preset("stereo20"), TrackerParams(scale_initial=1000.0,
+                                                          scale_ceiling=1000.0), oracle=True)
+    block = rng.normal(0, 300, (10 * m, 6))
+    block[::7] = np.nan                          # segments without depth have no row
+    solver.set_geometry(block)
+    design = rng.normal(0, 300, (m, 6))
+    design[:, 2] = 1e-14 * rng.normal(0, 300, m)
+    solved = solver.solve(design @ truth + rng.normal(0, 0.2, m), design, np.full(m, 2.0),
+                          camera, camera * 8, np.zeros((m, 3)), np.zeros(3),
+                          recovering=False)
+    print(solved.step, solved.condition)
+    assert solved.partial and abs(solved.step[2]) < 1e-6
+    assert np.allclose(solved.step[[0, 1, 3, 4, 5]], truth[[0, 1, 3, 4, 5]], atol=2e-3)
