@@ -105,7 +105,8 @@ class TrackerParams:
         ... and measurements from at least this many cameras (fewer cameras leave
         directions weakly determined; such a slot carries on from the latest pose).
     max_condition : float
-        Largest condition number of the weighted, column-scaled design matrix.
+        Largest condition number of the weighted design matrix, both column-scaled and
+        scaled by the typical slot's information (an unknown the slot barely measures).
     boundary : str
         What a slot does whose system exceeds ``max_condition`` (frame boundaries, where
         few cameras contribute): ``"partial"`` steps in the directions the system
