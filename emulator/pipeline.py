@@ -29,10 +29,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from emulator.measurement.consistency import ConsistencyModel
 from emulator.measurement.router import pose_rows, route_row, usable_cues
-from emulator.pose.forecast import ForecastModel
-from emulator.pose_solver import pose_solver_model, solve_rows
+from emulator.pose.tracking_loop import TrackingLoopModel
+from emulator.pose_solver import pose_solver_model
 from emulator.descriptor.framer import FramedRow
 from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel
 
@@ -64,7 +63,9 @@ class PipelineResult:
         ``slot``, the forecast ``centre`` and ``source_row`` (n, cameras) it used and its
         saturation flags, and ``level`` (n, 6) the filter's level after the row's step
         (raw ``motion_fmt``); with a consistency stage also ``counts``, its counters
-        (:class:`emulator.measurement.consistency.ConsistencyModel`).
+        (:class:`emulator.measurement.consistency.ConsistencyModel`), and ``row_counts``
+        (records, 3): each record's row's ``(judged, outliers, confident)``, the
+        tracking-status unit's per-row input.
     """
     temporal: list
     stereo: list
@@ -170,19 +171,20 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
 
 class _Loop:
     """The closed loop of :func:`run`: forecast → lane centres and row addresses →
-    measurements → solved step → forecast."""
+    measurements → solved step → forecast. The back half, from the router's transfers to
+    the forecast, is :class:`emulator.pose.tracking_loop.TrackingLoopModel` (the
+    gateware's model); this adds the lanes and the row slots of the dataset's times."""
 
     def __init__(self, config, params, initial_motion, dataset, t0, consistency=None):
         if initial_motion is None:
             raise ValueError("initial_motion must be given with forecast")
         self.config, self.params = config, params
-        self.consistency = None if consistency is None else ConsistencyModel(consistency)
-        self.model = ForecastModel(params, config.coef_raw, config.row_coef_raw,
-                                   params.motion_fmt.quantize(initial_motion))
-        self.cues = np.zeros((params.solver.slots, params.height), dtype=np.int64)
+        self.model = TrackingLoopModel(params, config.coef_raw, config.row_coef_raw,
+                                       params.motion_fmt.quantize(initial_motion),
+                                       consistency)
         self.time, self.t0 = dataset.cameras[0].time, t0
         self.t_r = dataset.rig.cameras[0].t_r
-        self.log = []
+        self.log, self.row_counts = [], []
 
     def slot(self, frame, row):
         return int(round((self.time[frame, row] - self.t0) / self.t_r))
@@ -190,8 +192,8 @@ class _Loop:
     def measure(self, lanes, rows, frame):
         """The temporal measurements of one row set at the forecast centres and rows."""
         row = rows[0].row
-        self.prediction = self.model.predict(self.slot(frame, row), row, self.cues[:, row])
-        centres, sources = self.prediction["centre"], self.prediction["source_row"]
+        prediction = self.model.request(self.slot(frame, row), row)
+        centres, sources = prediction["centre"], prediction["source_row"]
         return [m for lane, framed, centre, source in zip(lanes, rows, centres, sources)
                 for m in lane.process_rows([replace(framed, centre=int(centre))],
                                            [int(source)])]
@@ -200,27 +202,13 @@ class _Loop:
         """Judge the row's transfers (with a consistency stage), keep its depth cues for
         the next frame and feed its step (if solved) to the forecast; returns the
         transfers the solver takes."""
-        step = None
         slot = self.slot(frame, row)
-        if self.consistency is not None and transfers:
-            cue = np.zeros(self.params.solver.slots, dtype=np.int64)
-            cue[[t["slot"] for t in transfers]] = [t["cue"] for t in transfers]
-            predicted = self.model.predict(slot, row, cue)["shift"]
-            delta = self.prediction["source_row"] - row
-            transfers, _ = self.consistency.apply(transfers, predicted, delta)
-        for t in transfers:
-            if t["cue"]:                          # 0: no stereo cue for that segment
-                self.cues[t["slot"], row] = t["cue"]
-        if transfers:
-            solver = self.config.router.solver
-            result = solve_rows(solver, self.config.coef_raw,
-                                pose_rows(self.config.router, transfers))
-            if result.flags[0] == 0:
-                step = result.step[0]
-        level = self.model.take(slot, step)
-        p = self.prediction
+        transfers, level = self.model.close(transfers, slot, row)
+        p = self.model.prediction
         self.log.append((frame, row, slot, p["centre"], p["centre_saturated"],
                          p["source_row"], p["row_saturated"], level))
+        if self.model.row_counts is not None:
+            self.row_counts.append(self.model.row_counts)
         return transfers
 
     def history(self):
@@ -228,6 +216,7 @@ class _Loop:
                  "row_saturated", "level")
         out = {name: np.array([entry[k] for entry in self.log])
                for k, name in enumerate(names)}
-        if self.consistency is not None:
-            out["counts"] = dict(self.consistency.counts)
+        if self.model.consistency is not None:
+            out["counts"] = self.model.counts
+            out["row_counts"] = np.array(self.row_counts, dtype=np.int64).reshape(-1, 3)
         return out

@@ -21,9 +21,9 @@ whatever error the loss left.
 
 Encoding (2 bits, so that it fits the HDL pose record's ``flags`` byte and the packet):
 ``0b00`` tracking, ``0b01`` degraded, ``0b10`` lost, ``0b11`` reserved (a receiver treats
-it as lost). Proposed flag layout (not in hdl/ yet): bits 3:0 are the solver's
-``hdl.pose.params.PoseFlag``; bits 5:4 the status; bit 6 drifted since a loss; bit 7
-reserved. Zero still means "a good pose".
+it as lost). Flag layout (the hardware's too, ``hdl.output.params.FLAG_FIELDS``):
+bits 3:0 are the solver's ``hdl.pose.params.PoseFlag``; bits 5:4 the status; bit 6
+drifted since a loss; bit 7 reserved. Zero still means "a good pose".
 """
 
 import enum

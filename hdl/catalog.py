@@ -17,6 +17,7 @@ BLOCKS = {
     "regs": "hdl.top:register_file",
     "gp0_bridge": "hdl.board.gp0:GP0ToAXI4Lite",
     "top": "hdl.top:RowtrackTop",
+    "top_closed": "hdl.top:closed_loop_top",
     "camera_input": "hdl.front_end.camera_input:CameraInput",
     "camera_sync": "hdl.front_end.camera_sync:CameraSync",
     "row_aligner": "hdl.front_end.row_aligner:RowAligner",
@@ -28,6 +29,7 @@ BLOCKS = {
     "row_descriptor": "hdl.row_descriptor:RowDescriptor",
     "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",
     "measurement_engine": "hdl.measurement.engine:MeasurementEngine",
+    "follow_engine": "hdl.measurement.engine:default_follow_engine",
     "measurement_router": "hdl.measurement.router:default_router",
 }
 

@@ -24,19 +24,24 @@ from hdl.front_end.params import CameraParams
 from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.pose.forecast_params import ForecastParams
 from hdl.fixed import Overflow
-from hdl.pose.params import DEFAULT_COEF_WIDTH, coefficient_formats, quantize_coefficients
+from hdl.pose.params import (DEFAULT_COEF_WIDTH, PoseSolverParams, coefficient_formats,
+                             quantize_coefficients)
 from hdl.pose.row_polynomials import (evaluate_polynomials, fit_row_polynomials,
                                       polynomial_formats, quantize_polynomials,
                                       shift_polynomials)
 from hdl.top_params import DEFAULT_SEGMENTS, TopParams
 
-__all__ = ["PipelineConfig", "segment_centres", "coefficient_table", "DEFAULT_COEF_DEGREE"]
+__all__ = ["PipelineConfig", "segment_centres", "coefficient_table", "DEFAULT_COEF_DEGREE",
+           "DEFAULT_ROW_COEF_DEGREE"]
 
 #: System clock (FCLK_CLK0) the time stamps count.
 DEFAULT_CLK_HZ = 100_000_000
 #: Degree of the solver store's polynomials in the row: a rectified pinhole camera's
 #: coefficients along the row are exactly linear in it (:mod:`hdl.pose.row_polynomials`).
 DEFAULT_COEF_DEGREE = 1
+#: Degree of the forecast's across-rows store: the displacement across rows of a rotation
+#: is quadratic in the row (``1 + y²``), so degree 1 would miss it by many LSB.
+DEFAULT_ROW_COEF_DEGREE = 2
 #: Largest difference (LSB of the coefficient formats) a polynomial store may make
 #: against the per-row store of the same table: the terms' rounding plus the fit.
 COEF_POLYNOMIAL_TOLERANCE_LSB = 1
@@ -79,9 +84,12 @@ class PipelineConfig:
     coef_error_lsb : int
         Largest difference between ``coef_raw`` and ``table`` quantized directly, in
         LSB of the coefficient formats (0 for a store of every row).
-    row_table, row_coef_raw : ndarray (slots, rows, 9)
+    row_table, row_coef_raw, row_coef_store, row_coef_error_lsb
         The same for the displacement across rows (the forecast's second store), in the
-        formats of :meth:`forecast`.
+        formats of :attr:`row_store`: polynomials of ``row_coef_degree`` in the row.
+    row_store : PoseSolverParams
+        The across-rows store's formats (``ForecastParams.row_store`` of
+        :meth:`forecast`).
     rig_name : str
     frame_rows : float
         Row periods per frame period (``1/(fps·t_r)``, blanking included): the
@@ -94,20 +102,27 @@ class PipelineConfig:
     coef_error_lsb: int
     row_table: np.ndarray
     row_coef_raw: np.ndarray
+    row_coef_store: np.ndarray
+    row_coef_error_lsb: int
+    row_store: PoseSolverParams
     rig_name: str
     frame_rows: float
 
     @classmethod
     def for_rig(cls, rig, *, segments=DEFAULT_SEGMENTS, coef_width=DEFAULT_COEF_WIDTH,
-                coef_degree=DEFAULT_COEF_DEGREE, clk_hz=DEFAULT_CLK_HZ,
-                camera=CameraParams(), **top_changes):
+                coef_degree=DEFAULT_COEF_DEGREE, row_coef_degree=DEFAULT_ROW_COEF_DEGREE,
+                clk_hz=DEFAULT_CLK_HZ,
+                camera=CameraParams(), closed_loop=False, **top_changes):
         """The pipeline for ``rig``: its cameras (one image size), each in the rectified
         stereo pair :func:`golden.depth.stereo_pairs` finds, temporal lanes of
         ``segments`` segments, a ``coef_width``-bit coefficient store whose formats hold
         the rig's table — as polynomials of ``coef_degree`` in the row (``None``: every
-        row stored) —, time stamps in clocks of ``clk_hz``. ``camera`` gives the front
+        row stored) —, the forecast's across-rows store likewise with ``row_coef_degree``,
+        time stamps in clocks of ``clk_hz``. ``camera`` gives the front
         end's other widths (its count and size come from the rig); ``top_changes`` go to
-        :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``).
+        :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``). ``closed_loop``:
+        the top closes the measurement loop with the default :meth:`forecast` and
+        :meth:`consistency` of the rig (``TopParams.forecast``/``.consistency``).
 
         Raises
         ------
@@ -136,45 +151,72 @@ class PipelineConfig:
                                     **top_changes)
         table = coefficient_table(rig, shape.engine.temporal, scales)
         solver = replace(shape.solver, **coefficient_formats(table, coef_width))
-        solver, coef_store, coef_raw, error = _store(solver, table, coef_degree, rig.name)
+        solver, coef_store, coef_raw, error = _store(solver, table, coef_degree, rig.name,
+                                                     "coef_degree")
         top = TopParams.for_pairs(pairs, segments=segments, camera=camera, solver=solver,
                                   clk_hz=clk_hz, **top_changes)
         row_table = coefficient_table(rig, shape.engine.temporal, scales, axis=1)
-        row_store = replace(solver, **coefficient_formats(row_table, coef_width))
-        return cls(top=top, table=table, coef_raw=coef_raw, coef_store=coef_store,
-                   coef_error_lsb=error, row_table=row_table,
-                   row_coef_raw=quantize_coefficients(row_store, row_table),
-                   rig_name=rig.name,
-                   frame_rows=1.0 / (rig.cameras[0].fps * rig.cameras[0].t_r))
+        row_store = replace(solver, **coefficient_formats(row_table, coef_width),
+                            coef_poly_fmts=())
+        row_store, row_coef_store, row_coef_raw, row_error = _store(
+            row_store, row_table, row_coef_degree, rig.name, "row_coef_degree")
+        config = cls(top=top, table=table, coef_raw=coef_raw, coef_store=coef_store,
+                     coef_error_lsb=error, row_table=row_table, row_coef_raw=row_coef_raw,
+                     row_coef_store=row_coef_store, row_coef_error_lsb=row_error,
+                     row_store=row_store, rig_name=rig.name,
+                     frame_rows=1.0 / (rig.cameras[0].fps * rig.cameras[0].t_r))
+        if not closed_loop:
+            return config
+        return replace(config, top=top.closing(config.forecast(), config.consistency()))
 
-    def store_window(self, first_row, rows):
-        """The solver store's contents for a window of ``rows`` camera rows from
+    def store_window(self, first_row, rows, store="solver"):
+        """The contents of a store for a window of ``rows`` camera rows from
         ``first_row`` (:meth:`window`): the polynomials in the window's row index, or the
-        window's rows."""
-        check_int("first_row", first_row, 0, self.top.solver.rows - 1)
-        check_int("rows", rows, 1, self.top.solver.rows - first_row)
-        if not self.top.solver.coef_terms:
-            return self.coef_store[:, first_row:first_row + rows]
-        return shift_polynomials(self.coef_store, first_row)
+        window's rows. ``store``: ``"solver"`` (:attr:`coef_store`, also the forecast's
+        shift store) or ``"row"`` (:attr:`row_coef_store`, the forecast's across-rows
+        store)."""
+        stores = {"solver": (self.top.solver, self.coef_store),
+                  "row": (self.row_store, self.row_coef_store)}
+        if store not in stores:
+            raise ValueError(f"store must be 'solver' or 'row', not {store!r}")
+        params, contents = stores[store]
+        check_int("first_row", first_row, 0, params.rows - 1)
+        check_int("rows", rows, 1, params.rows - first_row)
+        if not params.coef_terms:
+            return contents[:, first_row:first_row + rows]
+        return shift_polynomials(contents, first_row)
+
+    @property
+    def forecast_stores(self):
+        """The closed-loop top's ``forecast_stores``: the shift store's contents (the
+        solver's, :attr:`coef_store`) and the across-rows store's
+        (:attr:`row_coef_store`)."""
+        return self.coef_store, self.row_coef_store
 
     def forecast(self, **changes):
         """The motion forecast of this pipeline (:class:`ForecastParams`): its solver,
         segments, rows and the lanes' centre range, the across-rows store's formats;
         ``changes`` set the others (e.g. ``loop_delay_rows``, ``alpha``)."""
-        formats = coefficient_formats(self.row_table, self.top.solver.coef_width)
-        lane = self.router.temporal
+        if self.top.closed_loop:
+            return replace(self.top.forecast, **changes)
+        row, lane = self.row_store, self.router.temporal
         derived = dict(solver=self.top.solver, segments=self.segments, height=lane.height,
-                       centre_range=lane.centre_range,
-                       **{f"row_{name}": fmt for name, fmt in formats.items()})
+                       centre_range=lane.centre_range, row_coef_t_fmt=row.coef_t_fmt,
+                       row_coef_c_fmt=row.coef_c_fmt, row_coef_r_fmt=row.coef_r_fmt,
+                       row_coef_poly_fmts=row.coef_poly_fmts)
         return ForecastParams(**{**derived, **changes})
 
     def consistency(self, **changes):
         """The robust consistency stage of this pipeline (:class:`ConsistencyParams`): its
         solver and segments, the forecast's predicted-shift format; ``changes`` set the
         others (e.g. ``huber_k``, ``min_cameras``)."""
+        if self.top.closed_loop:
+            return replace(self.top.consistency, **changes)
+        bound = fields_default(ConsistencyParams, "max_row_offset")
         derived = dict(solver=self.top.solver, segments=self.segments,
                        predicted_fmt=self.forecast().displacement_fmt,
-                       frame_rows=self.frame_rows)
+                       frame_rows=self.frame_rows,
+                       max_row_offset=min(bound, self.top.solver.rows - 1))
         return ConsistencyParams(**{**derived, **changes})
 
     def window(self, rows, **top_changes):
@@ -185,9 +227,17 @@ class PipelineConfig:
         check_int("rows", rows, 1, top.camera.max_height)
         kept = {f.name: getattr(top, f.name) for f in fields(top)
                 if f.init and f.name not in ("camera", "pairs", "segments", "solver")}
-        return TopParams.for_pairs(top.pairs, segments=top.segments,
-                                   camera=replace(top.camera, max_height=rows),
-                                   solver=top.solver, **{**kept, **top_changes})
+        kept.update(forecast=None, consistency=None)
+        window = TopParams.for_pairs(top.pairs, segments=top.segments,
+                                     camera=replace(top.camera, max_height=rows),
+                                     solver=top.solver, **{**kept, **top_changes})
+        if not top.closed_loop:
+            return window
+        # the loop's solver is the window's; the forecast and the stage address its rows
+        stage = top.consistency
+        return window.closing(replace(top.forecast, solver=window.solver, height=rows),
+                              replace(stage, solver=window.solver,
+                                      max_row_offset=min(stage.max_row_offset, rows - 1)))
 
     # --- the parts each model reads ------------------------------------------------------
 
@@ -205,9 +255,15 @@ class PipelineConfig:
         return self.top.clk_hz
 
 
-def _store(solver, table, degree, rig_name):
-    """The solver with its store's formats, the store contents, the coefficients it gives
-    every row and their largest difference (LSB) from ``table`` quantized per row."""
+def fields_default(cls, name):
+    """The default of dataclass ``cls``'s field ``name``."""
+    return next(f.default for f in fields(cls) if f.name == name)
+
+
+def _store(solver, table, degree, rig_name, name):
+    """A store's parameters (the solver's, or the across-rows store's) with its formats,
+    the store contents, the coefficients it gives every row and their largest difference
+    (LSB) from ``table`` quantized per row; ``name`` is the degree's parameter."""
     direct = quantize_coefficients(solver, table)
     if degree is None:
         return solver, direct, direct, 0
@@ -218,8 +274,8 @@ def _store(solver, table, degree, rig_name):
     coef_raw = evaluate_polynomials(solver, store, np.arange(solver.rows), Overflow.ERROR)
     error = int(np.abs(coef_raw - direct).max())
     if error > COEF_POLYNOMIAL_TOLERANCE_LSB:
-        raise ValueError(f"coef_degree {degree}: rig {rig_name!r}'s coefficients differ from "
+        raise ValueError(f"{name} {degree}: rig {rig_name!r}'s coefficients differ from "
                          f"polynomials of that degree in the row by up to {error} LSB (at "
-                         f"most {COEF_POLYNOMIAL_TOLERANCE_LSB} allowed); raise coef_degree "
-                         f"or store every row (coef_degree=None)")
+                         f"most {COEF_POLYNOMIAL_TOLERANCE_LSB} allowed); raise {name} "
+                         f"or store every row ({name}=None)")
     return solver, store, coef_raw, error

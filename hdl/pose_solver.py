@@ -45,6 +45,11 @@ class PoseSolver(wiring.Component):
     i : In(stream.Signature(measurement_layout(params)))
         Measurements, ``last`` on the final one of a row (formats: shift ``shift_fmt``
         pixels, cue ``cue_fmt``, confidence ``conf_fmt``).
+    gated : In(1)
+        Read with a row's ``last`` transfer: the row failed the consistency stage's gates
+        (:class:`hdl.measurement.consistency.ConsistencyStage`'s ``gated``); it is
+        flagged EMPTY and gives no step, as the model's all-zero confidences make it.
+        0 when no stage is in front.
     o : Out(stream.Signature(record_layout(params)))
         One pose record per row (q ``quat_fmt``, p ``position_fmt`` metres, step
         ``step_fmt`` metres/radians, :class:`PoseFlag` flags).
@@ -79,6 +84,7 @@ class PoseSolver(wiring.Component):
         self._engine = PoseEngine(params)
         super().__init__({
             "i": In(stream.Signature(measurement_layout(params))),
+            "gated": In(1),
             "o": Out(stream.Signature(record_layout(params))),
             "coef_write": In(coef_write_signature(params)),
             "counters": Out(counters_layout(params)),
@@ -116,6 +122,7 @@ class PoseSolver(wiring.Component):
                      acc.coef_data.eq(store.data)]
         connect(m, wiring.flipped(self.coef_write), store.write)
         connect(m, wiring.flipped(self.i), acc.i)
+        m.d.comb += acc.gated.eq(self.gated)
         connect(m, engine.o, wiring.flipped(self.o))
         m.d.comb += [engine.row_done.eq(acc.done), acc.release.eq(engine.release),
                      acc.read_index.eq(engine.read_index), engine.read_data.eq(acc.read_data),

@@ -8,7 +8,11 @@
   row-descriptor lane per camera, a stereo lane per pair, and the router that turns
   their segment measurements into the solver's slots with their depth cues),
 * the pose solver (:class:`hdl.pose_solver.PoseSolver`: coefficient store, normal
-  equations, LDLᵀ solve, pose integration),
+  equations, LDLᵀ solve, pose integration), or, in a closed-loop top
+  (``TopParams.closed_loop``), the tracking loop around it
+  (:class:`hdl.pose.tracking_loop.TrackingLoop`: consistency stage, solver, tracking
+  status and the forecast that gives the engine's following lanes each row's window
+  centre and reference row),
 * the pose output (:class:`hdl.output.link.PoseLink`: decimation, framing, UART, PS
   FIFO), and
 * the register file (:class:`hdl.bus.register_file.RegisterFile` of :func:`hdl.bus.regmap.rowtrack_map`)
@@ -25,18 +29,33 @@ from amaranth.lib.wiring import In, Out
 from hdl.front_end.camera_sync import CameraFrontEnd
 from hdl.measurement.engine import MeasurementEngine
 from hdl.output.link import PoseLink
+from hdl.pose.row_counter import RowCounter
+from hdl.pose.status_params import top_status_params
+from hdl.pose.status_unit import StatusUnit
+from hdl.pose.tracking_loop import TrackingLoop
 from hdl.pose_solver import PoseSolver
 from hdl.bus.axi4lite import AXI4LiteSignature
 from hdl.bus.register_file import RegisterFile
 from hdl.streams import dvp_signature
-from hdl.top_params import TopParams
+from hdl.top_params import DEFAULT_SEGMENTS, TopParams
 
-__all__ = ["RowtrackTop", "register_file"]
+__all__ = ["RowtrackTop", "register_file", "closed_loop_top"]
 
 
 def register_file(params=TopParams()):
     """The register file of the top built with ``params`` (a catalog entry of its own)."""
     return RegisterFile(params.regmap())
+
+
+def closed_loop_top(rig_name="stereo8-board"):
+    """The closed-loop top of preset rig ``rig_name`` (its cameras, pairs and coefficient
+    stores, K = K_s = 4): the catalog's ``top_closed``, the build a board user loads."""
+    from golden.rig import preset
+    from hdl.pipeline_config import PipelineConfig
+    config = PipelineConfig.for_rig(preset(rig_name), closed_loop=True,
+                                    stereo_segments=DEFAULT_SEGMENTS)
+    return RowtrackTop(config.top, coefficients=config.coef_store,
+                       forecast_stores=config.forecast_stores)
 
 
 class RowtrackTop(wiring.Component):
@@ -49,7 +68,13 @@ class RowtrackTop(wiring.Component):
         Camera ``k``'s pixel clock domain (default ``pclk0``, ``pclk1``, ...).
     coefficients : ndarray (slots, rows, 9), optional
         Initial contents of the solver's coefficient store (raw; default zeros, loaded
-        through the registers), e.g. a rig's ``PipelineConfig.coef_raw``.
+        through the registers), e.g. a rig's ``PipelineConfig.coef_store``.
+    forecast_stores : (ndarray, ndarray), closed loop only
+        The contents of the forecast's two stores in their layouts (raw,
+        (slots, entries_per_slot, 9)): its copy of the solver's store and the across-rows
+        store, ``PipelineConfig.forecast_stores`` (``.coef_store`` and
+        ``.row_coef_store``: polynomial terms); fixed at build time (no register load
+        yet).
 
     Members
     -------
@@ -64,11 +89,19 @@ class RowtrackTop(wiring.Component):
         Pose packets.
     """
 
-    def __init__(self, params=TopParams(), *, domains=None, coefficients=None):
+    def __init__(self, params=TopParams(), *, domains=None, coefficients=None,
+                 forecast_stores=None):
         if not isinstance(params, TopParams):
             raise TypeError(f"params must be a TopParams, not {params!r}")
+        if params.closed_loop and forecast_stores is None:
+            raise ValueError("forecast_stores must be given for a closed-loop top")
+        if not params.closed_loop and forecast_stores is not None:
+            raise ValueError("forecast_stores is for a closed-loop top only")
         self.params = params
         self.coefficients = coefficients
+        self.forecast_stores = forecast_stores
+        #: The blocks between the engine and the pose output, by the kind of top.
+        self._wire_back_end = self._wire_loop if params.closed_loop else self._wire_solver
         n = params.camera.n_cameras
         self.domains = tuple(domains) if domains is not None else \
             tuple(f"pclk{k}" for k in range(n))
@@ -88,12 +121,11 @@ class RowtrackTop(wiring.Component):
         m.submodules.regs = regs = RegisterFile(p.regmap())
         m.submodules.front = front = CameraFrontEnd(p.camera, domains=self.domains)
         m.submodules.engine = engine = MeasurementEngine(p.engine)
-        m.submodules.solver = solver = PoseSolver(p.solver, self.coefficients)
         m.submodules.pose_link = link = PoseLink(p)
         wiring.connect(m, wiring.flipped(self.axi), regs.axi)
         wiring.connect(m, front.o, engine.rows)
-        wiring.connect(m, engine.o, solver.i)
         m.d.comb += [engine.cfg.eq(regs.engine.control), regs.engine.status.eq(engine.status)]
+        self._wire_back_end(m, regs, engine, link)
 
         for k in range(p.camera.n_cameras):
             wiring.connect(m, wiring.flipped(self.dvp[k]), front.dvp[k])
@@ -108,14 +140,6 @@ class RowtrackTop(wiring.Component):
             self.fsin.eq(front.fsin),
         ]
 
-        wiring.connect(m, solver.o, link.pose)
-        coef = regs.solver.coef
-        m.d.comb += [
-            solver.coef_write.addr.eq(coef.data.addr), solver.coef_write.index.eq(coef.data.index),
-            solver.coef_write.data.eq(coef.data.data), solver.coef_write.en.eq(coef.stb),
-            regs.solver.counters.eq(solver.counters),
-        ]
-
         out = regs.pose_out
         wiring.connect(m, out.fifo_pop, link.fifo_pop)
         m.d.comb += [
@@ -124,3 +148,51 @@ class RowtrackTop(wiring.Component):
             self.uart_tx.eq(link.tx),
         ]
         return m
+
+    @staticmethod
+    def _wire_coefficient_load(m, regs, coef_write):
+        coef = regs.solver.coef
+        m.d.comb += [coef_write.addr.eq(coef.data.addr), coef_write.index.eq(coef.data.index),
+                     coef_write.data.eq(coef.data.data), coef_write.en.eq(coef.stb)]
+
+    def _wire_solver(self, m, regs, engine, link):
+        """Open loop: the engine's measurements straight into the solver."""
+        m.submodules.solver = solver = PoseSolver(self.params.solver, self.coefficients)
+        wiring.connect(m, engine.o, solver.i)
+        wiring.connect(m, solver.o, link.pose)
+        self._wire_coefficient_load(m, regs, solver.coef_write)
+        m.d.comb += regs.solver.counters.eq(solver.counters)
+
+    def _wire_loop(self, m, regs, engine, link):
+        """Closed loop: the engine's measurements into the tracking loop, its forecast
+        back into the engine, its records through the tracking-status unit (with the
+        per-row counts of the loop's verdicts) to the pose output."""
+        p = self.params
+        status_params = top_status_params(p)
+        m.submodules.loop = loop = TrackingLoop(p.forecast, p.consistency,
+                                                *self.forecast_stores, self.coefficients)
+        m.submodules.row_counter = counter = RowCounter(status_params)
+        m.submodules.status = status = StatusUnit(status_params, p.solver)
+        wiring.connect(m, engine.o, loop.i)
+        wiring.connect(m, loop.verdicts, counter.i)
+        wiring.connect(m, counter.o, status.row)
+        wiring.connect(m, loop.records, status.i)
+        wiring.connect(m, status.o, link.pose)
+        ahead, fed = loop.o, engine.forecast
+        m.d.comb += [fed.valid.eq(ahead.valid), ahead.ready.eq(fed.ready),
+                     fed.payload.camera.eq(ahead.payload.camera),
+                     fed.payload.centre.eq(ahead.payload.centre),
+                     fed.payload.source_row.eq(ahead.payload.source_row),
+                     fed.payload.row.eq(ahead.payload.row),
+                     fed.payload.last.eq(ahead.payload.last)]
+        self._wire_coefficient_load(m, regs, loop.coef_write)
+        settings, state = regs.loop, regs.status
+        m.d.comb += [
+            loop.alpha.eq(settings.alpha), loop.beta.eq(settings.beta),
+            loop.initial.eq(settings.initial), loop.restart.eq(settings.restart.stb),
+            loop.frame_rows.eq(settings.frame_rows), loop.settings.eq(settings.consistency),
+            settings.counts.eq(loop.counts), settings.forecast_counters.eq(loop.forecast_counters),
+            settings.counters.eq(loop.counters), regs.solver.counters.eq(loop.solver_counters),
+            status.settings.eq(state.settings), status.clear.eq(state.clear.stb),
+            state.state.eq(status.state),
+        ]

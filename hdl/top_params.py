@@ -11,9 +11,12 @@ from dataclasses import dataclass, field, replace
 from golden.checks import check_int
 
 from hdl.front_end.params import CameraParams
+from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.measurement.engine_params import EngineParams
 from hdl.output.params import PoseOutputParams
+from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import PoseSolverParams, solver_source
+from hdl.pose.status_params import status_source
 from hdl.descriptor.params import DEFAULT_SEGMENTS
 from hdl.output.params import UartParams
 
@@ -54,6 +57,15 @@ class TopParams:
         UART baud rate after reset.
     reg_base, reg_size : int
         Register window on the AXI bus (GP0 spans ``0x4000_0000``–``0x7FFF_FFFF``).
+    forecast : ForecastParams or None
+    consistency : ConsistencyParams or None
+        Both or neither. Both: the closed measurement loop (issue 16; built from a rig by
+        ``PipelineConfig.for_rig(..., closed_loop=True)``): following temporal lanes with
+        the router's cue fallback, and :class:`hdl.pose.tracking_loop.TrackingLoop`
+        (consistency stage, solver, forecast) between the engine and the pose output;
+        their ``solver`` must be ``solver``, their ``segments`` ``segments``, the
+        forecast's ``height`` the cameras' ``max_height``. Neither: the open-loop top
+        (each row against the same row of the previous frame, centres from registers).
 
     Members
     -------
@@ -71,6 +83,8 @@ class TopParams:
     baud: int = 3_000_000
     reg_base: int = 0x4000_0000
     reg_size: int = 0x1000
+    forecast: ForecastParams = None
+    consistency: ConsistencyParams = None
     engine: EngineParams = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -84,8 +98,11 @@ class TopParams:
         if self.solver.time_bits != self.camera.timestamp_bits:
             raise ValueError(f"solver.time_bits must be camera.timestamp_bits "
                              f"({self.camera.timestamp_bits}), not {self.solver.time_bits}")
-        if self.pose_output.source != solver_source(self.solver):
-            raise ValueError("pose_output.source must be solver_source(solver), not "
+        self._check_loop()
+        source, name = ((status_source(self.solver), "status_source") if self.closed_loop
+                        else (solver_source(self.solver), "solver_source"))
+        if self.pose_output.source != source:
+            raise ValueError(f"pose_output.source must be {name}(solver), not "
                              f"{self.pose_output.source!r}")
         for name in ("clk_hz", "baud", "reg_base", "reg_size"):
             check_int(name, getattr(self, name))
@@ -95,7 +112,32 @@ class TopParams:
         # The engine checks pairs (every camera in one pair), segments and solver.slots.
         object.__setattr__(self, "engine", EngineParams.for_cameras(
             self.camera, self.solver, self.pairs, segments=self.segments,
-            stereo_segments=self.stereo_segments))
+            stereo_segments=self.stereo_segments, follow=self.closed_loop,
+            cue_fallback=self.closed_loop))
+
+    def _check_loop(self):
+        for name, cls in (("forecast", ForecastParams), ("consistency", ConsistencyParams)):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, cls):
+                raise TypeError(f"{name} must be a {cls.__name__} or None, not {value!r}")
+        if (self.forecast is None) != (self.consistency is None):
+            raise ValueError("forecast and consistency must be given together (the closed "
+                             "loop) or not at all")
+        for name in ("forecast", "consistency") if self.closed_loop else ():
+            part = getattr(self, name)
+            if part.solver != self.solver:
+                raise ValueError(f"{name}.solver must be the top's solver")
+            if part.segments != self.segments:
+                raise ValueError(f"{name}.segments must be segments ({self.segments}), not "
+                                 f"{part.segments}")
+        if self.closed_loop and self.forecast.height != self.camera.max_height:
+            raise ValueError(f"forecast.height must be camera.max_height "
+                             f"({self.camera.max_height}), not {self.forecast.height}")
+
+    @property
+    def closed_loop(self):
+        """The top closes the measurement loop (``forecast`` and ``consistency`` given)."""
+        return self.forecast is not None
 
     @classmethod
     def for_pairs(cls, pairs, *, segments=DEFAULT_SEGMENTS, camera=CameraParams(),
@@ -108,11 +150,20 @@ class TopParams:
         solver = replace(solver, slots=n * segments, rows=camera.max_height,
                          row_bits=max(solver.row_bits, camera.row_bits),
                          time_bits=camera.timestamp_bits)
-        pose_output = replace(pose_output, source=solver_source(solver))
+        closed = changes.get("forecast") is not None
+        pose_output = replace(pose_output, source=(status_source if closed
+                                                   else solver_source)(solver))
         return cls(camera=camera, pairs=tuple(tuple(p) for p in pairs), segments=segments,
                    solver=solver, pose_output=pose_output, **changes)
 
     replace = replace
+
+    def closing(self, forecast, consistency):
+        """These parameters with the measurement loop closed by ``forecast`` and
+        ``consistency`` (the pose output then carries the tracking status)."""
+        return replace(self, forecast=forecast, consistency=consistency,
+                       pose_output=replace(self.pose_output,
+                                           source=status_source(self.solver)))
 
     def regmap(self):
         """The register map of the top built with these parameters."""

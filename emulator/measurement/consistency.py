@@ -159,7 +159,8 @@ class ConsistencyModel:
         with the forecast's predicted shift of every slot (raw ``predicted_fmt``,
         (slots,)) and each camera's row offset ``delta = source − row`` (cameras,): the
         transfers the solver gets (copies) and the verdict of :meth:`judge` plus
-        ``gated`` (the row failed the gates)."""
+        ``gated`` (the row failed the gates) and ``conf_in`` (the confidences the judge
+        took: a channel whose source row was too far enters with 0)."""
         if not transfers:
             return [], None
         p = self.params
@@ -169,12 +170,12 @@ class ConsistencyModel:
         self.counts["far_rows"] += len(np.unique(channel[far] // p.segments))
         delta = np.where(far, 0, delta)
         shift = self.to_one_frame([t["shift"] for t in transfers], delta)
-        conf = np.where(far, 0, [t["conf"] for t in transfers])
-        verdict = self.judge(channel, shift, np.asarray(predicted)[channel], conf)
+        conf_in = np.where(far, 0, [t["conf"] for t in transfers])
+        verdict = self.judge(channel, shift, np.asarray(predicted)[channel], conf_in)
         conf = verdict["conf"]
         cameras = np.unique(channel[conf > 0] // p.segments)
         gated = conf.max() < p.min_confidence_raw or len(cameras) < p.min_cameras
         self.counts["gated_rows"] += int(gated)
         out = [{**t, "shift": int(sh), "conf": 0 if gated else int(c)}
                for t, sh, c in zip(transfers, verdict["shift"], conf)]
-        return out, {**verdict, "gated": gated}
+        return out, {**verdict, "gated": gated, "conf_in": conf_in}

@@ -12,14 +12,26 @@ its ``first`` to its ``last`` beat. A *configuration* is a dict of the engine's 
 port fields (:func:`hdl.measurement.engine_params.engine_config_layout`): ``temporal``
 and ``stereo`` window centres and ``enable``, as they stand when the set's first column
 enters (the hardware samples them there).
+
+In the closed loop (``EngineParams.follow``) the temporal lanes follow rows and the
+engine also takes the forecast's transfers (``hdl.measurement.engine_params.
+EngineParams.forecast_layout`` fields as dicts): :func:`forecast_rows` gathers them
+into rows as :class:`hdl.measurement.forecast_rows.ForecastRows` does,
+:func:`join_forecasts` joins one with each row set as the fork does (key check and
+resynchronization, :mod:`hdl.measurement.row_set_fork`), and each temporal lane takes
+its camera's centre and source row with the row's first beat. The configurations then
+have no ``temporal`` field. This is what :func:`emulator.pipeline.run`'s closed loop
+does to its rows, without the loop's feedback: the forecast rows are an input here.
 """
 
 from dataclasses import dataclass
 
+from emulator.descriptor.framer import frame_rows
 from emulator.measurement.router import route_tickets
 from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel
 
-__all__ = ["ForkResult", "EngineResult", "fork_row_sets", "run_engine", "row_set_columns"]
+__all__ = ["ForkResult", "EngineResult", "fork_row_sets", "run_engine", "row_set_columns",
+           "forecast_rows", "join_forecasts"]
 
 
 @dataclass(frozen=True)
@@ -30,12 +42,14 @@ class ForkResult:
     -------
     tickets : list of dict
         ``cameras``, ``pairs`` (bit masks), ``frame``, ``row``; one per set handed on.
-    temporal : list of (beats, centres)
-        Per camera: its temporal lane's beat stream and the centre port at each beat.
+    temporal : list of (beats, centres) or, with ``follow``, (beats, centres, sources)
+        Per camera: its temporal lane's beat stream, the centre (and source row) its
+        lane takes at each beat.
     stereo : list of (beats_a, centres, beats_b)
         Per pair: its stereo lane's two beat streams and the centre at each ``a`` beat.
     status : dict
-        ``row_sets``, ``dropped``, ``stereo_skipped`` (list per pair); unwrapped counts.
+        ``row_sets``, ``dropped``, ``stereo_skipped`` (list per pair); with ``follow``
+        also ``forecast_skipped``, ``unforecast``; unwrapped counts.
     """
     tickets: list
     temporal: list
@@ -68,25 +82,99 @@ def _key(beats):
     return beats[0]["frame"], beats[0]["row"]
 
 
-def fork_row_sets(params, row_sets, configs):
+def forecast_rows(params, transfers):
+    """The forecast transfers gathered into rows, as
+    :class:`hdl.measurement.forecast_rows.ForecastRows`: ``(rows, malformed)``, each row
+    a dict ``row``, ``centre`` and ``source`` (lists per camera); a row that is not
+    ``cameras`` transfers in camera order with ``last`` on the final one, or names a
+    source row wider than the lanes' ``row_bits``, is discarded and counted."""
+    cameras, row_bits = params.cameras, params.temporal.row_bits
+    rows, malformed = [], 0
+    centre, source = [0] * cameras, [0] * cameras
+    position, damaged = 0, False
+    for t in transfers:
+        wrong = (t["camera"] != position or bool(t["last"]) != (position == cameras - 1)
+                 or t["source_row"] >> row_bits != 0)
+        centre[position], source[position] = t["centre"], t["source_row"]
+        if t["last"]:
+            if damaged or wrong:
+                malformed += 1
+            else:
+                rows.append({"row": t["row"], "centre": list(centre), "source": list(source)})
+            position, damaged = 0, False
+        else:
+            damaged |= wrong
+            position = min(position + 1, cameras - 1)
+    return rows, malformed
+
+
+def _ahead(params, key, row):
+    """The forecast row ``key`` is newer than the set's ``row`` (its set was lost)."""
+    height = params.temporal.height
+    gap = (key - row) % height
+    return key < height and 0 < 2 * gap < height
+
+
+def join_forecasts(params, row_sets, configs, rows):
+    """The fork's join: per row set the forecast row it is handed on with (None: the set
+    is dropped, by ``enable`` 0 or for want of its forecast), and the counts
+    ``forecast_skipped`` and ``unforecast`` (:mod:`hdl.measurement.row_set_fork`).
+
+    Raises
+    ------
+    ValueError
+        If an enabled set waits for a forecast row that ``rows`` does not have (the
+        hardware would wait).
+    """
+    joined, status = [], {"forecast_skipped": 0, "unforecast": 0}
+    queue = list(rows)
+    for row_set, cfg in zip(row_sets, configs, strict=True):
+        _, row = _key(row_set[min(row_set)])
+        found = None
+        while cfg["enable"] and row < params.temporal.height:
+            if not queue:
+                raise ValueError(f"row set of row {row} waits for a forecast row")
+            if queue[0]["row"] == row:
+                found = queue.pop(0)
+            elif not _ahead(params, queue[0]["row"], row):
+                queue.pop(0)
+                status["forecast_skipped"] += 1
+                continue
+            break
+        status["unforecast"] += bool(cfg["enable"]) and found is None
+        joined.append(found)
+    return joined, status
+
+
+def fork_row_sets(params, row_sets, configs, joined=None):
     """The fork: each set's beats to the lanes it addresses, one ticket per set handed
     on (see :class:`hdl.measurement.row_set_fork.RowSetFork`). ``configs[i]`` applies to
-    ``row_sets[i]``."""
-    temporal = [([], []) for _ in range(params.cameras)]
+    ``row_sets[i]``; with ``follow``, ``joined[i]`` is its forecast row
+    (:func:`join_forecasts`; None drops an enabled set as ``unforecast``)."""
+    follow = params.follow
+    if follow != (joined is not None):
+        raise ValueError("joined must be given exactly when params.follow")
+    temporal = [([], [], []) if follow else ([], []) for _ in range(params.cameras)]
     stereo = [([], [], []) for _ in params.pairs]
     tickets = []
     status = {"row_sets": 0, "dropped": 0, "stereo_skipped": [0] * len(params.pairs)}
-    for row_set, cfg in zip(row_sets, configs, strict=True):
+    for n, (row_set, cfg) in enumerate(zip(row_sets, configs, strict=True)):
         status["row_sets"] += 1
         if not cfg["enable"]:
             status["dropped"] += 1
             continue
+        if follow and joined[n] is None:
+            continue
         cameras = sorted(row_set)
         complete = [a in row_set and b in row_set for a, b in params.pairs]
         for k in cameras:
-            beats, centres = temporal[k]
+            beats, centres, *sources = temporal[k]
             beats += row_set[k]
-            centres += [cfg["temporal"][k]] * len(row_set[k])
+            if follow:
+                centres += [joined[n]["centre"][k]] * len(row_set[k])
+                sources[0].extend([joined[n]["source"][k]] * len(row_set[k]))
+            else:
+                centres += [cfg["temporal"][k]] * len(row_set[k])
         for j, (a, b) in enumerate(params.pairs):
             if not complete[j]:
                 status["stereo_skipped"][j] += 1
@@ -102,16 +190,38 @@ def fork_row_sets(params, row_sets, configs):
     return ForkResult(tickets=tickets, temporal=temporal, stereo=stereo, status=status)
 
 
-def run_engine(params, row_sets, configs):
-    """The whole engine on ``row_sets`` (with ``configs``): an :class:`EngineResult`."""
-    fork = fork_row_sets(params, row_sets, configs)
-    temporal = [TemporalLaneModel(params.temporal).run(beats, centres)
-                for beats, centres in fork.temporal]
+def _followed_lane(params, beats, centres, sources):
+    """A following temporal lane on its beats: ``(measurements, out_of_range)``; each
+    row takes the centre and source row of its ``first`` beat."""
+    lane = TemporalLaneModel(params, follow=True)
+    rows = frame_rows(beats, centres, params)
+    firsts = [source for beat, source in zip(beats, sources) if beat["first"]]
+    return lane.process_rows(rows, firsts[:len(rows)]), lane.store.out_of_range
+
+
+def run_engine(params, row_sets, configs, forecast=None):
+    """The whole engine on ``row_sets`` (with ``configs``; with ``follow``, the
+    ``forecast`` transfers): an :class:`EngineResult`."""
+    if params.follow != (forecast is not None):
+        raise ValueError("forecast must be given exactly when params.follow")
+    extra = {}
+    if params.follow:
+        rows, extra["malformed"] = forecast_rows(params, forecast)
+        joined, join_status = join_forecasts(params, row_sets, configs, rows)
+        fork = fork_row_sets(params, row_sets, configs, joined)
+        fork.status.update(join_status)
+        lanes = [_followed_lane(params.temporal, *lane) for lane in fork.temporal]
+        temporal = [measurements for measurements, _ in lanes]
+        extra["out_of_range"] = [count for _, count in lanes]
+    else:
+        fork = fork_row_sets(params, row_sets, configs)
+        temporal = [TemporalLaneModel(params.temporal).run(beats, centres)
+                    for beats, centres in fork.temporal]
     stereo = [StereoLaneModel(params.stereo).run(beats_a, centres, beats_b)
               for beats_a, centres, beats_b in fork.stereo]
     transfers, router = route_tickets(params.router, fork.tickets, temporal, stereo)
     return EngineResult(fork=fork, temporal=temporal, stereo=stereo, transfers=transfers,
-                        status={**fork.status, "router": router})
+                        status={**fork.status, **extra, "router": router})
 
 
 def row_set_columns(params, row_set, missing=None):

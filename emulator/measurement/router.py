@@ -59,6 +59,12 @@ decision by decision):
   ticket's own are taken (K_s of them); a newer one ends the search, is left for its
   own ticket, and the row counts as ``stereo_missing`` (its cameras get zero
   confidence).
+* **Cue fallback** (``RouterParams.cue_fallback``): a store of each pair's last usable
+  cue per (row, stereo segment), as :func:`emulator.pipeline.run`'s ``cue_fallback``:
+  each ticket's row reads it (:func:`route_row`'s ``fallback``) and then writes its own
+  usable cues into it, whether the pair was marked or not. Rows ``≥ height`` (a
+  camera's bad row number) neither read nor write it. It starts empty (the gateware
+  clears it after reset).
 """
 
 import numpy as np
@@ -223,11 +229,15 @@ def route_tickets(params, tickets, temporal, stereo):
     temporal = [list(q) for q in temporal]
     stereo = [list(q) for q in stereo]
     status = dict.fromkeys(("rows", "empty", "misaligned", "stereo_missing"), 0)
-    transfers = []
+    transfers, store = [], {}
     for ticket in tickets:
         pair_meas = _ticket_stereo(params, ticket, stereo, status)
+        row = ticket["row"]
+        stored = params.cue_fallback and row < params.temporal.height
         out = route_row(params, _ticket_temporal(params, ticket, temporal, status),
-                        pair_meas)
+                        pair_meas, store.get(row) if stored else None)
+        if stored:
+            store[row] = {**store.get(row, {}), **usable_cues(params, pair_meas)}
         if out:
             status["rows"] += 1
             status["empty"] += not any(t["conf"] for t in out)

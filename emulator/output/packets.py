@@ -279,8 +279,9 @@ check, confident measurements; [docs/pose/tracking_status.md](pose/tracking_stat
 says whether to trust the pose at all: a *lost* pose is a guess, a *degraded* one
 doubtful. *Drifted* stays set after a loss (until `status.clear`): relative tracking
 resumed, the absolute pose keeps the error the loss left. The host tool
-(`rowtrack host`) reports both per record and counts them. Until `hdl/top.py` places
-the status unit between the solver and the output, the top sends 0 in bits 6:4.
+(`rowtrack host`) reports both per record and counts them. The closed-loop top
+(`TopParams.closed_loop`) places the status unit between the tracking loop and the
+output; the open-loop top has none and sends 0 in bits 6:4.
 
 ## Sequence numbers, skipped records and decimation
 

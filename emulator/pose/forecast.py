@@ -30,7 +30,7 @@ from hdl.fixed import SQ, Overflow, Rounding, mul, resize
 from emulator.pose.program import Value, dot
 from emulator.pose_solver import PoseRows, design_row
 
-__all__ = ["MotionFilter", "ForecastModel"]
+__all__ = ["MotionFilter", "ForecastModel", "output_transfers"]
 
 
 class MotionFilter:
@@ -150,3 +150,22 @@ class ForecastModel:
                 "centre_saturated": np.abs(centre) > p.centre_range,
                 "source_row": np.clip(source, 0, p.height - 1),
                 "row_saturated": (source < 0) | (source >= p.height)}
+
+
+def output_transfers(params, prediction, row):
+    """The gateware's output transfers of one row's :meth:`ForecastModel.predict`
+    (``hdl.pose.forecast_predictor.output_layout``): one dict per camera, camera 0
+    first; the saturation flags of a camera's K segments as bits."""
+    k = params.segments
+
+    def bits(flags):
+        return sum(int(bool(f)) << n for n, f in enumerate(flags))
+
+    p = prediction
+    return [{"camera": c, "row": int(row), "centre": int(p["centre"][c]),
+             "source_row": int(p["source_row"][c]),
+             "centre_saturated": int(p["centre_saturated"][c]),
+             "row_saturated": int(p["row_saturated"][c]),
+             "shift_saturated": bits(p["shift_saturated"][c * k:(c + 1) * k]),
+             "across_saturated": bits(p["across_saturated"][c * k:(c + 1) * k]),
+             "last": int(c == params.cameras - 1)} for c in range(params.cameras)]

@@ -13,6 +13,7 @@ from amaranth.hdl import signed
 from amaranth.lib import data
 
 from hdl.front_end.camera_sync import sync_config_layout, sync_status_layout
+from hdl.measurement.consistency import counts_layout, settings_init, settings_layout
 from hdl.measurement.engine_params import engine_config_layout, engine_status_layout
 from hdl.pose.status_params import FRACTION_FMT, MEASUREMENTS_FMT, top_status_params
 from hdl.pose_solver import counters_layout
@@ -25,7 +26,7 @@ MAGIC = 0x5257544B
 
 #: Byte offset of each block's group in the window.
 GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "camera": 0x200, "solver": 0x400,
-                 "engine": 0x500, "status": 0x600}
+                 "engine": 0x500, "status": 0x600, "loop": 0x700}
 
 
 def _package_version():
@@ -190,9 +191,10 @@ def _status(params):
                          f"over the last `window` rows (at most {status.max_window}). "
                          f"Fractions are raw {FRACTION_FMT} (0x10000 = 1), "
                          f"`degraded_measurements` raw {MEASUREMENTS_FMT}; change them "
-                         "between rows (a new `window` restarts the history). Until "
-                         "`hdl/top.py` places the unit between the solver and the pose "
-                         "output, these registers are not connected (`state` reads 0).", [
+                         "between rows (a new `window` restarts the history). The "
+                         "closed-loop top places the unit between the tracking loop and "
+                         "the pose output; in the open-loop top these registers are not "
+                         "connected (`state` reads 0).", [
         Register("settings", status.settings_layout(), Access.RW, "window (rows) and "
                  "thresholds: lost below `lost_update_fraction` of rows solved or above "
                  "`lost_outlier_fraction` of outlier measurements over a full window; "
@@ -212,7 +214,48 @@ def _status(params):
 
 def rowtrack_map(params):
     """The register map of :class:`hdl.top.RowtrackTop` built with ``params``."""
+    loop = (_loop(params),) if params.closed_loop else ()
     regmap = RegisterMap(groups=(_ident(params), _pose_out(params), _camera(params),
-                                 _solver(params), _engine(params), _status(params)),
+                                 _solver(params), _engine(params), _status(params), *loop),
                          base=params.reg_base, size=params.reg_size)
     return regmap.with_value("ident", "map_crc", regmap.layout_crc())
+
+
+def _loop(params):
+    """The closed loop's run-time settings (closed-loop tops only)."""
+    from hdl.pose.forecast_filter import DEFAULT_SLOT_BITS
+    from hdl.pose.forecast_predictor import counters_layout as forecast_counters_layout
+    from hdl.pose.tracking_loop import loop_counters_layout
+    forecast, stage = params.forecast, params.consistency
+    motion = forecast.motion_fmt
+    return RegisterGroup("loop", GROUP_OFFSETS["loop"], "Closed measurement loop "
+                         "(`hdl/pose/tracking_loop.py`, [docs/pose/tracking_loop.md]"
+                         "(pose/tracking_loop.md)): the forecast's filter gains and start, "
+                         "the consistency stage's settings (raw in the formats of "
+                         "[docs/measurement/consistency.md](measurement/consistency.md)) "
+                         "and the loop's counters. Change the settings between rows; "
+                         "`restart` starts the filter again at `initial` and the row "
+                         "slots at row 0.", [
+        Register("alpha", forecast.gain_fmt.width, Access.RW, f"level gain α, raw "
+                 f"{forecast.gain_fmt} (reset {forecast.alpha:g})",
+                 reset=forecast.alpha_raw),
+        Register("beta", forecast.gain_fmt.width, Access.RW, f"trend gain β, raw "
+                 f"{forecast.gain_fmt} (reset {forecast.beta:g})", reset=forecast.beta_raw),
+        Register("initial", data.ArrayLayout(motion.shape(), 6), Access.RW,
+                 f"the motion Y = [T θ] the filter starts from at `restart`, raw {motion} "
+                 f"(metres, radians per frame period)"),
+        Register("restart", 1, Access.WO, "write to restart the filter at `initial` and "
+                 "the row slots at row 0 (before the first row of a frame)"),
+        Register("frame_rows", DEFAULT_SLOT_BITS, Access.RW, "row periods per frame period, blanking "
+                 "included: the row slots' count per frame", reset=int(stage.frame_rows)),
+        Register("consistency", settings_layout(stage), Access.RW, "the consistency "
+                 "stage's frame period, row-offset bound, Huber k, scale start, floor and "
+                 "gains, and the row gates (reset: the build's parameters)",
+                 reset=settings_init(stage)),
+        Register("counts", counts_layout(), Access.RO, "consistency counters (wrap): rows "
+                 "whose source was too far, saturations, outliers replaced, rows gated"),
+        Register("forecast_counters", forecast_counters_layout(forecast), Access.RO,
+                 "forecast saturations (centres, rows, displacements)"),
+        Register("counters", loop_counters_layout(forecast), Access.RO, "measurements of "
+                 "another row than the forecast's, predicted shifts saturated"),
+    ])

@@ -33,7 +33,7 @@ from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.measurement.serial_units import SerialDivider, SerialSqrt
 from hdl.pose.accumulator import measurement_layout
 
-__all__ = ["ConsistencyStage", "forecast_layout", "settings_layout", "counts_layout",
+__all__ = ["ConsistencyStage", "judge_layout", "settings_layout", "counts_layout",
            "COUNTS", "settings_init"]
 
 #: The counters, as :attr:`ConsistencyModel.counts` names them (16-bit, wrapping).
@@ -43,13 +43,16 @@ COUNTER_BITS = 16
 HE, SAT, WRAP, ERR = Rounding.HALF_EVEN, Overflow.SATURATE, Overflow.WRAP, Overflow.ERROR
 
 
-def forecast_layout(params):
-    """The forecast's side input, one transfer per row (before or with the row's first
-    measurement): ``predicted`` shift of every slot (``predicted_fmt``) and each camera's
-    row offset ``delta = source − row`` (signed, ``row_bits + 1``)."""
-    return data.StructLayout({
-        "predicted": data.ArrayLayout(params.predicted_fmt.shape(), params.channels),
-        "delta": data.ArrayLayout(signed(params.solver.row_bits + 1), params.cameras)})
+def judge_layout(params):
+    """One measurement with what the forecast says about it: the solver's
+    ``measurement_layout`` fields, its ``predicted`` shift (``predicted_fmt``, the
+    forecast's ``a·Ŷ`` with the measurement's own cue) and its camera's row offset
+    ``delta = source − row`` (signed, ``row_bits + 1``; the same for every measurement
+    of a camera in a row)."""
+    fields = dict(measurement_layout(params.solver).members)
+    fields.update(predicted=params.predicted_fmt.shape(),
+                  delta=signed(params.solver.row_bits + 1))
+    return data.StructLayout(fields)
 
 
 def settings_layout(params):
@@ -107,13 +110,18 @@ class ConsistencyStage(wiring.Component):
 
     Members
     -------
-    i : In(stream.Signature(measurement_layout(params.solver)))
-        The router's transfers; a row's slots distinct, ``last`` on its final one.
-    forecast : In(stream.Signature(forecast_layout(params)))
-        One per row, taken when the row's first measurement is.
+    i : In(stream.Signature(judge_layout(params)))
+        The router's transfers with their predicted shifts and row offsets; a row's
+        slots distinct, ``last`` on its final one.
     o : Out(stream.Signature(measurement_layout(params.solver)))
         The same transfers, ``shift`` and ``conf`` judged (the model's verdict before the
         row gates); one per input transfer.
+    judged, outlier : Out(1)
+        With ``o.valid``: the measurement's confidence into the judge was not 0 (after a
+        far camera's zeroing; its scale was updated), and it was an outlier whose shift
+        was replaced by the prediction (the model's ``verdict["outlier"]``). With
+        ``o.payload.conf != 0`` these are the per-measurement verdict bits the tracking
+        status counts (``measurement_verdicts``).
     gated : Out(1)
         With ``o.valid`` and ``o.payload.last``: the row failed the gates (the model sets
         all its confidences to 0).
@@ -140,9 +148,9 @@ class ConsistencyStage(wiring.Component):
                                    init=[])
         layout = measurement_layout(params.solver)
         super().__init__({
-            "i": In(stream.Signature(layout)),
-            "forecast": In(stream.Signature(forecast_layout(params))),
+            "i": In(stream.Signature(judge_layout(params))),
             "o": Out(stream.Signature(layout)), "gated": Out(1),
+            "judged": Out(1), "outlier": Out(1),
             "settings": In(settings_layout(params), init=settings_init(params)),
             "counts": Out(counts_layout())})
 
@@ -180,9 +188,7 @@ class ConsistencyStage(wiring.Component):
                           for slot in range(p.channels))
 
         # --- judge state -----------------------------------------------------------
-        meas = Signal(measurement_layout(s))
-        fc = Signal(forecast_layout(p))
-        have_fc = Signal()
+        meas = Signal(judge_layout(p))
         camera = Signal(range(p.cameras))
         cached, cached_camera = Signal(), Signal(range(p.cameras))
         factor = Signal(p.time_fmt.width)
@@ -194,7 +200,7 @@ class ConsistencyStage(wiring.Component):
         outlier = Signal()
         counts = self.counts
 
-        delta = _net(m, fc.delta[camera], "delta")
+        delta = _net(m, meas.delta, "delta")
         far = _net(m, Mux(delta < 0, -delta, delta) > cfg.max_row_offset, "far")
         # P / (P − Δ): numerator and denominator (Δ = 0 for a far camera)
         fr = p.frame_rows_fmt
@@ -206,7 +212,7 @@ class ConsistencyStage(wiring.Component):
         time_factor = _net(m, (q_time + up)[:p.time_fmt.width], "time_factor")
 
         # the innovation, kσ and the outlier test of the latched measurement
-        predicted = _net(m, fc.predicted[meas.slot], "predicted")
+        predicted = _net(m, meas.predicted, "predicted")
         product, product_fmt = hdl_mul(meas.shift, s.shift_fmt, factor, p.time_fmt)
         scaled_now, time_sat = _saturated(m, product, product_fmt, s.shift_fmt, "scaled")
         negated = SQ(p.predicted_fmt.int_bits + 1, p.predicted_fmt.frac_bits)
@@ -253,11 +259,8 @@ class ConsistencyStage(wiring.Component):
 
         with m.FSM(name="judge"):
             with m.State("TAKE"):
-                m.d.comb += self.forecast.ready.eq(~have_fc & ~clearing)
-                with m.If(self.forecast.valid & self.forecast.ready):
-                    m.d.sync += [fc.eq(self.forecast.payload), have_fc.eq(1)]
                 hazard = u_busy & (u_slot == self.i.payload.slot)
-                m.d.comb += self.i.ready.eq(have_fc & ~hazard)
+                m.d.comb += self.i.ready.eq(~clearing & ~hazard)
                 with m.If(self.i.valid & self.i.ready):
                     m.d.sync += [meas.eq(self.i.payload),
                                  camera.eq(camera_of[self.i.payload.slot])]
@@ -288,17 +291,20 @@ class ConsistencyStage(wiring.Component):
             with m.State("DIVIDE"):
                 with m.If(~div.busy & o_free & ~(ok & u_busy)):
                     m.d.comb += handoff.eq(ok)
-                    m.d.sync += [self.o.valid.eq(1), self.o.payload.eq(meas),
+                    m.d.sync += [self.o.valid.eq(1),
+                                 *[getattr(self.o.payload, n).eq(getattr(meas, n))
+                                   for n in self.o.payload.shape().members],
                                  self.o.payload.shift.eq(Mux(replaced, replacement, scaled)),
                                  self.o.payload.conf.eq(conf_out),
                                  self.gated.eq(meas.last & gated_now),
+                                 self.judged.eq(ok), self.outlier.eq(replaced),
                                  counts.outliers.eq(counts.outliers + replaced),
                                  counts.shift_saturated.eq(counts.shift_saturated
                                                            + (replaced & replacement_sat)),
                                  conf_cams.eq(cams_after), max_conf.eq(max_after)]
                     with m.If(meas.last):
                         m.d.sync += [conf_cams.eq(0), max_conf.eq(0), far_seen.eq(0),
-                                     have_fc.eq(0), cached.eq(0),
+                                     cached.eq(0),
                                      counts.gated_rows.eq(counts.gated_rows + gated_now),
                                      counts.far_rows.eq(counts.far_rows
                                                         + _popcount(far_seen))]

@@ -18,6 +18,13 @@ delivers row ``y`` of every camera as one stream) and the pose solver
 * the measurement router (:class:`hdl.measurement.router.MeasurementRouter`): each
   ticket's measurements to the solver's slots, with the pair's disparity as depth cue.
 
+In the closed loop (``EngineParams.follow``, issue 16) the temporal lanes follow rows
+(``RowDescriptor(follow=True)``: the previous frame's row the forecast names, at the
+forecast's window centre), a ``forecast`` input takes the forecast's rows
+(:class:`hdl.measurement.forecast_rows.ForecastRows` gathers each), and the fork joins
+one with each row set, checking their row keys (mismatches counted and resynchronized,
+:mod:`hdl.measurement.row_set_fork`). The stereo lanes stay at the ``cfg`` centre.
+
 The bit-accurate model is :mod:`emulator.measurement.engine`; ``docs/measurement/measurement_engine.md``
 has the figures.
 """
@@ -29,6 +36,7 @@ from amaranth.lib.wiring import In, Out
 from hdl.front_end.params import CameraParams
 from hdl.measurement.engine_params import (EngineParams, engine_config_layout,
                                            engine_status_layout)
+from hdl.measurement.forecast_rows import ForecastRows
 from hdl.measurement.router import MeasurementRouter
 from hdl.pose.params import PoseSolverParams
 from hdl.pose_solver import measurement_layout
@@ -37,7 +45,7 @@ from hdl.measurement.row_set_fork import RowSetFork
 from hdl.register_slice import RegisterSlice
 
 __all__ = ["EngineParams", "MeasurementEngine", "default_engine_params", "engine_config_layout",
-           "engine_status_layout"]
+           "engine_status_layout", "default_follow_engine"]
 
 
 def default_engine_params():
@@ -45,6 +53,16 @@ def default_engine_params():
     camera = CameraParams(n_cameras=4)
     solver = PoseSolverParams(slots=16, rows=camera.max_height)
     return EngineParams.for_cameras(camera, solver, ((0, 1), (2, 3)))
+
+
+def default_follow_engine():
+    """The closed-loop engine of one 640×480 stereo pair: K = 4 temporal segments, K_s =
+    4 stereo segments, following lanes, the router's cue fallback (the catalog's
+    ``follow_engine``, a small build for its resources)."""
+    camera = CameraParams(n_cameras=2)
+    solver = PoseSolverParams(slots=8, rows=camera.max_height)
+    return MeasurementEngine(EngineParams.for_cameras(
+        camera, solver, ((0, 1),), stereo_segments=4, follow=True, cue_fallback=True))
 
 
 class MeasurementEngine(wiring.Component):
@@ -59,23 +77,31 @@ class MeasurementEngine(wiring.Component):
     -------
     rows : In(stream.Signature(params.aligned_layout()))
         Row sets from ``CameraFrontEnd.o`` (``CameraParams.aligned_layout()``).
+    forecast : In(stream.Signature(params.forecast_layout())), with ``follow`` only
+        The forecast's rows, ``cameras`` transfers each (``camera``, ``centre``,
+        ``source_row``, ``row``, ``last``), one per row set in camera-row order.
     cfg : In(engine_config_layout(params))
-        ``temporal[k]``: window centre of camera ``k``'s temporal lane; ``stereo[j]``:
-        of pair ``j``'s stereo lane (integer pixels, ``centre_fmt``, sampled with each
-        row's first pixel, saturated to ``±centre_range``); ``enable``: 0 drops row
-        sets (counted), sampled with each set's first column.
+        ``temporal[k]`` (without ``follow``): window centre of camera ``k``'s temporal
+        lane; ``stereo[j]``: of pair ``j``'s stereo lane (integer pixels,
+        ``centre_fmt``, sampled with each row's first pixel, saturated to
+        ``±centre_range``); ``enable``: 0 drops row sets (counted), sampled with each
+        set's first column.
     o : Out(stream.Signature(hdl.pose_solver.measurement_layout(params.router.solver)))
         The pose solver's input (``slot, row, time, shift, cue, conf, last``).
     status : Out(engine_status_layout(params))
         ``row_sets``, ``dropped``, ``stereo_skipped[j]`` (the fork's) and ``router``
-        (the router's counters); all wrap.
+        (the router's counters); all wrap. With ``follow`` also ``forecast_skipped``,
+        ``unforecast`` (the fork's join), ``malformed`` (forecast rows discarded) and
+        ``out_of_range[k]`` (the lanes' ring stores, saturating).
 
     Latency :attr:`latency` clocks from a row set's last column to its first solver
-    transfer (66 for 640-pixel rows; checked in the cocotb bench). Throughput: one column per clock while the lanes and ``o`` keep up (the
+    transfer (66 with K_s = 1, 67 with K_s = 2 on 256-pixel rows; checked in the cocotb
+    benches). Throughput: one column per clock while the lanes and ``o`` keep up (the
     router needs K · cameras + a few clocks per row, far fewer than the row width).
     Backpressure on ``o`` fills the router's lane FIFOs, then stalls the lanes, the
-    fork and ``rows``. Reset empties the pipeline; every reference row is invalid until
-    a frame has passed.
+    fork and ``rows``. With ``follow`` a row set's first column also waits for its
+    forecast row (no clock is lost when the row is there first). Reset empties the
+    pipeline; every reference row is invalid until a frame has passed.
     """
 
     def __init__(self, params=None):
@@ -85,7 +111,11 @@ class MeasurementEngine(wiring.Component):
         self.params = params
         self.rows_slice = RegisterSlice(params.aligned_layout())
         self.fork = RowSetFork(params)
-        self.temporal_lanes = [RowDescriptor(params.temporal) for _ in range(params.cameras)]
+        self.temporal_lanes = [RowDescriptor(params.temporal, params.follow)
+                               for _ in range(params.cameras)]
+        self.forecast_rows = ForecastRows(params) if params.follow else None
+        follow = {"forecast": In(stream.Signature(params.forecast_layout()))} \
+            if params.follow else {}
         self.stereo_lanes = [StereoRowDescriptor(params.stereo) for _ in params.pairs]
         # A stereo lane's ``ready`` runs through both framers and the join (which
         # compares the two rows' keys); registered here so it stops at the lane.
@@ -94,6 +124,7 @@ class MeasurementEngine(wiring.Component):
         self.router = MeasurementRouter(params.router)
         super().__init__({
             "rows": In(stream.Signature(params.aligned_layout())),
+            **follow,
             "cfg": In(engine_config_layout(params)),
             "o": Out(stream.Signature(measurement_layout(params.router.solver))),
             "status": Out(engine_status_layout(params)),
@@ -104,14 +135,15 @@ class MeasurementEngine(wiring.Component):
         """Clocks from a row set's last column to its row's first solver transfer when
         nothing stalls: the register slice on ``rows``, the later of the lanes' last
         measurements (temporal segment K − 1; stereo segment K_s − 1 after the stereo
-        lanes' input slices), then the router,
-        whose count from a ticket includes the clock a measurement takes into its lane
-        FIFO."""
+        lanes' input slices), then the router, whose count from a ticket includes the
+        clock a measurement takes into its lane FIFO and the K_s clocks that take the
+        stereo measurements, all but the last overlapping their arrival (66 clocks with
+        K_s = 1, 67 with K_s = 2 on 256-pixel rows, measured in the cocotb benches)."""
         t, s = self.params.temporal, self.params.stereo
         lanes = max(self.temporal_lanes[0].latency + t.segments - 1,
                     self.stereo_slices[0][0].latency + self.stereo_lanes[0].latency
                     + s.segments - 1)
-        return self.rows_slice.latency + lanes + self.router.latency - 1
+        return self.rows_slice.latency + lanes + self.router.latency - s.segments
 
     def elaborate(self, platform):
         m = Module()
@@ -125,7 +157,10 @@ class MeasurementEngine(wiring.Component):
             m.submodules[f"temporal{k}"] = lane
             wiring.connect(m, fork.temporal[k], lane.i)
             wiring.connect(m, lane.o, router.temporal[k])
-            m.d.comb += lane.centre.eq(self.cfg.temporal[k])
+            if self.params.follow:
+                m.d.comb += self.status.out_of_range[k].eq(lane.out_of_range)
+            else:
+                m.d.comb += lane.centre.eq(self.cfg.temporal[k])
         for j, lane in enumerate(self.stereo_lanes):
             m.submodules[f"stereo{j}"] = lane
             slice_a, slice_b = self.stereo_slices[j]
@@ -137,6 +172,13 @@ class MeasurementEngine(wiring.Component):
             wiring.connect(m, slice_b.o, lane.b)
             wiring.connect(m, lane.o, router.stereo[j])
             m.d.comb += lane.centre.eq(self.cfg.stereo[j])
+        if self.params.follow:
+            m.submodules.forecast_rows = forecast_rows = self.forecast_rows
+            wiring.connect(m, wiring.flipped(self.forecast), forecast_rows.i)
+            wiring.connect(m, forecast_rows.o, fork.forecast)
+            m.d.comb += [self.status.forecast_skipped.eq(fork.status.forecast_skipped),
+                         self.status.unforecast.eq(fork.status.unforecast),
+                         self.status.malformed.eq(forecast_rows.malformed)]
         wiring.connect(m, fork.tickets, router.tickets)
         wiring.connect(m, router.o, wiring.flipped(self.o))
         m.d.comb += [self.status.row_sets.eq(fork.status.row_sets),

@@ -21,6 +21,10 @@ from hdl.descriptor.params import DEFAULT_SEGMENTS, RowDescriptorParams
 __all__ = ["EngineParams", "engine_config_layout", "fork_status_layout",
            "engine_status_layout"]
 
+#: Width of a temporal lane's saturating ``out_of_range`` count
+#: (``hdl.descriptor.store.COUNT_BITS``; that module imports Amaranth).
+OUT_OF_RANGE_BITS = 32
+
 #: Lane parameters a camera beat fixes, by their CameraParams name.
 _BEAT_FIELDS = {"width": "max_width", "height": "max_height", "pixel_bits": "pixel_bits",
                 "camera_bits": "camera_bits", "frame_bits": "frame_bits",
@@ -38,7 +42,13 @@ class EngineParams:
         solver's. Both lane parameter sets must take the same camera beat.
     count_bits : int
         Width of the engine's own wrapping counters (row sets in, dropped, stereo rows
-        skipped).
+        skipped, forecast mismatches).
+    follow : bool
+        Closed loop (issue 16): the temporal lanes follow rows
+        (``RowDescriptor(follow=True)``, a ring reference store), and each row set is
+        joined with one forecast row (``forecast`` input, :meth:`forecast_layout`) that
+        gives every temporal lane its window centre and source row. Default off: the
+        open-loop engine, bit for bit.
 
     Raises
     ------
@@ -47,11 +57,18 @@ class EngineParams:
     """
     router: RouterParams
     count_bits: int = 16
+    follow: bool = False
 
     def __post_init__(self):
         if not isinstance(self.router, RouterParams):
             raise TypeError(f"router must be a RouterParams, not {self.router!r}")
         check_int("count_bits", self.count_bits, 1, 32)
+        if not isinstance(self.follow, bool):
+            raise TypeError(f"follow must be a bool, not {self.follow!r}")
+        if self.follow and self.router.temporal.radius < 3:
+            raise ValueError(f"follow needs router.temporal.radius at least 3 (the ring "
+                             f"store computes its addresses meanwhile), not "
+                             f"{self.router.temporal.radius}")
         t, s = self.router.temporal, self.router.stereo
         for name in _BEAT_FIELDS:
             if getattr(t, name) != getattr(s, name):
@@ -65,14 +82,16 @@ class EngineParams:
 
     @classmethod
     def for_cameras(cls, camera, solver, pairs, *, segments=DEFAULT_SEGMENTS,
-                    stereo_segments=1):
+                    stereo_segments=1, follow=False, cue_fallback=False):
         """The engine behind a camera front end with parameters ``camera``.
 
         Lanes are ``camera.max_width × camera.max_height`` with the camera beat's widths;
         temporal lanes have ``segments`` segments (the solver needs ``n_cameras ×
         segments`` slots and ``max_height`` rows), stereo lanes ``stereo_segments``
         (``golden.descriptor.STEREO_MATCH``'s disparity range). ``pairs``: ``(A, B)``
-        camera indices per rectified pair, every camera in exactly one.
+        camera indices per rectified pair, every camera in exactly one. ``follow``: the
+        closed-loop engine; ``cue_fallback``: the router's cue store
+        (:class:`~hdl.measurement.router_params.RouterParams`).
 
         Raises
         ------
@@ -103,8 +122,9 @@ class EngineParams:
         except TypeError as err:
             raise TypeError(f"pairs must be a sequence of (A, B) camera pairs, not "
                             f"{pairs!r}") from err
-        router = RouterParams(cameras=camera.n_cameras, pairs=pairs, solver=solver, **lanes)
-        return cls(router=router, count_bits=camera.count_bits)
+        router = RouterParams(cameras=camera.n_cameras, pairs=pairs, solver=solver,
+                              cue_fallback=cue_fallback, **lanes)
+        return cls(router=router, count_bits=camera.count_bits, follow=follow)
 
     # --- shortcuts -----------------------------------------------------------------------
 
@@ -136,6 +156,36 @@ class EngineParams:
         from hdl.streams import aligned_row_layout
         return aligned_row_layout(self.pixel_layout(), self.cameras)
 
+    def forecast_layout(self):
+        """One camera's forecast for a camera row, the ``forecast`` input (``follow``):
+        a row is ``cameras`` transfers, camera 0 first, ``last`` on the final one. The
+        fields the engine reads of ``hdl.pose.forecast_predictor.output_layout`` (same
+        names and widths) plus ``row``, the camera row it is for (the join's key).
+
+        Fields
+        ------
+        camera : range(cameras)
+        centre : temporal.centre_fmt
+            Window centre (pixels); the lane saturates it to ``±centre_range``.
+        source_row, row : unsigned(solver.row_bits)
+        last : 1
+        """
+        from amaranth.lib import data
+        row = self.router.solver.row_bits
+        return data.StructLayout({"camera": range(self.cameras),
+                                  "centre": self.temporal.centre_fmt.shape(),
+                                  "source_row": row, "row": row, "last": 1})
+
+    def forecast_row_layout(self):
+        """A whole forecast row (:class:`hdl.measurement.forecast_rows.ForecastRows`'
+        output): ``centre`` and ``source`` (the lane's ``row_bits``) per camera, and
+        the ``row`` key."""
+        from amaranth.lib import data
+        return data.StructLayout({
+            "centre": data.ArrayLayout(self.temporal.centre_fmt.shape(), self.cameras),
+            "source": data.ArrayLayout(self.temporal.row_bits, self.cameras),
+            "row": self.router.solver.row_bits})
+
 
 def engine_config_layout(params):
     """Run-time configuration of the engine (``cfg`` port).
@@ -149,10 +199,14 @@ def engine_config_layout(params):
     enable : 1
         0: row sets are consumed, counted as dropped, and reach no lane. Sampled at
         the first column of each row set.
+
+    With ``follow`` there is no ``temporal`` field: the forecast gives those centres.
     """
     from amaranth.lib import data
+    fields = {} if params.follow else {
+        "temporal": data.ArrayLayout(params.temporal.centre_fmt.shape(), params.cameras)}
     return data.StructLayout({
-        "temporal": data.ArrayLayout(params.temporal.centre_fmt.shape(), params.cameras),
+        **fields,
         "stereo": data.ArrayLayout(params.stereo.centre_fmt.shape(), len(params.pairs)),
         "enable": 1,
     })
@@ -168,17 +222,30 @@ def fork_status_layout(params):
     stereo_skipped : ArrayLayout(count, pairs)
         Row sets handed to the lanes in which pair ``j`` was incomplete (a camera of
         the pair missing), so its stereo lane got no row.
+    forecast_skipped, unforecast : with ``follow`` only
+        Forecast rows discarded because they were older than the row set waiting for
+        one (or for a row ``≥ height``); enabled row sets dropped because the forecast
+        row waiting was newer (theirs was lost) or their row was ``≥ height``.
     """
     from amaranth.lib import data
     count = params.count_bits
+    follow = {"forecast_skipped": count, "unforecast": count} if params.follow else {}
     return data.StructLayout({"row_sets": count, "dropped": count,
-                              "stereo_skipped": data.ArrayLayout(count, len(params.pairs))})
+                              "stereo_skipped": data.ArrayLayout(count, len(params.pairs)),
+                              **follow})
 
 
 def engine_status_layout(params):
-    """The fork's counters (:func:`fork_status_layout`) and the router's (``router``)."""
+    """The fork's counters (:func:`fork_status_layout`) and the router's (``router``);
+    with ``follow`` also ``malformed`` (forecast rows discarded by
+    :class:`hdl.measurement.forecast_rows.ForecastRows`, ``count_bits``, wrapping)
+    and ``out_of_range[k]`` (camera ``k``'s lane: rows whose source row the ring
+    could not serve, saturating at ``OUT_OF_RANGE_BITS``)."""
     from amaranth.lib import data
 
     from hdl.measurement.router import router_status_layout
     fields = {name: field.shape for name, field in fork_status_layout(params)}
+    if params.follow:
+        fields["malformed"] = params.count_bits
+        fields["out_of_range"] = data.ArrayLayout(OUT_OF_RANGE_BITS, params.cameras)
     return data.StructLayout({**fields, "router": router_status_layout(params.router)})

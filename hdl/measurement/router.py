@@ -13,6 +13,11 @@ checked against, transfer by transfer). Inside:
 * per stereo lane a resynchronizer that takes the ticket's K_s measurements into cue
   registers, dropping older rows and giving up at a newer one (the stereo join can lose
   a row);
+* with ``cue_fallback``, a store of each pair's last usable cue per (row, stereo
+  segment) (:class:`amaranth.lib.memory.Memory`, ``height`` words of ``pairs × K_s``
+  cues and valid bits): read when a ticket is fetched, merged into the cue registers
+  (a failed segment takes the stored cue) and written back when the ticket is resolved;
+  cleared by a sweep of ``height`` clocks after reset, during which no ticket is fetched;
 * an emitter that walks the marked cameras in order, K measurements each, one transfer
   per clock into an output register.
 
@@ -22,6 +27,7 @@ Formats: ``docs/measurement/measurement_router.md``.
 from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.fifo import SyncFIFO
+from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from hdl.fixed import Overflow, Rounding, hdl_add, hdl_resize
@@ -143,7 +149,8 @@ class MeasurementRouter(wiring.Component):
     1`` clocks after the previous row's last (``latency − 2`` idle clocks).
     Backpressure: ``o`` holds its transfer; full lane FIFOs (``FIFO_ROWS`` rows) lower
     the lanes' ``ready``. ``status`` counts an event two clocks after it. Reset
-    empties the FIFOs and clears the counters.
+    empties the FIFOs and clears the counters; with ``cue_fallback`` it also empties
+    the cue store, a sweep of ``height`` clocks before the first ticket is fetched.
     """
 
     def __init__(self, params):
@@ -178,13 +185,17 @@ class MeasurementRouter(wiring.Component):
         fetch = Signal()            # the ticket FIFO's head becomes the current ticket
         resolving = Signal()
         emitting = Signal()
-        m.d.comb += [fetch.eq(~resolving & ~emitting & ticket_fifo.r_rdy),
+        clearing = Signal(init=p.cue_fallback)      # the cue store's sweep after reset
+        m.d.comb += [fetch.eq(~resolving & ~emitting & ~clearing & ticket_fifo.r_rdy),
                      ticket_fifo.r_en.eq(fetch)]
         incoming = data.View(ticket_layout(p), ticket_fifo.r_data)
         with m.If(fetch):
             m.d.sync += [ticket.eq(incoming), resolving.eq(1)]
 
         pairs = self._stereo(m, ticket, incoming, fetch, resolving)
+        if p.cue_fallback:
+            self._fallback(m, ticket, incoming, fetch, resolving & pairs["done"], pairs,
+                           clearing)
         heads = self._temporal_fifos(m)
 
         with m.If(resolving & pairs["done"]):
@@ -255,6 +266,42 @@ class MeasurementRouter(wiring.Component):
         m.d.comb += all_done.eq(Cat(*dones).all())
         return {"cue": cues, "usable": usable, "done": all_done, "dropped": dropped,
                 "missing": missing}
+
+    def _fallback(self, m, ticket, incoming, fetch, resolved, pairs, clearing):
+        """The cue store: read at ``fetch`` (the incoming ticket's row), merged into the
+        cue registers and written back on ``resolved``: a segment without a usable cue
+        takes the stored one of its row (``emulator.measurement.router.route_tickets``).
+        Rows ``≥ height`` neither read nor write."""
+        p = self.params
+        height, ks = p.temporal.height, p.stereo.segments
+        entry = data.StructLayout({"cue": p.solver.cue_fmt.shape(), "valid": 1})
+        words = data.ArrayLayout(entry, len(p.pairs) * ks)
+        store = m.submodules.cue_store = Memory(shape=words, depth=height, init=[])
+        read = store.read_port()
+        write = store.write_port()
+        m.d.comb += [read.addr.eq(incoming.row), read.en.eq(fetch)]
+        in_range = Signal()
+        with m.If(fetch):
+            m.d.sync += in_range.eq(incoming.row < height)
+        merged = Signal(words)
+        for j in range(len(p.pairs)):
+            for s in range(ks):
+                stored, out = read.data[j * ks + s], merged[j * ks + s]
+                live = pairs["usable"][j][s]
+                m.d.comb += [out.valid.eq(live | (stored.valid & in_range)),
+                             out.cue.eq(Mux(live, pairs["cue"][j][s], stored.cue))]
+                with m.If(resolved):
+                    m.d.sync += [pairs["cue"][j][s].eq(out.cue),
+                                 pairs["usable"][j][s].eq(out.valid)]
+        sweep = Signal(range(height))
+        with m.If(clearing):
+            m.d.comb += [write.addr.eq(sweep), write.en.eq(1), write.data.eq(0)]
+            m.d.sync += sweep.eq(sweep + 1)
+            with m.If(sweep == height - 1):
+                m.d.sync += clearing.eq(0)
+        with m.Else():
+            m.d.comb += [write.addr.eq(ticket.row), write.data.eq(merged),
+                         write.en.eq(resolved & in_range)]
 
     # --- temporal lanes: FIFOs ----------------------------------------------------------
 

@@ -30,6 +30,10 @@ class RouterParams:
         formats).
     solver : PoseSolverParams
         The solver's parameters (``slots``, input formats, ``time_bits``).
+    cue_fallback : bool
+        A stereo segment whose match fails lends its pair's last usable cue of the same
+        row (the closed loop's, issue 16 item 4): a store of ``pairs × K_s × height``
+        cues. Default off (no store).
 
     Raises
     ------
@@ -41,6 +45,7 @@ class RouterParams:
     temporal: RowDescriptorParams
     stereo: RowDescriptorParams
     solver: PoseSolverParams
+    cue_fallback: bool = False
     pair_of: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -51,6 +56,8 @@ class RouterParams:
                                 f"{getattr(self, name)!r}")
         if not isinstance(self.solver, PoseSolverParams):
             raise TypeError(f"solver must be a PoseSolverParams, not {self.solver!r}")
+        if not isinstance(self.cue_fallback, bool):
+            raise TypeError(f"cue_fallback must be a bool, not {self.cue_fallback!r}")
         for name in ("frame_bits", "row_bits"):
             if getattr(self.stereo, name) != getattr(self.temporal, name):
                 raise ValueError(f"stereo.{name} must equal temporal.{name} = "

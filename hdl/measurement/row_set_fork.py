@@ -6,6 +6,21 @@ measurement engine each take one camera's beats: the temporal lane of camera ``k
 the ``a`` or ``b`` input of the stereo lane of the pair camera ``k`` belongs to. The
 router (:mod:`hdl.measurement.router`) needs to know which lanes got which row: one
 *ticket* per row set, marking the temporal lanes and the stereo lanes that received it.
+
+In the closed loop (``EngineParams.follow``) the fork also joins each row set with its
+forecast row (:class:`hdl.measurement.forecast_rows.ForecastRows`): the temporal lanes'
+beats carry the row's centre and source row (``hdl.streams.followed_pixel_layout``),
+and a set opens only when a forecast row is there. Both streams follow the camera rows
+in order, so the join compares the keys: the forecast row's ``row`` with the set's. On
+a mismatch, with ``H`` = the lanes' ``height`` and ``gap = (forecast row − set row) mod
+H``: a forecast ahead (``0 < 2·gap < H``: the set's own forecast was lost) drops the
+set (counted ``unforecast``) and keeps the forecast for a later set; a forecast behind
+(any other gap, or a forecast row ``≥ H``: it was for a set that never came) is
+discarded (counted ``forecast_skipped``) and the set waits for the next. A set whose
+row is ``≥ H`` has no forecast and is dropped (``unforecast``). A set with ``enable``
+0 is dropped as in the open loop without taking a forecast row. So a lost, extra or
+mislabelled forecast row costs at most the sets up to the next matching key, counted,
+and never lets a set run with another row's forecast under a wrong key.
 """
 
 from amaranth.hdl import Cat, Module, Mux, Signal
@@ -40,14 +55,19 @@ class RowSetFork(wiring.Component):
         next set; a set ends with the column on which every lane still in it carries
         ``last``.
     enable : In(1)
-    temporal : Out(stream.Signature(params.pixel_layout())).array(cameras)
+    forecast : In(stream.Signature(params.forecast_row_layout())), with ``follow`` only
+        Forecast rows, one taken per row set handed on (see the module docstring).
+    temporal : Out(stream.Signature(params.temporal.input_layout(follow))).array(cameras)
     stereo_a, stereo_b : Out(stream.Signature(params.pixel_layout())).array(pairs)
-        Camera beats, unchanged (``hdl.streams.camera_pixel_layout``).
+        Camera beats, unchanged (``hdl.streams.camera_pixel_layout``); with ``follow``
+        the temporal beats carry the forecast row's ``centre[k]`` and ``source[k]``
+        (valid with the set's first column, which the lanes sample).
     tickets : Out(stream.Signature(ticket_layout(params.router)))
         ``cameras``: the temporal lanes that get the set; ``pairs``: the stereo lanes;
         ``frame``, ``row``: the set's row key.
     status : Out(fork_status_layout(params))
-        Wrapping counters of row sets received, dropped, and skipped per stereo pair.
+        Wrapping counters of row sets received, dropped, and skipped per stereo pair
+        (with ``follow`` also ``forecast_skipped`` and ``unforecast``).
 
     Latency 0 (outputs are combinational from ``i``; ``valid`` never depends on the
     same port's ``ready``). Throughput one column per clock when no addressed output
@@ -63,10 +83,14 @@ class RowSetFork(wiring.Component):
         self.params = params
         beat = stream.Signature(params.pixel_layout())
         n_pairs = len(params.pairs)
+        follow = {"forecast": In(stream.Signature(params.forecast_row_layout()))} \
+            if params.follow else {}
         super().__init__({
             "i": In(stream.Signature(params.aligned_layout())),
             "enable": In(1),
-            "temporal": Out(beat).array(params.cameras),
+            **follow,
+            "temporal": Out(stream.Signature(params.temporal.input_layout(params.follow)))
+            .array(params.cameras),
             "stereo_a": Out(beat).array(n_pairs),
             "stereo_b": Out(beat).array(n_pairs),
             "tickets": Out(stream.Signature(ticket_layout(params.router))),
@@ -93,7 +117,12 @@ class RowSetFork(wiring.Component):
         set_enable = Signal()
         set_pairs = Signal(len(p.pairs))
         opens = ~in_set
-        enabled = Mux(opens, self.enable, set_enable)
+        frame, row = col.lanes[p.cameras - 1].frame, col.lanes[p.cameras - 1].row
+        for k in reversed(range(p.cameras - 1)):        # the key of the lowest live lane
+            frame = Mux(live[k], col.lanes[k].frame, frame)
+            row = Mux(live[k], col.lanes[k].row, row)
+        join = self._join(m, row, opens) if p.follow else {"accept": self.enable, "wait": 0}
+        enabled = Mux(opens, join["accept"], set_enable)
         complete = Cat(live[a] & live[b] for a, b in p.pairs)
         pairs = Mux(opens, complete, set_pairs)
 
@@ -109,16 +138,24 @@ class RowSetFork(wiring.Component):
             m.d.comb += port.valid.eq(self.i.valid & want & ~flag)
             taken.append(flag)
             done.append(~want | flag | port.ready)
-        m.d.comb += self.i.ready.eq(Cat(done).all())
+        m.d.comb += self.i.ready.eq(Cat(done).all() & ~(opens & join["wait"]))
         transfer = self.i.valid & self.i.ready
 
-        for port, camera, _ in self._outputs():
-            if camera is not None:
+        for port, camera, pair in self._outputs():
+            if camera is None:
+                continue
+            if p.follow and pair is None:
+                forecast = self.forecast.payload
+                m.d.comb += [port.payload[name].eq(col.lanes[camera][name])
+                             for name, _ in p.pixel_layout()]
+                m.d.comb += [port.payload.centre.eq(forecast.centre[camera]),
+                             port.payload.source.eq(forecast.source[camera])]
+            else:
                 m.d.comb += port.payload.eq(col.lanes[camera])
-        frame, row = col.lanes[p.cameras - 1].frame, col.lanes[p.cameras - 1].row
-        for k in reversed(range(p.cameras - 1)):        # the key of the lowest live lane
-            frame = Mux(live[k], col.lanes[k].frame, frame)
-            row = Mux(live[k], col.lanes[k].row, row)
+        if p.follow:
+            # the forecast row is taken with the set's first column
+            with m.If(transfer & opens & join["accept"]):
+                m.d.comb += self.forecast.ready.eq(1)
         m.d.comb += [self.tickets.payload.cameras.eq(live),
                      self.tickets.payload.pairs.eq(complete),
                      self.tickets.payload.frame.eq(frame),
@@ -128,7 +165,7 @@ class RowSetFork(wiring.Component):
             m.d.sync += [flag.eq(0) for flag in taken]
             m.d.sync += in_set.eq((live & ~lasts).any())
             with m.If(opens):
-                m.d.sync += [set_enable.eq(self.enable), set_pairs.eq(complete)]
+                m.d.sync += [set_enable.eq(join["accept"]), set_pairs.eq(complete)]
         with m.Else():
             for (port, _, _), flag in zip(self._outputs(), taken):
                 with m.If(port.valid & port.ready):
@@ -139,8 +176,36 @@ class RowSetFork(wiring.Component):
             m.d.sync += status.row_sets.eq(status.row_sets + 1)
             with m.If(~self.enable):
                 m.d.sync += status.dropped.eq(status.dropped + 1)
-            with m.Else():
+            with m.Elif(join["accept"]):
                 for j in range(len(p.pairs)):
                     with m.If(~complete[j]):
                         m.d.sync += status.stereo_skipped[j].eq(status.stereo_skipped[j] + 1)
+            if p.follow:
+                with m.Else():
+                    m.d.sync += status.unforecast.eq(status.unforecast + 1)
+        if p.follow:
+            with m.If(join["skip"]):
+                m.d.sync += status.forecast_skipped.eq(status.forecast_skipped + 1)
         return m
+
+    def _join(self, m, row, opens):
+        """The key comparison of an opening set's ``row`` with the forecast row waiting
+        (module docstring): ``accept`` the set with it, ``wait`` (the set is held this
+        clock), and ``skip`` (the forecast row is discarded this clock)."""
+        p = self.params
+        height = p.temporal.height
+        forecast = self.forecast
+        key = forecast.payload.row
+        joinable = row < height
+        diff = Signal(range(-(1 << len(key)), 1 << len(key)))
+        m.d.comb += diff.eq(key - row)
+        gap = Mux(diff < 0, diff + height, diff)
+        ahead = (key < height) & (gap != 0) & (2 * gap < height)
+        match = forecast.valid & (key == row)
+        asks = self.enable & joinable            # an enabled set that needs a forecast
+        skip = Signal()
+        m.d.comb += skip.eq(self.i.valid & opens & asks & forecast.valid & ~match & ~ahead)
+        with m.If(skip):
+            m.d.comb += forecast.ready.eq(1)
+        return {"accept": asks & match, "wait": asks & ~match & ~(forecast.valid & ahead),
+                "skip": skip}

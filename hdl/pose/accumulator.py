@@ -4,7 +4,11 @@ Per measurement it reads the row's nine coefficients, forms the design row
 ``a = [w a_T, a_R + w a_C]`` (rounded to ``a_fmt``), the weighted row ``c·a`` (exact),
 and adds the 27 products ``c a_i a_j`` (i ≤ j) and ``c a_i s`` into exact accumulators.
 When a row's last measurement is in, it computes the Jacobi exponents of the diagonal
-and holds the sums until the engine has read them (``release``).
+and holds the sums until the engine has read them (``release``). A row whose last
+measurement comes with ``gated`` (the consistency stage's verdict that the row failed its
+gates, ``hdl/measurement/consistency.py``) is flagged empty: the model sets every
+confidence of such a row to 0, which leaves every diagonal entry 0, below
+``min_diagonal`` (at least one raw unit), so the model flags it EMPTY too.
 """
 
 from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal, signed
@@ -87,6 +91,9 @@ class PoseAccumulator(wiring.Component):
     i : In(stream.Signature(measurement_layout(params)))
         Measurements. One transfer per ``27 / lanes`` clocks at most; held off while a
         finished row waits for the engine.
+    gated : In(1)
+        Read with the transfer of a row's last measurement: the row is flagged empty
+        whatever its sums (no step).
     coef_slot, coef_row : Out
         Slot and row of the transfer being accepted, to the coefficient store
         (:class:`hdl.pose.coef_store.CoefficientStore`).
@@ -120,6 +127,7 @@ class PoseAccumulator(wiring.Component):
         self.period = -(-len(PAIRS) // params.lanes)
         super().__init__({
             "i": In(stream.Signature(measurement_layout(params))),
+            "gated": In(1),
             "coef_slot": Out(params.slot_bits),
             "coef_row": Out(params.row_bits),
             "coef_data": In(data.ArrayLayout(signed(params.coef_width), 9)),
@@ -167,10 +175,11 @@ class PoseAccumulator(wiring.Component):
         m.d.comb += [self.coef_slot.eq(self.i.payload.slot), self.coef_row.eq(self.i.payload.row)]
 
         count_next = Mux(first_of_row, 1, Mux(count > p.slots, count, count + 1))
+        gated = Signal()            # the row in `waiting` was gated
         with m.If(take):
             m.d.sync += [count.eq(count_next), first_of_row.eq(self.i.payload.last)]
             with m.If(self.i.payload.last):
-                m.d.sync += [waiting.eq(1), self.row.eq(self.i.payload.row),
+                m.d.sync += [waiting.eq(1), gated.eq(self.gated), self.row.eq(self.i.payload.row),
                              self.time.eq(self.i.payload.time),
                              self.overrun.eq(count_next > p.slots)]
         with m.If(self.release):
@@ -300,5 +309,5 @@ class PoseAccumulator(wiring.Component):
                 m.d.sync += self.exponents[i].eq(clamped)
             empty = empty | small
         with m.If(lengths_ready):
-            m.d.sync += [self.done.eq(1), self.empty.eq(empty)]
+            m.d.sync += [self.done.eq(1), self.empty.eq(empty | gated)]
         return m

@@ -13,6 +13,9 @@ Two layouts, chosen by ``PoseSolverParams.coef_poly_fmts``:
 
 Either way the contents are the initial values given at build time and can be rewritten
 at run time through ``write`` (entry ``slot · entries_per_slot + row`` or ``+ term``).
+The forecast keeps copies of the same memories and arithmetic that evaluate only the
+two coefficients of one design term per clock
+(:class:`hdl.pose.coef_term_store.TermStore`).
 """
 
 import numpy as np
@@ -23,7 +26,8 @@ from amaranth.lib.wiring import In, Out
 
 from hdl.fixed import UQ, Overflow, Rounding, hdl_add, hdl_mul, hdl_resize
 
-__all__ = ["CoefficientStore", "coef_write_signature"]
+__all__ = ["CoefficientStore", "coef_write_signature", "checked_contents", "delayed_rows",
+           "horner"]
 
 
 def coef_write_signature(params):
@@ -43,6 +47,27 @@ def coef_write_signature(params):
                              "data": Out(signed(params.coef_store_width)), "en": Out(1)})
 
 
+def checked_contents(params, contents, name):
+    """``contents`` (zeros if None) as an int array (slots, entries_per_slot, 9) whose
+    every value fits its format; a ValueError naming ``name`` otherwise."""
+    shape = (params.slots, params.entries_per_slot, 9)
+    if contents is None:
+        contents = np.zeros(shape, dtype=np.int64)
+    contents = np.asarray(contents)
+    if contents.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, not {contents.shape}")
+    for k in range(9):
+        for t in range(params.coef_terms) if params.coef_terms else (None,):
+            fmt = params.coef_fmt(k, t)
+            values = contents[..., k] if t is None else contents[:, t, k]
+            try:
+                fmt.raw(values)
+            except (OverflowError, TypeError) as exc:
+                where = f"coefficient {k}" if t is None else f"coefficient {k} term {t}"
+                raise ValueError(f"{name} {where} does not fit {fmt}: {exc}") from None
+    return contents
+
+
 class CoefficientStore(wiring.Component):
     """Coefficient store of :class:`hdl.pose_solver.PoseSolver`.
 
@@ -52,6 +77,8 @@ class CoefficientStore(wiring.Component):
     contents : ndarray (slots, entries_per_slot, 9) of int, optional
         Initial raw contents: rows of coefficients, or polynomial terms (zeros if
         omitted); a value that does not fit its format raises.
+    name : str
+        The contents' name in error messages.
 
     Members
     -------
@@ -62,21 +89,12 @@ class CoefficientStore(wiring.Component):
     write : In(coef_write_signature(params))
     """
 
-    def __init__(self, params, contents=None):
-        shape = (params.slots, params.entries_per_slot, 9)
-        if contents is None:
-            contents = np.zeros(shape, dtype=np.int64)
-        contents = np.asarray(contents)
-        if contents.shape != shape:
-            raise ValueError(f"coefficients must have shape {shape}, not {contents.shape}")
-        for k in range(9):          # raises if a value does not fit its format
-            if params.coef_terms:
-                for t in range(params.coef_terms):
-                    params.coef_fmt(k, t).raw(contents[:, t, k])
-            else:
-                params.coef_fmt(k).raw(contents[..., k])
+    #: Has the run-time write port (a subclass's copy may not).
+    writable = True
+
+    def __init__(self, params, contents=None, *, name="coefficients"):
         self.params = params
-        self.contents = contents
+        self.contents = checked_contents(params, contents, name)
         super().__init__({
             "slot": In(params.slot_bits),
             "row": In(params.row_bits),
@@ -84,57 +102,85 @@ class CoefficientStore(wiring.Component):
             "write": In(coef_write_signature(params)),
         })
 
+    def _ports(self):
+        """The read ports' (slot, row, data …)."""
+        return [(self.slot, self.row, self.data)]
+
     def _memory(self, m, name, shape, index, term=None):
-        """One stored lane (coefficient ``index``, polynomial ``term``): its read port's
-        data; run-time writes reach it when ``write.index`` and the entry's term match."""
+        """One stored lane (coefficient ``index``, polynomial ``term``): each read port's
+        data (:meth:`_ports`' slot and row); run-time writes reach it when
+        ``write.index`` and the entry's term match."""
         p = self.params
         values = self.contents[..., index] if term is None else self.contents[:, term, index]
         store = Memory(shape=shape, depth=values.size,
                        init=[int(v) for v in values.reshape(-1)])
         m.submodules[name] = store
-        read, write = store.read_port(), store.write_port()
-        hit = self.write.en & (self.write.index == index)
-        if term is None:
-            m.d.comb += [read.addr.eq(self.slot * p.rows + self.row),
-                         write.addr.eq(self.write.addr)]
-        else:
-            m.d.comb += read.addr.eq(self.slot)
-            hit &= self.write.addr % p.coef_terms == term
-            m.d.comb += write.addr.eq(self.write.addr // p.coef_terms)
-        m.d.comb += [write.data.eq(self.write.data), write.en.eq(hit)]
-        return read.data
+        datas = []
+        for slot, row, *_ in self._ports():
+            read = store.read_port()
+            m.d.comb += read.addr.eq(slot if term is not None else slot * p.rows + row)
+            datas.append(read.data)
+        if self.writable:
+            write = store.write_port()
+            hit = self.write.en & (self.write.index == index)
+            if term is None:
+                m.d.comb += write.addr.eq(self.write.addr)
+            else:
+                hit &= self.write.addr % p.coef_terms == term
+                m.d.comb += write.addr.eq(self.write.addr // p.coef_terms)
+            m.d.comb += [write.data.eq(self.write.data), write.en.eq(hit)]
+        return datas
 
     def elaborate(self, platform):
         p = self.params
         m = Module()
+        ports = self._ports()
         if not p.coef_terms:
             for k in range(9):
-                m.d.comb += self.data[k].eq(self._memory(m, f"coefficients{k}",
-                                                         signed(p.coef_width), k))
+                datas = self._memory(m, f"coefficients{k}", signed(p.coef_width), k)
+                m.d.comb += [out[k].eq(d) for (_, _, out), d in zip(ports, datas)]
             return m
-
-        # Horner: the row is delayed alongside so each step multiplies by the same y
-        row_fmt = UQ(p.row_bits, 0)
-        rows = [Signal(p.row_bits, name=f"row{t}") for t in range(p.coef_terms)]
-        m.d.sync += rows[0].eq(self.row)
-        m.d.sync += [rows[t].eq(rows[t - 1]) for t in range(1, p.coef_terms)]
-        top = p.coef_terms - 1
+        rows = [delayed_rows(m, p, row, f"_{n}" * n) for n, (_, row, _) in enumerate(ports)]
         for k in range(9):
             terms = [self._memory(m, f"coefficients{k}_{t}",
                                   signed(p.coef_fmt(k, t).width), k, t)
                      for t in range(p.coef_terms)]
-            acc, fmt = terms[top], p.coef_fmt(k, top)
-            for step, t in enumerate(range(top - 1, -1, -1)):
-                product, product_fmt = hdl_mul(acc, fmt, rows[step], row_fmt)
-                # the lower term's read is delayed to meet the product
-                lower = terms[t]
-                for d in range(step):
-                    held = Signal.like(lower, name=f"c{k}_{t}_d{d}")
-                    m.d.sync += held.eq(lower)
-                    lower = held
-                total, fmt = hdl_add(product, product_fmt, lower, p.coef_fmt(k, t))
-                acc = Signal(fmt.shape(), name=f"horner{k}_{t}")
-                m.d.sync += acc.eq(total)
-            m.d.sync += self.data[k].eq(hdl_resize(acc, fmt, p.coef_fmt(k), Rounding.HALF_EVEN,
-                                                   Overflow.SATURATE))
+            for n, (_, _, out) in enumerate(ports):
+                acc, fmt = horner(m, p, [datas[n] for datas in terms],
+                                  [p.coef_fmt(k, t) for t in range(p.coef_terms)], rows[n],
+                                  f"{k}" + f"_{n}" * n)
+                m.d.sync += out[k].eq(hdl_resize(acc, fmt, p.coef_fmt(k), Rounding.HALF_EVEN,
+                                                 Overflow.SATURATE))
         return m
+
+
+def delayed_rows(m, params, row, suffix):
+    """``row`` registered once per polynomial term: entry ``step`` is the row a Horner
+    step ``step`` multiplies by (the row delayed alongside the terms)."""
+    delayed = [Signal(params.row_bits, name=f"row{t}{suffix}")
+               for t in range(params.coef_terms)]
+    m.d.sync += delayed[0].eq(row)
+    m.d.sync += [delayed[t].eq(delayed[t - 1]) for t in range(1, params.coef_terms)]
+    return delayed
+
+
+def horner(m, params, terms, fmts, rows, name):
+    """Horner's scheme on the raw ``terms`` (lowest power first, formats ``fmts``; the
+    memories' data, one clock after the address) at the row ``rows[step]`` of each
+    step, one exact multiply-add per clock; returns the registered sum and its format
+    (``coef_terms − 1`` clocks after the data; the caller rounds it)."""
+    row_fmt = UQ(params.row_bits, 0)
+    top = len(terms) - 1
+    acc, fmt = terms[top], fmts[top]
+    for step, t in enumerate(range(top - 1, -1, -1)):
+        product, product_fmt = hdl_mul(acc, fmt, rows[step], row_fmt)
+        # the lower term's read is delayed to meet the product
+        lower = terms[t]
+        for d in range(step):
+            held = Signal.like(lower, name=f"c{name}_{t}_d{d}")
+            m.d.sync += held.eq(lower)
+            lower = held
+        total, fmt = hdl_add(product, product_fmt, lower, fmts[t])
+        acc = Signal(fmt.shape(), name=f"horner{name}_{t}")
+        m.d.sync += acc.eq(total)
+    return acc, fmt

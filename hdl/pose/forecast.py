@@ -44,11 +44,16 @@ class Forecast(wiring.Component):
     Parameters
     ----------
     params : ForecastParams
-    coefficients, row_coefficients : ndarray (slots, rows, 9)
-        The solver's coefficient store and the across-rows store (raw;
-        ``PipelineConfig.coef_raw`` and ``.row_coef_raw``).
+    coefficients, row_coefficients : ndarray (slots, entries_per_slot, 9)
+        The contents of the solver's coefficient store and of the across-rows store in
+        their layouts (raw; ``PipelineConfig.coef_store`` and ``.row_coef_store``:
+        polynomial terms, evaluated by Horner to ``.coef_raw`` and ``.row_coef_raw``,
+        which the model reads; or every row).
     slot_bits : int
         Width of the row slot (see :class:`MotionFilter`).
+    shared_port : bool
+        Expose a second read port of the solver's store: ``coef`` (see
+        :class:`RowPredictor`).
 
     Members
     -------
@@ -72,12 +77,16 @@ class Forecast(wiring.Component):
     outputs are taken at once. Records take :attr:`record_clocks` clocks each.
     """
 
-    def __init__(self, params, coefficients, row_coefficients, *, slot_bits=DEFAULT_SLOT_BITS):
+    def __init__(self, params, coefficients, row_coefficients, *, slot_bits=DEFAULT_SLOT_BITS,
+                 shared_port=False):
         self._filter = MotionFilter(params, slot_bits=slot_bits)
-        self._predictor = RowPredictor(params, coefficients, row_coefficients)
+        self._predictor = RowPredictor(params, coefficients, row_coefficients,
+                                       shared_port=shared_port)
         self.params, self.slot_bits = params, slot_bits
         f = self._filter.signature.members
+        shared = {"coef": self._predictor.signature.members["coef"]} if shared_port else {}
         super().__init__({
+            **shared,
             "requests": In(stream.Signature(request_layout(params, slot_bits))),
             "records": f["records"],
             "o": Out(stream.Signature(output_layout(params))),
@@ -118,26 +127,22 @@ class Forecast(wiring.Component):
         ]
         connect(m, flipped(self.records), motion.records)
         connect(m, predictor.o, flipped(self.o))
+        if "coef" in self.signature.members:
+            connect(m, flipped(self.coef), predictor.coef)
         return m
 
 
 def default_forecast():
-    """The forecast of the default top (:class:`hdl.top_params.TopParams`: its solver,
-    four cameras of K = 4 segments, 480 rows, the lanes' centre range), the across-rows
-    store in the solver's formats: the catalog's build, for Verilog and synthesis. The
-    stores hold seeded pseudo-random coefficients: with constant (zero) contents Yosys
-    would remove them and the datapath they feed."""
-    import numpy as np
-
-    from hdl.pose.forecast_params import ForecastParams
-    from hdl.top_params import TopParams
-    top = TopParams()
-    solver, lane = top.solver, top.engine.router.temporal
-    params = ForecastParams(solver=solver, row_coef_t_fmt=solver.coef_t_fmt,
-                            row_coef_c_fmt=solver.coef_c_fmt, row_coef_r_fmt=solver.coef_r_fmt,
-                            segments=top.segments, height=lane.height,
-                            centre_range=lane.centre_range)
-    rng = np.random.default_rng(0)
-    store = rng.integers(-(1 << (solver.coef_width - 1)), 1 << (solver.coef_width - 1),
-                         size=(solver.slots, solver.rows, 9))
-    return Forecast(params, store, store)
+    """The forecast of a default-sized top (:class:`hdl.top_params.TopParams`: four
+    cameras of K = 4 segments, 480 rows): the first two pairs of the ``stereo8-board``
+    rig, with that rig's polynomial stores (``PipelineConfig.coef_store`` and
+    ``.row_coef_store``, real contents, so Yosys keeps them): the catalog's build, for
+    Verilog and synthesis."""
+    from golden.rig import Rig, preset
+    from hdl.pipeline_config import PipelineConfig
+    from hdl.top_params import DEFAULT_CAMERAS
+    board = preset("stereo8-board")
+    rig = Rig(name="stereo8-board front pairs", cameras=board.cameras[:DEFAULT_CAMERAS],
+              row_points=board.row_points, allow_unobservable=True)
+    config = PipelineConfig.for_rig(rig)
+    return Forecast(config.forecast(), *config.forecast_stores)

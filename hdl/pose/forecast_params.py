@@ -32,6 +32,11 @@ class ForecastParams:
         ``a_fmt``) give the shift along the row.
     row_coef_t_fmt, row_coef_c_fmt, row_coef_r_fmt : QFormat
         Formats of the across-rows coefficient store (same layout as the solver's).
+    row_coef_poly_fmts : tuple
+        The across-rows store's polynomial terms (``PoseSolverParams.coef_poly_fmts``
+        of :attr:`row_store`; empty: a store of every row). Its displacement across rows
+        is quadratic in the row for a pinhole camera (the ``1 + y²`` of a rotation), so
+        it needs one term more than the solver's.
     segments : int
         Temporal segments K per camera row (``solver.slots`` = cameras × K).
     height : int
@@ -57,6 +62,7 @@ class ForecastParams:
     row_coef_t_fmt: QFormat
     row_coef_c_fmt: QFormat
     row_coef_r_fmt: QFormat
+    row_coef_poly_fmts: tuple = ()
     segments: int
     height: int
     centre_range: int = 32
@@ -104,7 +110,8 @@ class ForecastParams:
         row arithmetic and store layout for the displacement across rows."""
         return self.solver.replace(coef_t_fmt=self.row_coef_t_fmt,
                                    coef_c_fmt=self.row_coef_c_fmt,
-                                   coef_r_fmt=self.row_coef_r_fmt)
+                                   coef_r_fmt=self.row_coef_r_fmt,
+                                   coef_poly_fmts=self.row_coef_poly_fmts)
 
     def _gain_raw(self, value):
         return int(self.gain_fmt.quantize(value, Rounding.HALF_EVEN, Overflow.ERROR))

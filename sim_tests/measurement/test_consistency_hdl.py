@@ -17,18 +17,17 @@ from amaranth.hdl import Signal
 from amaranth.sim import Simulator
 
 import emulator.pipeline as pipeline
+import emulator.pose.tracking_loop as tracking_loop
 from emulator.hdl_sim.payload import pack
 from emulator.measurement.consistency import ConsistencyModel
 from golden.rig import preset
 from golden.scene import default_scene_spec
 from golden.simulator import simulate
 from golden.trajectory import make_trajectory
-from hdl.measurement.consistency import (COUNTS, ConsistencyStage,
-                                         forecast_layout)
+from hdl.measurement.consistency import COUNTS, ConsistencyStage, judge_layout
 from hdl.pipeline_config import PipelineConfig
-from hdl.pose.accumulator import measurement_layout
 from sim_tests.measurement.consistency.stimulus import (LARGE, SMALL, check_against_model,
-                                                       random_rows)
+                                                       judge_inputs, random_rows)
 
 SEED = int(os.environ.get("SEED", "1"))
 FIELDS = ("slot", "row", "time", "shift", "cue", "conf", "last")
@@ -41,9 +40,10 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
     dut = ConsistencyStage(params, bits_per_clock=bits_per_clock)
     rng = random.Random(seed)
     prob = 0.6 if gaps else 1.0
-    layout, fc_layout = measurement_layout(params.solver), forecast_layout(params)
+    layout = judge_layout(params)
     count = sum(len(t) for t, _, _ in rows)
-    out = {"transfers": [], "gated": [], "in_cycles": [], "out_cycles": []}
+    out = {"transfers": [], "gated": [], "judged": [], "outlier": [], "in_cycles": [],
+           "out_cycles": []}
     clock = Signal(32)                  # the sink's clock count, for the sources' records
 
     def source(port, lay, items, rng, record=None):
@@ -65,11 +65,13 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
             ready = rng.random() < prob
             ctx.set(dut.o.ready, ready)
             ctx.set(clock, cycle)
-            *_, valid, payload, gated = await ctx.tick().sample(dut.o.valid, dut.o.payload,
-                                                                  dut.gated)
+            *_, valid, payload, gated, judged, outlier = await ctx.tick().sample(
+                dut.o.valid, dut.o.payload, dut.gated, dut.judged, dut.outlier)
             if valid and ready:
                 out["transfers"].append({n: int(getattr(payload, n)) for n in FIELDS})
                 out["gated"].append(int(gated))
+                out["judged"].append(int(judged))
+                out["outlier"].append(int(outlier))
                 out["out_cycles"].append(cycle)
             cycle += 1
             assert cycle < 100 * count + 1000, "stage hung"
@@ -80,13 +82,8 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
-    flat = [t for transfers, _, _ in rows for t in transfers]
-    forecasts = [{"predicted": dict(enumerate(map(int, pr))),
-                  "delta": dict(enumerate(map(int, de)))} for _, pr, de in rows]
-    sim.add_testbench(source(dut.i, layout, flat, random.Random(rng.random()),
-                             out["in_cycles"]), background=True)
-    sim.add_testbench(source(dut.forecast, fc_layout, forecasts, random.Random(rng.random())),
-                      background=True)
+    sim.add_testbench(source(dut.i, layout, judge_inputs(params, rows),
+                             random.Random(rng.random()), out["in_cycles"]), background=True)
     sim.add_testbench(sink)
     sim.run()
     return out
@@ -138,13 +135,13 @@ def recorded():
             calls.append(([dict(t) for t in transfers], np.array(predicted), np.array(delta)))
             return super().apply(transfers, predicted, delta)
 
-    original = pipeline.ConsistencyModel
-    pipeline.ConsistencyModel = Recording
+    original = tracking_loop.ConsistencyModel
+    tracking_loop.ConsistencyModel = Recording
     try:
         pipeline.run(config, dataset, frames=2, forecast=config.forecast(loop_delay_rows=1),
                      initial_motion=np.zeros(6), consistency=params, cue_fallback=True)
     finally:
-        pipeline.ConsistencyModel = original
+        tracking_loop.ConsistencyModel = original
     return params, calls
 
 

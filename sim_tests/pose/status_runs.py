@@ -3,10 +3,8 @@ emulator/benches/hw_tracking.py runs it) and the golden tracker on the stereo20 
 its 32 middle rows (as sim_tests/pose/test_closed_loop.py),
 and the agreement of the status unit's model with the golden StatusMonitor on them.
 
-The pipeline does not return the consistency stage's per-row verdicts yet, so
-:func:`emulator_run` records them by running the loop with a
-:class:`~emulator.measurement.consistency.ConsistencyModel` that notes each row's
-counts (the stage's own arithmetic, unchanged). Run as a script for the figures::
+:func:`emulator_run` takes each record's row counts from the pipeline's loop history
+(``row_counts``, the consistency stage's verdicts). Run as a script for the figures::
 
     .venv/bin/python -m sim_tests.pose.status_runs [--frames 3] [--motion paper] [--seed 1]
     .venv/bin/python -m sim_tests.pose.status_runs --rig8 [--height 480] [--duration 0.1]
@@ -17,14 +15,12 @@ counts (the stage's own arithmetic, unchanged). Run as a script for the figures:
 """
 
 import argparse
-import contextlib
 import json
 
 import numpy as np
 
 import emulator.pipeline as pipeline
-from emulator.measurement.consistency import ConsistencyModel
-from emulator.pose.tracking_status import golden_to_hardware, row_counts
+from emulator.pose.tracking_status import golden_to_hardware
 from golden.rig import preset
 from golden.scene import default_scene_spec
 from golden.simulator import simulate
@@ -48,26 +44,6 @@ def dataset(frames=3, motion="paper", seed=1):
                     frames / 120, seed=seed)
 
 
-class _Recording(ConsistencyModel):
-    """The stage, noting each row's counts (:func:`emulator.pose.tracking_status.row_counts`)."""
-    log = None
-
-    def judge(self, channel, shift, predicted, conf):
-        verdict = super().judge(channel, shift, predicted, conf)
-        self.log.append(row_counts(conf, verdict, self.params.solver.slots))
-        return verdict
-
-
-@contextlib.contextmanager
-def _recording(log):
-    original = pipeline.ConsistencyModel
-    pipeline.ConsistencyModel = type("Recording", (_Recording,), {"log": log})
-    try:
-        yield
-    finally:
-        pipeline.ConsistencyModel = original
-
-
 def emulator_run(data):
     """The closed loop as emulator/benches/hw_tracking.py runs it (the configuration's
     forecast with the hardware's loop delay, the consistency stage, a disparity per
@@ -77,15 +53,13 @@ def emulator_run(data):
     from emulator.e2e import true_steps
     from hdl.top_params import DEFAULT_SEGMENTS
     config = PipelineConfig.for_rig(data.rig, stereo_segments=DEFAULT_SEGMENTS)
-    log = []
-    with _recording(log):
-        result = pipeline.run(config, data, forecast=config.forecast(),
-                              initial_motion=true_steps(data, [1], [0])[0],
-                              consistency=config.consistency(), cue_fallback=True)
-    flags = result.records["flags"]
-    if len(log) != len(flags):
-        raise AssertionError(f"{len(log)} judged rows for {len(flags)} records")
-    return config, result.records, [(int(f), *counts) for f, counts in zip(flags, log)]
+    result = pipeline.run(config, data, forecast=config.forecast(),
+                          initial_motion=true_steps(data, [1], [0])[0],
+                          consistency=config.consistency(), cue_fallback=True)
+    flags, counts = result.records["flags"], result.loop["row_counts"]
+    if len(counts) != len(flags):
+        raise AssertionError(f"{len(counts)} judged rows for {len(flags)} records")
+    return config, result.records, [(int(f), *map(int, c)) for f, c in zip(flags, counts)]
 
 
 def frame_rows(data):

@@ -14,6 +14,7 @@ from golden.rig import preset
 from hdl.fixed import SQ, Overflow
 from hdl.pipeline_config import COEF_POLYNOMIAL_TOLERANCE_LSB, PipelineConfig
 from hdl.pose.coef_store import CoefficientStore
+from hdl.pose.coef_term_store import TermStore, second_index
 from hdl.pose.params import PoseSolverParams, quantize_coefficients
 from hdl.pose.row_polynomials import (evaluate_polynomials, fit_row_polynomials,
                                       polynomial_formats, quantize_polynomials,
@@ -219,3 +220,88 @@ def test_saturation_is_the_models():
     assert value == FMTS[0].max_raw
     with pytest.raises(OverflowError):
         evaluate_polynomials(params, contents, [39], Overflow.ERROR)
+
+
+# --- the forecast's across-rows store and its copies -----------------------------------------
+
+def test_the_across_rows_store_is_three_terms_within_one_lsb_of_the_row_table():
+    """stereo8-board at K = 4: the displacement across rows is quadratic in the row (the
+    ``1 + y²`` of a rotation), so degree 1 is refused and degree 2 (the default) holds
+    every coefficient within the tolerance of the per-row store's (measured: 1 LSB)."""
+    rig = preset("stereo8-board")
+    config = PipelineConfig.for_rig(rig)
+    per_row = PipelineConfig.for_rig(rig, row_coef_degree=None)
+    store = config.row_store
+    assert config.row_coef_store.shape == (32, 3, 9) and store.coef_terms == 3
+    assert per_row.row_coef_store.shape == (32, 480, 9) and per_row.row_coef_error_lsb == 0
+    np.testing.assert_array_equal(per_row.row_coef_raw,
+                                  quantize_coefficients(per_row.row_store, per_row.row_table))
+    difference = np.abs(config.row_coef_raw - per_row.row_coef_raw)
+    print("across-rows coefficients differing by 1 LSB:", np.mean(difference > 0))
+    assert difference.max() == config.row_coef_error_lsb <= COEF_POLYNOMIAL_TOLERANCE_LSB
+    assert config.forecast().row_store == store
+    np.testing.assert_array_equal(
+        evaluate_polynomials(store, config.store_window(200, 32, "row"), np.arange(32)),
+        config.row_coef_raw[:, 200:232])
+    with pytest.raises(ValueError, match="row_coef_degree 1: rig 'stereo8-board'.s "
+                                         "coefficients differ from polynomials"):
+        PipelineConfig.for_rig(rig, row_coef_degree=1)
+    with pytest.raises(ValueError, match="store must be 'solver' or 'row', not 'x'"):
+        config.store_window(0, 1, "x")
+
+
+@pytest.mark.parametrize("degree", [None, 1, 2])
+def test_the_term_store_reads_the_two_coefficients_of_a_term_on_two_ports(degree):
+    """The forecast's copy (TermStore): per port a (slot, row, term) in, coefficient
+    ``term`` and ``second_index(term)`` out with the store's latency, equal to the model
+    (random terms, extremes included: the selected chains round and saturate as the
+    nine-chain store does)."""
+    rng = np.random.default_rng(SEED)
+    print("seed", SEED)
+    params = _params(degree) if degree else _params(1, coef_poly_fmts=())
+    if degree:
+        contents = _random_terms(params, rng)
+        table = evaluate_polynomials(params, contents, np.arange(params.rows))
+    else:
+        contents = rng.integers(-1 << 17, 1 << 17, (params.slots, params.rows, 9))
+        table = contents
+    dut = TermStore(params, contents, second_read=True)
+    assert "write" not in dut.signature.members
+    reads = [[(int(rng.integers(params.slots)), int(rng.integers(params.rows)),
+               int(rng.integers(6))) for _ in range(60)] for _ in range(2)]
+    seen = [[], []]
+    q = dut.second_port
+    ports = [(dut.slot, dut.row, dut.term, dut.first, dut.second),
+             (q.slot, q.row, q.term, q.first, q.second)]
+
+    async def bench(ctx):
+        for clock in range(60 + params.coef_latency):
+            for (slot, row, term, *_), port in zip(ports, reads):
+                if clock < 60:
+                    for signal, value in zip((slot, row, term), port[clock]):
+                        ctx.set(signal, value)
+            await ctx.tick()
+            if clock + 1 >= params.coef_latency:
+                for (*_, first, second), got in zip(ports, seen):
+                    got.append([ctx.get(first), ctx.get(second)])
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    for port, got in zip(reads, seen):
+        np.testing.assert_array_equal(np.array(got[:60]), [
+            [table[s, r, t], table[s, r, second_index(t)]] for s, r, t in port])
+    if degree:
+        coef_max = [f.max_raw for f in FMTS for _ in range(3)]
+        assert (np.abs(table) >= np.array(coef_max)).any(), "no saturation exercised"
+
+
+def test_store_contents_that_do_not_fit_name_the_store():
+    params = _params(1)
+    with pytest.raises(ValueError, match="row_coefficients coefficient 0 term 1 does not fit"):
+        contents = np.zeros((3, 2, 9), dtype=np.int64)
+        contents[0, 1, 0] = 1 << 40
+        CoefficientStore(params, contents, name="row_coefficients")
+    with pytest.raises(ValueError, match=r"stores must have shape \(3, 2, 9\)"):
+        CoefficientStore(params, np.zeros((3, 40, 9)), name="stores")

@@ -20,8 +20,9 @@ from hdl.pose.forecast import Forecast
 
 from hdl.pose.params import PoseFlag, PoseSolverParams
 
-from sim_tests.pose.forecast.stimulus import (expected_outputs, random_case, record,
-                                              saturations, small_params)
+from sim_tests.pose.forecast.stimulus import (expected_outputs, polynomial_params,
+                                              random_case, record, saturations,
+                                              small_params)
 
 SEED = int(os.environ.get("SEED", "5"))
 
@@ -46,7 +47,8 @@ def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_
                 if payload.camera == 0:
                     motions.append([ctx.get(dut.motion[i]) for i in range(6)])
                 outputs.append((cycle, {name: getattr(payload, name) for name in
-                                        ("camera", "centre", "source_row", "centre_saturated",
+                                        ("camera", "row", "centre", "source_row",
+                                         "centre_saturated",
                                          "row_saturated", "shift_saturated",
                                          "across_saturated", "last")}))
             await ctx.tick()
@@ -115,10 +117,30 @@ def test_outputs_match_the_model(gaps):
     assert any(o["centre"] for outs in case["expected"] for o in outs)
 
 
-def test_latency_and_row_time_are_the_properties():
+@pytest.mark.parametrize("gaps", [False, True])
+def test_polynomial_stores_match_the_model(gaps):
+    """Stores of polynomial terms (degree 1 and 2, random terms up to their formats'
+    extremes): the gateware's Horner gives the model's table, saturated values
+    included."""
+    print(f"SEED={SEED}")
+    case = random_case(SEED, params=polynomial_params())
+    p = case["params"]
+    got, motions, *_ = simulate(_build(case), case, gaps=gaps, seed=SEED)
+    _check(case, got, motions)
+    for store, table in ((p.solver, case["coef_raw"]), (p.row_store, case["row_coef_raw"])):
+        extremes = [store.coef_fmt(k).max_raw for k in range(9)]
+        assert (np.abs(table) >= extremes).any(), "no saturated coefficient exercised"
+
+
+@pytest.mark.parametrize("params, latency", [
+    (small_params(), 2 + 1 + 6 * 2 - 1 + 7),
+    # the slower store (degree 2: read, two Horner steps, rounding) sets the latency
+    (polynomial_params(), 2 + 1 + 6 * 2 - 1 + 4 + 6),
+])
+def test_latency_and_row_time_are_the_properties(params, latency):
     """At full rate a request finds the block idle: its first output comes ``latency``
     clocks after its transfer, its last ``row_clocks``; records take ``record_clocks``."""
-    case = random_case(SEED)
+    case = random_case(SEED, params=params)
     dut = _build(case)
     got, motions, starts, taken, cycles, _ = simulate(dut, case)
     _check(case, got, motions)
@@ -126,7 +148,7 @@ def test_latency_and_row_time_are_the_properties():
     firsts, lasts = cycles[::cameras], cycles[cameras - 1::cameras]
     assert {f - s for f, s in zip(firsts, starts)} == {dut.latency}
     assert {last - s for last, s in zip(lasts, starts)} == {dut.row_clocks}
-    assert (dut.latency, dut.row_clocks) == (2 + 1 + 6 * 2 - 1 + 7, 21 + 19)
+    assert (dut.latency, dut.row_clocks) == (latency, latency + 6 * 2 + latency - 14)
 
 
 @pytest.mark.parametrize("delay", [0, 2, 3])
@@ -172,7 +194,7 @@ def test_gains_are_run_time_inputs():
     other = params.replace(alpha=0.5, beta=0.25)
     dut = _build(case)
     assert (dut.alpha.init, dut.beta.init) == (params.alpha_raw, params.beta_raw)
-    expected, motion = expected_outputs(other, case["coefficients"], case["row_coefficients"],
+    expected, motion = expected_outputs(other, case["coef_raw"], case["row_coef_raw"],
                                         case["initial"], case["requests"], case["records"])
     assert motion != case["motion"]
 
@@ -194,7 +216,7 @@ def test_saturation_at_the_extremes_is_flagged(sign):
     fmt = params.motion_fmt
     initial = sign * np.array([1, -1, 1, -1, 1, -1]) * fmt.max_raw
     records = [record(params, flags=PoseFlag.ILL) for _ in case["records"]]
-    expected, motion = expected_outputs(params, case["coefficients"], case["row_coefficients"],
+    expected, motion = expected_outputs(params, case["coef_raw"], case["row_coef_raw"],
                                         initial, case["requests"], records)
     case = dict(case, initial=initial, records=records, expected=expected, motion=motion)
     got, motions, *_, counters = simulate(_build(case), case, gaps=True, seed=SEED)
@@ -216,6 +238,11 @@ def test_saturation_at_the_extremes_is_flagged(sign):
      ValueError, r"coefficients must have shape \(4, 8, 9\), not \(4, 4, 9\)"),
     (lambda c: Forecast(c["params"], c["coefficients"], c["row_coefficients"] * 4),
      ValueError, "row_coefficients coefficient [0-9] does not fit SQ"),
+    (lambda c: Forecast(polynomial_params(), np.zeros((4, 2, 9), dtype=int),
+                        np.full((4, 3, 9), 1 << 40)),
+     ValueError, "row_coefficients coefficient 0 term 0 does not fit SQ"),
+    (lambda c: Forecast(polynomial_params(), c["coefficients"], c["row_coefficients"]),
+     ValueError, r"coefficients must have shape \(4, 2, 9\), not \(4, 8, 9\)"),
     (lambda c: Forecast(small_params(solver=PoseSolverParams(slots=6, rows=8), segments=3),
                         np.zeros((6, 8, 9), dtype=int), np.zeros((6, 8, 9), dtype=int)),
      ValueError, "segments must be a power of two in the gateware .*, not 3"),

@@ -156,19 +156,21 @@ def test_integration_sets_no_flag():
 # --- the block against the model ------------------------------------------------------------
 
 def _simulate(dut, transfers, count, ready=lambda cycle: True, limit=20000, probe=None,
-              start=0):
-    """Drive ``transfers`` at full rate from cycle ``start`` on; returns [(cycle,
-    record)], the cycles of the ``last`` transfers, and what ``probe(ctx)`` returned at
-    the first record."""
+              start=0, gated=None):
+    """Drive ``transfers`` at full rate from cycle ``start`` on (``gated``: per transfer
+    the solver's ``gated`` input with it); returns [(cycle, record)], the cycles of the
+    ``last`` transfers, and what ``probe(ctx)`` returned at the first record."""
     out, ends, probed = [], [], []
 
     async def bench(ctx):
         queue = list(transfers)
+        verdicts = list(gated or [0] * len(queue))
         cycle = 0
         while len(out) < count and cycle < limit:
             ctx.set(dut.i.valid, int(bool(queue) and cycle >= start))
             if queue:
                 ctx.set(dut.i.payload, queue[0])
+                ctx.set(dut.gated, verdicts[len(verdicts) - len(queue)])
             ctx.set(dut.o.ready, int(ready(cycle)))
             taken = ctx.get(dut.i.valid) and ctx.get(dut.i.ready)
             if ctx.get(dut.o.valid) and ctx.get(dut.o.ready):
@@ -211,6 +213,39 @@ def _assert_records(out, model):
                     "q": list(model["q"][k]), "p": list(model["p"][k]),
                     "step": list(model["step"][k])}
         assert _as_lists(record) == expected, k
+
+
+def test_gated_rows_are_flagged_empty():
+    """Rows whose last transfer comes with ``gated`` give the records the model gives
+    with every confidence of those rows set to 0 (the consistency model's gates): flag
+    EMPTY, no step, the slot's pose unchanged; the other rows as before. Rows of two
+    frames, a random third of them gated (SEED printed)."""
+    print(f"SEED={SEED}")
+    params, coefficients, _ = build_case("random")
+    rng = np.random.default_rng(SEED)
+    rows = random_rows(params, rng, 2 * params.rows, framed=True)[0]
+    gate = rng.random(len(rows)) < 0.35
+    zeroed = E.PoseRows(slot=rows.slot, shift=rows.shift, cue=rows.cue,
+                        conf=np.where(gate[:, None], 0, rows.conf), present=rows.present,
+                        row=rows.row, time=rows.time)
+    model = E.pose_solver_model(params, coefficients, zeroed)
+    ungated = E.pose_solver_model(params, coefficients, rows)
+    # the gates change something: gated rows the model would have solved
+    assert np.sum(gate & (ungated["flags"] == 0)) >= 5
+    assert np.all(model["flags"][gate & (ungated["flags"] != int(E.PoseFlag.OVERRUN))]
+                  == int(E.PoseFlag.EMPTY))
+    transfers = rows.transfers()
+    ends = np.cumsum(rows.counts) - 1
+    verdicts = [0] * len(transfers)
+    for r in np.flatnonzero(gate):
+        verdicts[ends[r]] = 1
+    # a gated bit with a row's other transfers means nothing
+    for k in range(len(verdicts)):
+        if k not in set(ends.tolist()):
+            verdicts[k] = int(rng.random() < 0.5)
+    dut = PoseSolver(params, coefficients)
+    out, _, _ = _simulate(dut, transfers, len(rows), limit=200000, gated=verdicts)
+    _assert_records(out, model)
 
 
 def test_row_slots_carry_poses_across_frames():

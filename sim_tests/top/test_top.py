@@ -89,11 +89,24 @@ def logic_in(source):
     return found
 
 
-def test_the_top_only_wires_blocks():
-    """RowtrackTop.elaborate instantiates blocks and connects ports, nothing else: every
+WIRING_METHODS = ("elaborate", "_wire_coefficient_load", "_wire_solver", "_wire_loop")
+
+
+@pytest.mark.parametrize("name", WIRING_METHODS)
+def test_the_top_only_wires_blocks(name):
+    """RowtrackTop.elaborate and the back ends it wires (open or closed loop, chosen when
+    the top is built) instantiate blocks and connect ports, nothing else: every
     assignment is a port driven by a port, no logic, registers or control flow."""
-    found = logic_in(inspect.getsource(RowtrackTop.elaborate))
-    assert not found, "RowtrackTop.elaborate holds logic: " + "; ".join(found)
+    found = logic_in(inspect.getsource(getattr(RowtrackTop, name)))
+    assert not found, f"RowtrackTop.{name} holds logic: " + "; ".join(found)
+
+
+def test_every_method_of_the_top_is_checked_for_logic():
+    """A new method of the top is either wiring (checked above) or plumbing of Python
+    values, never a place to hide logic."""
+    methods = {name for name, value in vars(RowtrackTop).items()
+               if inspect.isfunction(value) or isinstance(value, staticmethod)}
+    assert methods - {"__init__"} == set(WIRING_METHODS)
 
 
 @pytest.mark.parametrize("body, what", [

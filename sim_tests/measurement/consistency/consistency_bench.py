@@ -17,11 +17,12 @@ from emulator.hdl_sim.clocking import reset, start_clock
 from emulator.hdl_sim.cocotb_env import load_params
 from emulator.hdl_sim.payload import pack, unpack
 from emulator.hdl_sim.streams import StreamSink, StreamSource
-from hdl.measurement.consistency import (COUNTS, counts_layout, forecast_layout,
+from hdl.measurement.consistency import (COUNTS, counts_layout, judge_layout,
                                          settings_init, settings_layout)
 from hdl.pose.accumulator import measurement_layout
 
-from sim_tests.measurement.consistency.stimulus import check_against_model, random_rows
+from sim_tests.measurement.consistency.stimulus import (check_against_model, judge_inputs,
+                                                       random_rows)
 
 
 async def _watch_gated(dut, clock, gated):
@@ -42,18 +43,14 @@ async def transfers_match_model(dut, traffic):
     busy = traffic == "full_rate"
     clock = start_clock(dut)
     dut.settings.value = pack(settings_layout(params), settings_init(params))
-    layout = measurement_layout(params.solver)
-    source = StreamSource(dut, "i", layout, clock, rng=rng, valid_prob=1.0 if busy else 0.6)
-    forecasts = StreamSource(dut, "forecast", forecast_layout(params), clock, rng=rng,
-                             valid_prob=1.0 if busy else 0.6)
-    sink = StreamSink(dut, "o", layout, clock, rng=rng, ready_prob=1.0 if busy else 0.5)
+    source = StreamSource(dut, "i", judge_layout(params), clock, rng=rng,
+                          valid_prob=1.0 if busy else 0.6)
+    sink = StreamSink(dut, "o", measurement_layout(params.solver), clock, rng=rng,
+                      ready_prob=1.0 if busy else 0.5)
     gated = []
     await reset(dut)
     cocotb.start_soon(_watch_gated(dut, clock, gated))
-    cocotb.start_soon(forecasts.send(
-        [{"predicted": dict(enumerate(map(int, p))), "delta": dict(enumerate(map(int, d)))}
-         for _, p, d in rows]))
-    await source.send([t for transfers, _, _ in rows for t in transfers])
+    await source.send(judge_inputs(params, rows))
     total = sum(len(t) for t, _, _ in rows)
     await sink.wait_for(total, timeout_cycles=200 * total)
     await ClockCycles(dut.clk, 64)     # the last measurement's scale update is counted

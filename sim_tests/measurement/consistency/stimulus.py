@@ -20,7 +20,8 @@ LARGE = dataclasses.replace(SMALL, scale_initial=31.0)
 
 
 def check_against_model(params, rows, got):
-    """Every transfer, the row verdicts, the counters and the scales equal the model's."""
+    """Every transfer, the row verdicts, the counters and the scales equal the model's;
+    the per-measurement ``judged`` and ``outlier`` bits too where ``got`` has them."""
     model = ConsistencyModel(params)
     n = 0
     for r, (transfers, predicted, delta) in enumerate(rows):
@@ -32,6 +33,12 @@ def check_against_model(params, rows, got):
             assert g == {**w, "conf": int(verdict["conf"][k])}, \
                 f"row {r} transfer {k}: hardware {g}, model {w} {verdict}"
             assert (0 if row_gated else g["conf"]) == w["conf"], f"row {r} transfer {k}"
+            if "judged" in got:
+                far = abs(int(delta[w["slot"] // params.segments])) > params.max_row_offset
+                assert got["judged"][n] == int(transfers[k]["conf"] != 0 and not far), \
+                    f"row {r} transfer {k} judged"
+                assert got["outlier"][n] == int(verdict["outlier"][k]), \
+                    f"row {r} transfer {k} outlier"
             n += 1
     assert n == len(got["transfers"])
     mask = (1 << COUNTER_BITS) - 1
@@ -39,6 +46,14 @@ def check_against_model(params, rows, got):
     if "scale" in got:
         assert got["scale"] == model.scale.tolist()
     return model
+
+
+def judge_inputs(params, rows):
+    """The stage's input transfers of rows ``(transfers, predicted, delta)``: each
+    transfer with its slot's ``predicted`` shift and its camera's ``delta``."""
+    return [{**t, "predicted": int(predicted[t["slot"]]),
+             "delta": int(delta[t["slot"] // params.segments])}
+            for transfers, predicted, delta in rows for t in transfers]
 
 
 def random_rows(params, rng, count):

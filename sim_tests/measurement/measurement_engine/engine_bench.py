@@ -62,28 +62,32 @@ async def engine_matches_model(dut, traffic, faults):
                       ready_prob=1.0 if busy else 0.5)
     dut.cfg.value = pack(cfg_layout, _indexed(configs[0]))
     await reset(dut)
-    columns = 0
     for row_set, cfg in zip(row_sets, configs):
         dut.cfg.value = pack(cfg_layout, _indexed(cfg))   # sets only change between sets
-        set_columns = [_indexed(c) for c in row_set_columns(params, row_set)]
-        columns += len(set_columns)
-        await source.send(set_columns)
-    await sink.wait_for(len(expected.transfers), timeout_cycles=20 * columns + 5000)
+        await source.send([_indexed(c) for c in row_set_columns(params, row_set)])
+    await check_output(dut, params, source, sink, expected, skip, steady=busy and not faults)
+
+
+async def check_output(dut, params, source, sink, expected, skip, *, steady):
+    """Wait for the model's transfers on ``o``; every one after the first ``skip``
+    (priming rows, which meet what an earlier test left in the reference stores) and the
+    final ``status`` must equal the model's. ``steady``: the row source must not have
+    stalled, and every row's latency must be the block's."""
+    cycles = [c for c, _ in source.sent]
+    await sink.wait_for(len(expected.transfers), timeout_cycles=20 * len(cycles) + 5000)
     await ClockCycles(dut.clk, 500)                       # nothing more may come
     got = [payload for _, payload in sink.received]
     assert len(got) == len(expected.transfers), \
         f"{len(got)} transfers, model {len(expected.transfers)}"
     for n, (g, e) in enumerate(zip(got, expected.transfers)):
-        # the priming frame's rows meet what an earlier test left in the stores
         assert n < skip or g == e, f"transfer {n}: hardware {g} != model {e}"
     status = unpack(engine_status_layout(params), dut.status.value)
     assert status == _wrapped(_indexed(expected.status), params.count_bits), \
         f"status {status} != model {expected.status}"
-    cycles = [c for c, _ in source.sent]
     rate = len(cycles) / (cycles[-1] - cycles[0] + 1)
-    dut._log.info(f"{len(got)} transfers, {columns} columns at {rate:.3f} columns/clock, "
-                  f"status {expected.status}")
-    if busy and not faults:     # one column per clock when nothing stalls
+    dut._log.info(f"{len(got)} transfers ({skip} priming), {len(cycles)} columns at "
+                  f"{rate:.3f} columns/clock, status {expected.status}")
+    if steady:                  # one column per clock when nothing stalls
         assert cycles == list(range(cycles[0], cycles[0] + len(cycles))), \
             f"the engine stalled its input: {rate:.3f} columns per clock"
         latency = _row_latencies(source.sent, sink.received)

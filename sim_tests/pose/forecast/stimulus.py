@@ -4,7 +4,9 @@ rows, three frames of the papers' motion, ``emulator.pipeline.run`` with the for
 delay 1): its rows' slots, cues and solver records, replayed through
 :class:`emulator.pose.forecast.ForecastModel` for the expected outputs.
 
-A case is a dict: ``params``, ``coefficients``, ``row_coefficients``, ``initial`` (raw
+A case is a dict: ``params``, ``coefficients``, ``row_coefficients`` (the stores'
+contents in their layouts: polynomial terms or every row), ``coef_raw``,
+``row_coef_raw`` (what they give every row: the model's tables), ``initial`` (raw
 ``motion_fmt``), ``requests`` and ``records`` (payload dicts, one each per row, in
 order), ``expected`` (per row the list of per-camera output dicts) and ``motion`` (per
 row the forecast ``Ŷ``, raw).
@@ -19,12 +21,16 @@ import numpy as np
 from hdl.fixed import SQ
 from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import PoseFlag, PoseSolverParams
-from emulator.pose.forecast import ForecastModel
+from hdl.pose.row_polynomials import evaluate_polynomials
+from emulator.pose.forecast import ForecastModel, output_transfers
 
 __all__ = ["random_case", "closed_loop_case", "expected_outputs", "record", "saturations",
-           "CACHE"]
+           "cached", "CACHE"]
 
 CACHE = Path(__file__).resolve().parents[3] / "build" / "forecast_stimulus"
+#: Part of the cached cases' names: bumped when a case's keys change (v2: the stores'
+#: contents and the model's tables apart).
+VERSION = "v2"
 
 
 def record(params, step=None, row=0, time=0, flags=0):
@@ -38,17 +44,10 @@ def expected_outputs(params, coefficients, row_coefficients, initial, requests, 
     """Per request, the per-camera outputs and Ŷ of the model in its order (predict the
     row, then take its record)."""
     model = ForecastModel(params, coefficients, row_coefficients, initial)
-    k = params.segments
     outputs, motions = [], []
     for request, rec in zip(requests, records):
         out = model.predict(request["slot"], request["row"], np.array(request["cue"]))
-        outputs.append([{
-            "camera": c, "centre": int(out["centre"][c]), "source_row": int(out["source_row"][c]),
-            "centre_saturated": int(out["centre_saturated"][c]),
-            "row_saturated": int(out["row_saturated"][c]),
-            "shift_saturated": _bits(out["shift_saturated"][c * k:(c + 1) * k]),
-            "across_saturated": _bits(out["across_saturated"][c * k:(c + 1) * k]),
-            "last": int(c == params.cameras - 1)} for c in range(params.cameras)])
+        outputs.append(output_transfers(params, out, request["row"]))
         motions.append([int(v) for v in out["motion"]])
         model.take(request["slot"], np.array(rec["step"]) if rec["flags"] == 0 else None)
     return outputs, motions
@@ -62,15 +61,19 @@ def saturations(outputs):
                            + bin(o["across_saturated"]).count("1") for o in outputs)}
 
 
-def _bits(flags):
-    return sum(int(bool(f)) << n for n, f in enumerate(flags))
-
-
 def _finish(case):
     case["expected"], case["motion"] = expected_outputs(
-        case["params"], case["coefficients"], case["row_coefficients"], case["initial"],
+        case["params"], case["coef_raw"], case["row_coef_raw"], case["initial"],
         case["requests"], case["records"])
     return case
+
+
+def model_table(store, contents):
+    """What a store of ``store``'s layout with ``contents`` gives every row (raw
+    coefficients, the gateware's saturation): the model's table."""
+    if not store.coef_terms:
+        return contents
+    return evaluate_polynomials(store, contents, np.arange(store.rows))
 
 
 def small_params(**changes):
@@ -81,19 +84,37 @@ def small_params(**changes):
     return ForecastParams(**{**fields, **changes})
 
 
+def polynomial_params(**changes):
+    """:func:`small_params` with polynomial stores: the solver's of degree 1, the
+    across-rows store of degree 2 (as ``PipelineConfig``), terms with three fraction
+    bits more than the coefficient per power of the (3-bit) row and room to overflow
+    the coefficient formats."""
+    solver = PoseSolverParams(slots=4, rows=8, coef_poly_fmts=(
+        (SQ(6, 16), SQ(3, 19), SQ(12, 10)), (SQ(3, 16), SQ(2, 19), SQ(5, 10))))
+    rows = ((SQ(5, 20), SQ(3, 22), SQ(10, 15)), (SQ(3, 20), SQ(2, 22), SQ(5, 15)),
+            (SQ(2, 20), SQ(2, 22), SQ(3, 15)))
+    return small_params(**{"solver": solver, "row_coef_poly_fmts": rows, **changes})
+
+
 def _store(rng, solver):
-    """Random coefficients: mostly a few pixels per unit motion, some at the extremes."""
-    fmts = [solver.coef_t_fmt] * 3 + [solver.coef_c_fmt] * 3 + [solver.coef_r_fmt] * 3
-    out = np.empty((solver.slots, solver.rows, 9), dtype=np.int64)
-    for k, fmt in enumerate(fmts):
-        shift = rng.integers(0, fmt.width - 1, size=out.shape[:2])
-        out[..., k] = rng.integers(fmt.min_raw, fmt.max_raw + 1, size=out.shape[:2]) >> shift
+    """Random contents: mostly a few pixels per unit motion, some at the extremes (per
+    row, or per polynomial term)."""
+    shape = (solver.slots, solver.entries_per_slot, 9)
+    out = np.empty(shape, dtype=np.int64)
+    for k in range(9):
+        for t in range(solver.coef_terms) if solver.coef_terms else (None,):
+            fmt = solver.coef_fmt(k, t)
+            where = (slice(None), slice(None) if t is None else t, k)
+            size = out[where].shape
+            shift = rng.integers(0, fmt.width - 1, size=size)
+            out[where] = rng.integers(fmt.min_raw, fmt.max_raw + 1, size=size) >> shift
     return out
 
 
 def random_case(seed, rows=40, params=None, scale=1e-2, slot_gaps=(1, 1, 1, 2, 5)):
     """Random rows (slots ``slot_gaps`` apart, cues, steps, some flagged) on random
-    stores; ``scale`` is the motion's size (m, rad)."""
+    stores (per row, or polynomial terms when ``params``' stores are polynomials);
+    ``scale`` is the motion's size (m, rad)."""
     rng = np.random.default_rng(seed)
     params = small_params() if params is None else params
     s = params.solver
@@ -110,9 +131,11 @@ def random_case(seed, rows=40, params=None, scale=1e-2, slot_gaps=(1, 1, 1, 2, 5
         if r["flags"]:
             r["step"] = [0] * 6
     initial = params.motion_fmt.quantize(np.clip(rng.normal(scale=scale, size=6), -0.9, 0.9))
-    return _finish({"params": params, "coefficients": _store(rng, s),
-                    "row_coefficients": _store(rng, params.row_store), "initial": initial,
-                    "requests": requests, "records": records})
+    stores = _store(rng, s), _store(rng, params.row_store)
+    return _finish({"params": params, "coefficients": stores[0], "row_coefficients": stores[1],
+                    "coef_raw": model_table(s, stores[0]),
+                    "row_coef_raw": model_table(params.row_store, stores[1]),
+                    "initial": initial, "requests": requests, "records": records})
 
 
 @lru_cache(maxsize=None)
@@ -120,12 +143,17 @@ def closed_loop_case(rows=32, frames=3, seed=1, delay=1):
     """The closed loop of ``emulator.pipeline.run`` on stereo20 cut to ``rows`` rows:
     per row set in order its slot, row, the cues the loop's forecast used and the
     solver's record (flag EMPTY for a row without measurements). Cached under build/."""
-    path = CACHE / f"stereo20_r{rows}_f{frames}_s{seed}_d{delay}.pkl"
+    return cached(CACHE / f"stereo20_r{rows}_f{frames}_s{seed}_d{delay}_{VERSION}.pkl",
+                  lambda: _closed_loop(rows, frames, seed, delay))
+
+
+def cached(path, build):
+    """The case pickled at ``path``, or ``build()``'s, pickled there."""
     if path.exists():
         with open(path, "rb") as f:
             return pickle.load(f)
-    case = _closed_loop(rows, frames, seed, delay)
-    CACHE.mkdir(parents=True, exist_ok=True)
+    case = build()
+    path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
         pickle.dump(case, f)
     return case
@@ -172,8 +200,9 @@ def _closed_loop(rows, frames, seed, delay):
         for channel, cue in measured.get(key, []):
             if cue:                     # as the loop: 0 is no stereo cue
                 cues[channel, row] = cue
-    case = _finish({"params": params, "coefficients": config.coef_raw,
-                    "row_coefficients": config.row_coef_raw,
+    case = _finish({"params": params, "coefficients": config.coef_store,
+                    "row_coefficients": config.row_coef_store, "coef_raw": config.coef_raw,
+                    "row_coef_raw": config.row_coef_raw,
                     "initial": params.motion_fmt.quantize(initial),
                     "requests": requests, "records": records})
     # the replay is the loop's own forecast (else the cues or records were rebuilt wrong)

@@ -1,0 +1,41 @@
+"""Runs the tracking loop's cocotb bench on a real closed loop (stereo20 cut to pairs 0, 1
+and 4): on Verilator 32 rows, three frames (96 rows, 2,304 measurements); on Icarus 8
+rows, two frames; with RUN_SLOW=1 also 64 rows, three frames at loop delay 2. The case
+is built once (a few seconds) and kept under build/."""
+
+import os
+import pickle
+
+import pytest
+
+from emulator.hdl_sim.runner import run_cocotb
+from hdl.pose.tracking_loop import TrackingLoop
+
+from sim_tests.pose.tracking_loop.stimulus import CACHE, closed_loop_case
+
+
+def _run(sim, case, tag):
+    path = CACHE / f"bench_{tag}.pkl"
+    CACHE.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as f:
+        pickle.dump(case, f)
+    dut = TrackingLoop(case["params"], case["stage"], case["coefficients"],
+                       case["row_coefficients"], case["solver_store"])
+    print(f"tracking loop bench {tag}: {len(case['expected'])} rows, "
+          f"{len(case['inputs'])} measurements, delay {case['params'].loop_delay_rows}")
+    run_cocotb(dut, name="tracking_loop", tag=tag, sim=sim,
+               test_module="sim_tests.pose.tracking_loop.tracking_loop_bench",
+               extra_env={"LOOP_CASE": str(path)})
+
+
+def test_tracking_loop_verilator_closed_loop():
+    _run("verilator", closed_loop_case(rows=32, frames=3), "p014_r32_f3")
+
+
+def test_tracking_loop_icarus_small():
+    _run("icarus", closed_loop_case(rows=8, frames=2), "p014_r8_f2")
+
+
+@pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="the longer loop runs with RUN_SLOW=1")
+def test_tracking_loop_verilator_long_delay_2():
+    _run("verilator", closed_loop_case(rows=64, frames=3, delay=2), "p014_r64_f3_d2")
