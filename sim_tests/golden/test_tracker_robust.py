@@ -262,3 +262,32 @@ def test_before_any_typical_slot_the_block_geometry_is_the_reference(rng):
     print(solved.step, solved.condition)
     assert solved.partial and abs(solved.step[2]) < 1e-6
     assert np.allclose(solved.step[[0, 1, 3, 4, 5]], truth[[0, 1, 3, 4, 5]], atol=2e-3)
+
+
+def test_a_slot_is_determinable_only_with_enough_cameras_and_directions(rng):
+    """``SlotSolver.determinable``: what the slot's usable segments could determine had
+    they all matched (the status's update fraction counts only such slots). Full rows of
+    twenty cameras are; two cameras (fewer than ``min_cameras``), rows whose Tz column
+repeats Tx (that direction undetermined), or the
+    same rows marked not usable (no reference at the frame boundary) are not."""
+    from golden.rig import preset
+    from golden.tracker_params import TrackerParams
+    from golden.tracker_solve import SlotSolver
+    m = 40
+    camera = np.arange(m) % 20
+    solver = SlotSolver(preset("stereo20"), TrackerParams(), oracle=True)
+    design = rng.normal(0, 300, (m, 6))
+    usable = np.ones(m, dtype=bool)
+    assert solver.determinable(design, camera, usable)
+    assert not solver.determinable(design, camera % 2, usable)
+    assert not solver.determinable(design, camera, camera < 2)
+    flat = design.copy()
+    flat[:, 2] = 0.5 * flat[:, 0]
+    assert not solver.determinable(flat, camera, usable)
+    solved = solver.solve(np.full(m, np.nan), design, np.zeros(m), camera, camera * 8,
+                          np.zeros((m, 3)), np.zeros(3), recovering=False, usable=usable)
+    assert solved.step is None and solved.determinable    # nothing matched: could have
+    solved = solver.solve(np.full(m, np.nan), design, np.zeros(m), camera, camera * 8,
+                          np.zeros((m, 3)), np.zeros(3), recovering=False,
+                          usable=np.zeros(m, dtype=bool))
+    assert solved.step is None and not solved.determinable
