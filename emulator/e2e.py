@@ -16,7 +16,10 @@ rows of frames ≥ 1 solved; level 2: the fixed-point solver within :data:`FLOAT
 of a float64 solve of the same routed measurements, and the lanes' measurements in the
 loop against the float matcher on the same rows and centres (:func:`lane_agreement`,
 :data:`SUBPIXEL_SHARE` within :data:`SUBPIXEL_TOLERANCE`, none beyond
-:data:`SHIFT_BOUND`).
+:data:`SHIFT_BOUND`). The pipeline is fed row sets of row ``y`` of every camera; a rig
+whose trigger offsets put its cameras further apart than the front end's row aligner can
+buffer (:meth:`hdl.pipeline_config.PipelineConfig.alignment_shortfall`) fails too: the
+hardware could not form those row sets.
 """
 
 import numpy as np
@@ -214,7 +217,10 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     ``golden`` (the default golden tracker) also ``golden_vs_truth``; and
     ``ratio_to_golden_b.<axis>``, ``share_of_motion.<axis>``, ``solved_fraction`` (rows
     of frames ≥ 1), ``loop_delay_rows`` and ``loop_delay_clocks`` (rows × row period at
-    the pipeline's clock), ``lanes.*`` (:func:`lane_agreement`, ``lanes.worst_at``)."""
+    the pipeline's clock), ``lanes.*`` (:func:`lane_agreement`, ``lanes.worst_at``),
+    ``front_end.trigger_skew_rows``, ``front_end.skew_rows_held`` and
+    ``front_end.shortfall`` (:meth:`hdl.pipeline_config.PipelineConfig.alignment_shortfall`:
+    ``None`` when the row aligner can form the row sets the pipeline is fed)."""
     frames, rows, level = path.levels()
     truth = true_steps(dataset, frames, rows)
     step_frames, step_rows, steps = path.steps()
@@ -234,6 +240,10 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
              "emulator_vs_golden_b": (level, gold_b),
              "true_motion": (truth, np.zeros_like(truth)),
              "emulator_vs_float": (result.steps(config), float_steps(config, result.rows))}
+    figures.update({"front_end.trigger_skew_rows": config.trigger_skew_rows,
+                    "front_end.skew_rows_held": config.top.camera.skew_rows_held(
+                        config.router.temporal.width),
+                    "front_end.shortfall": config.alignment_shortfall()})
     if golden is not None:
         pairs["golden_vs_truth"] = (golden_trajectory_steps(golden, dataset, frames, rows),
                                     truth)
@@ -274,6 +284,9 @@ def check_closed_loop(figures):
     if figures["lanes.max_shift_px"] > SHIFT_BOUND:
         failures.append(f"lanes ↔ float matcher: a well-textured shift differs by more than "
                         f"{SHIFT_BOUND} px ({lanes})")
+    if figures.get("front_end.shortfall"):
+        failures.append(f"front end: {figures['front_end.shortfall']}; the hardware path "
+                        f"assumes row sets this front end cannot form")
     solved = figures["solved_fraction"]
     if not solved >= SOLVED_FRACTION:
         failures.append(f"hardware path: {solved:.1%} of the rows of frames ≥ 1 solved, "

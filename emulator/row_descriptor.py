@@ -164,6 +164,11 @@ class FollowedReferenceStoreModel:
         return reference, no_reference
 
 
+def _half_width(row, params):
+    """A framed row's run-time half-width (``None``: the built maximum)."""
+    return params.max_half_width if row.half_width is None else row.half_width
+
+
 class TemporalLaneModel:
     """One camera: each row matched against the same row of the previous frame, or with
     ``follow=True`` against a row of the previous frame chosen per row (the forecast's
@@ -203,15 +208,16 @@ class TemporalLaneModel:
                                    else self.store.exchange(rows, bits, sources))
         return _records(rows, measure_rows(
             bits, reference, [row.centre for row in rows], p, cur_strong=strong,
-            bad=[row.bad for row in rows], no_reference=no_reference))
+            bad=[row.bad for row in rows], no_reference=no_reference,
+            half_widths=[_half_width(row, p) for row in rows]))
 
     def process_row(self, row):
         """Measurements of one framed row (:meth:`process_rows` of one)."""
         return self.process_rows([row])
 
-    def run(self, beats, centres):
+    def run(self, beats, centres, half_widths=None):
         """Measurements of a beat stream (see :func:`frame_rows`)."""
-        return self.process_rows(frame_rows(beats, centres, self.params))
+        return self.process_rows(frame_rows(beats, centres, self.params, half_widths))
 
 
 def stereo_pairs(rows_a, rows_b, frame_bits):

@@ -171,8 +171,25 @@ def describe(rows, params, kernel=None):
     rows = np.asarray(rows)
     bits = np.zeros(rows.shape, dtype=bool)
     r = params.radius
-    bits[..., r:rows.shape[-1] - r] = response(rows, params, kernel) > 0
+    values = response(rows, params, kernel)
+    bits[..., r:rows.shape[-1] - r] = values > _rounding_noise(values, rows, params, kernel)
     return bits
+
+
+#: Relative size of float rounding noise in a response (a few hundred ulps of the sum of
+#: |tap × pixel| over the kernel: far below any response a pixel step of 1 gives).
+FLOAT_NOISE = 1e-12
+
+
+def _rounding_noise(values, rows, params, kernel):
+    """Largest float rounding error of :func:`response` on ``rows``: a flat stretch's
+    exact response is 0 (the kernel's taps sum to zero), but in float it comes out as
+    ±1e-14·pixel, which must not set a bit that the hardware's exact integer response
+    leaves clear. 0 for exact integer arithmetic."""
+    if values.dtype.kind in "iu":
+        return 0
+    k = dog2_kernel(params) if kernel is None else np.asarray(kernel)
+    return FLOAT_NOISE * float(np.abs(k).sum()) * float(np.abs(rows).max(initial=0))
 
 
 def strength(rows, params, kernel=None, threshold=None):

@@ -26,13 +26,17 @@ import numpy as np
 
 from .checks import check_int, check_number
 
-__all__ = ["HUBER_K", "BIWEIGHT_CK", "huber_weight", "biweight_rho",
+__all__ = ["HUBER_K", "BIWEIGHT_CK", "SCALE_CEILING", "huber_weight", "biweight_rho",
            "RobustScale", "HoltWinters", "DelayedForecast", "information_gain"]
 
 #: Huber and biweight tuning constant (Gelper et al.: k = 2).
 HUBER_K = 2.0
 #: Biweight normalisation for k = 2 (consistency of the τ²-scale at the normal law).
 BIWEIGHT_CK = 2.52
+#: Largest robust scale of the shift innovations (pixels) of the tracker (issue 18) and
+#: of the hardware's consistency stage: a persistent bias beyond ``k`` times it stays an
+#: outlier (see :class:`RobustScale`).
+SCALE_CEILING = 1.0
 
 
 def huber_weight(x, k=HUBER_K):

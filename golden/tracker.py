@@ -273,6 +273,7 @@ class Tracker:
         last = np.clip(e.hi - offset + margin, 0, cam.width)
         clean = (np.take_along_axis(invalid, last, 1) == np.take_along_axis(invalid, first, 1))
         ok = clean & (share >= p.min_depth_fraction)
+        e.usable = ok                   # could measure, matched or not
         e.shift = np.where(ok, e.shift, np.nan)
         e.peak_ratio = np.where(ok, e.peak_ratio, 0.0)
         columns = self.columns
@@ -338,7 +339,9 @@ class Tracker:
             ratio=np.concatenate([e.peak_ratio.ravel() for e in entries] or [[]]),
             unit=np.concatenate([e.unit_translation.reshape(-1, 3) for e in entries]
                                 or [np.zeros((0, 3))]),
+            usable=np.concatenate([e.usable.ravel() for e in entries] or [[]]).astype(bool),
             source=[(e, i) for e in entries for i in range(len(e.rows))])
+        self.solver.set_geometry(table.design)
         order = np.argsort(table.slot, kind="stable")
         bounds = np.searchsorted(table.slot[order], np.append(occupied, stop))
         previous = self.track.at(slots.times[occupied] - slots.period)
@@ -357,7 +360,7 @@ class Tracker:
         solved = self.solver.solve(
             table.innovation[mine] - design @ (forecast - linearised_at), design,
             table.ratio[mine], table.camera[mine], table.channel[mine], table.unit[mine],
-            forecast[:3], self.recovering)
+            forecast[:3], self.recovering, table.usable[mine])
         if solved.step is not None and not solved.partial and p.solver == "nonlinear":
             parts = [table.source[m // p.segments] for m in mine[::p.segments]]
             out["linear_step"][s] = solved.step
@@ -366,7 +369,7 @@ class Tracker:
             out["refined_step"][s] = solved.step
         step, normal, typical = solved.step, solved.normal, self.solver.typical
         status = self.status.update(step is not None, solved.judged, solved.outliers,
-                                    solved.condition, solved.used)
+                                    solved.condition, solved.used, solved.determinable)
         gain = None
         if step is not None and p.motion_gain == "information" and typical is not None:
             gain = information_gain(normal, typical, p.alpha)

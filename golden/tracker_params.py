@@ -6,6 +6,7 @@ import numpy as np
 
 from .checks import check_int, check_number
 from .descriptor import DescriptorParams, MatchParams
+from .temporal_filter import SCALE_CEILING
 
 __all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "BOUNDARIES", "TrackerParams",
            "TrackResult"]
@@ -105,7 +106,8 @@ class TrackerParams:
         ... and measurements from at least this many cameras (fewer cameras leave
         directions weakly determined; such a slot carries on from the latest pose).
     max_condition : float
-        Largest condition number of the weighted, column-scaled design matrix.
+        Largest condition number of the weighted design matrix, both column-scaled and
+        scaled by the typical slot's information (an unknown the slot barely measures).
     boundary : str
         What a slot does whose system exceeds ``max_condition`` (frame boundaries, where
         few cameras contribute): ``"partial"`` steps in the directions the system
@@ -154,7 +156,7 @@ class TrackerParams:
     scale_initial: float = 0.5
     scale_floor: float = 0.1
     scale_smoothing: float = 0.1
-    scale_ceiling: float = 1.0
+    scale_ceiling: float = SCALE_CEILING
     disparity_sigma: float = 1.0
     shift_sigma: float = 0.3
     consistency_k: float = 4.0
@@ -246,7 +248,8 @@ class TrackResult:
     rotations, positions : (S, 3, 3), (S, 3) estimated world-from-rig poses
     tracked : (S,) bool, false for the initialisation slots (poses given)
     updated : (S,) bool, the slot made a measurement step
-    condition : (S,) condition number of the weighted, column-scaled system (NaN: none)
+    condition : (S,) condition number of the weighted system, the larger of its column-scaled
+        one and the one scaled by the typical slot's information (NaN: none)
     equations : (S,) measurements with non-zero confidence
     camera_confidence : (S, N) best segment confidence of each camera (NaN: no row)
     motion : (S, 6) the smoothed one-frame motion Y of each slot

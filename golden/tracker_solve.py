@@ -14,9 +14,9 @@ from types import SimpleNamespace
 import numpy as np
 
 from .depth import stereo_pairs
-from .pose_lsq import normal_equations, solve_normal
+from .pose_lsq import normal_equations, scaled_condition, solve_normal
 from .temporal_filter import RobustScale, huber_weight
-from .tracker_robust import GroupConsistency, depth_weights, partial_solve
+from .tracker_robust import GroupConsistency, depth_weights, partial_solve, reference_condition
 
 __all__ = ["SlotSolver", "camera_groups", "RECOVERY_SCALES", "TYPICAL_SMOOTHING"]
 
@@ -67,18 +67,39 @@ class SlotSolver:
                                             params.consistency_smoothing,
                                             params.consistency_share)
         self.typical = None
+        #: Unit-weight information of every segment with a design row in the current
+        #: block (:meth:`set_geometry`): the reference scaling until a typical exists.
+        self.geometry = None
 
-    def solve(self, residual, design, ratio, camera, channel, unit, translation, recovering):
+    def set_geometry(self, design):
+        """The block's design rows (M, 6), matched or not: what the cameras could
+        measure. Before the first solved slot it stands in for the typical information
+        when judging which unknowns a slot determines (only its diagonal counts)."""
+        finite = np.all(np.isfinite(design), axis=1)
+        self.geometry, _ = normal_equations(design[finite], np.zeros(finite.sum()),
+                                            np.ones(finite.sum()))
+
+    @property
+    def reference(self):
+        """The information the unknowns are scaled by: the typical slot's, else the
+        block's geometry."""
+        return self.typical if self.typical is not None else self.geometry
+
+    def solve(self, residual, design, ratio, camera, channel, unit, translation, recovering,
+              usable=None):
         """The slot's step from its measurements (innovations ``residual`` (M,) at the
         forecast, design rows (M, 6), peak ratios, cameras, channels, depth gains ``unit``
-        (M, 3), forecast ``translation``); ``recovering``: no forecast to judge against.
+        (M, 3), forecast ``translation``); ``recovering``: no forecast to judge against;
+        ``usable`` (M,) bool: the segments that could measure, matched or not (a usable
+        reference and depth; None: every segment with a finite design row).
 
         Returns a namespace: ``step`` (None: no step), ``normal`` (the information it
         used), ``condition``, ``partial``, ``used`` (confident measurements), ``judged``,
         ``outliers``, ``confidence`` and ``outlier`` (M,), ``camera_confidence`` (best per
         camera, NaN: no row), ``dropped`` group (-1: none), ``beyond`` (a step refused
         because it moves some segment further than the search window reaches: the
-        matches cannot have measured it).
+        matches cannot have measured it), ``determinable`` (:meth:`determinable`: had
+        every usable segment matched, the slot could have stepped).
         """
         p = self.params
         m = len(residual)
@@ -86,7 +107,10 @@ class SlotSolver:
                                  dropped=-1, beyond=False, confidence=np.zeros(m),
                                  outlier=np.zeros(m, dtype=bool),
                                  camera_confidence=np.full(self.cameras, np.nan))
-        ok = np.isfinite(residual) & np.all(np.isfinite(design), axis=1) & (ratio > 0)
+        finite = np.all(np.isfinite(design), axis=1)
+        solved.determinable = self.determinable(
+            design, camera, finite if usable is None else finite & usable)
+        ok = np.isfinite(residual) & finite & (ratio > 0)
         confidence, outlier = solved.confidence, solved.outlier
         weight = np.ones(np.count_nonzero(ok))
         if not recovering:
@@ -103,6 +127,27 @@ class SlotSolver:
         solved.used, solved.judged = int(np.count_nonzero(confidence)), int(ok.sum())
         solved.outliers = int(outlier.sum())
         return solved
+
+    def determinable(self, design, camera, usable):
+        """Could the slot determine the motion if every ``usable`` segment matched: the
+        unit-weight system of their design rows from at least ``min_cameras`` cameras
+        within ``max_condition`` (both scalings, as :meth:`_system`). A slot that could not
+        (a readout gap, frame-boundary rows without a reference: the rig's timing, not the
+        scene or the estimate) tells nothing about whether tracking holds."""
+        p = self.params
+        if len(np.unique(camera[usable])) < p.min_cameras:
+            return False
+        normal, _ = normal_equations(design[usable], np.zeros(usable.sum()),
+                                     np.ones(usable.sum()))
+        return bool(self._condition(normal) <= p.max_condition**2)
+
+    def _condition(self, normal):
+        """Squared condition of ``normal``: the larger of the Jacobi-scaled one and the
+        one scaled by :attr:`reference`."""
+        condition = scaled_condition(normal)
+        if self.reference is not None:
+            condition = max(condition, reference_condition(normal, self.reference))
+        return condition
 
     def _robust(self, solved, ok, residual, design, camera, unit, translation, recovering):
         p = self.params
@@ -129,6 +174,12 @@ class SlotSolver:
                 self._system(solved, design[ok], cleaned[ok], confidence[ok])
             if outlier.sum() > p.lost_outlier_fraction * ok.sum():
                 solved.step = None      # most measurements disagree: not re-acquired
+            elif solved.partial:
+                # a re-acquisition resets the motion filter to this one slot's solution:
+                # it must determine every direction (a partial step keeps the forecast,
+                # i.e. the motion before the loss, in the others, and its kept but weakly
+                # determined directions took 0.3–0.4 rad per frame on the 4-pair rig)
+                solved.step, solved.normal, solved.partial = None, None, False
         reach = p.recovery_window if recovering else p.window
         if solved.step is not None and np.abs(design[ok] @ solved.step).max() > reach:
             solved.step = None          # shifts beyond the search: not what was matched
@@ -136,17 +187,24 @@ class SlotSolver:
 
     def _system(self, solved, design, residual, confidence):
         """Solve the weighted system into ``solved``: the full step if it is well
-        conditioned, else (``boundary="partial"``) the step in its determined directions."""
+        conditioned, else (``boundary="partial"``) the step in its determined directions.
+
+        Well conditioned means both Jacobi-scaled (the unknowns against each other within
+        the slot) and scaled by the typical information (once there is one): an unknown
+        the slot barely measures is not determined however its own column scales
+        (:func:`golden.tracker_robust.reference_condition`; before the first solved slot,
+        scaled by the block's geometry). ``condition`` reports the larger of the two."""
         p = self.params
         normal, rhs = normal_equations(design, residual, confidence)
         solution = solve_normal(normal, rhs, p.max_condition**2)
-        solved.condition = float(np.sqrt(solution.condition))
+        condition = self._condition(normal)
+        solved.condition = float(np.sqrt(condition))
         solved.step, solved.normal, solved.partial = None, None, False
-        if solution.ok:
+        if solution.ok and condition <= p.max_condition**2:
             solved.step, solved.normal = solution.step, normal
             self.typical = normal if self.typical is None else \
                 (1 - TYPICAL_SMOOTHING) * self.typical + TYPICAL_SMOOTHING * normal
         elif p.boundary == "partial":
             solved.step, solved.normal = partial_solve(normal, rhs, p.max_condition,
-                                                       self.typical)
+                                                       self.reference)
             solved.partial = solved.step is not None

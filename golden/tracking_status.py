@@ -77,6 +77,8 @@ class StatusMonitor:
     def __init__(self, window, params):
         self.window, self.params = int(window), params
         self._history = deque(maxlen=self.window)
+        #: whether each of the last ``window`` determinable slots stepped
+        self._updates = deque(maxlen=self.window)
         self.lost = False
 
     def _statistics(self):
@@ -86,20 +88,31 @@ class StatusMonitor:
         formed = np.isfinite(condition)
         median_condition = float(np.median(condition[formed])) if formed.any() else math.inf
         measurements = confident[stepped > 0].mean() if stepped.any() else 0.0
-        return stepped.mean(), outlier_share, median_condition, measurements
+        updates = float(np.mean(self._updates)) if self._updates else 0.0
+        return updates, outlier_share, median_condition, measurements
 
-    def update(self, stepped, judged, outliers, condition, confident):
+    def update(self, stepped, judged, outliers, condition, confident, determinable=True):
         """Status of a slot that ``stepped`` (bool) with ``judged`` innovations of which
         ``outliers`` were beyond the Huber threshold, the system's ``condition`` (NaN:
-        none formed) and ``confident`` measurements with non-zero confidence."""
+        none formed) and ``confident`` measurements with non-zero confidence.
+
+        ``determinable``: the slot could have stepped had every usable segment matched
+        (:meth:`golden.tracker_solve.SlotSolver.determinable`). The update fraction is
+        that of the last ``window`` determinable slots: a slot the rig's geometry and
+        timing leave undetermined (the readout gap between frames, frame-boundary rows
+        without a reference) is no evidence of a loss, and a fraction of the few
+        determinable slots of a window spanning the gap would be."""
         self._history.append((float(stepped), judged, outliers, condition, confident))
+        if determinable:
+            self._updates.append(float(stepped))
         p = self.params
         updates, outlier_share, condition, measurements = self._statistics()
         full = len(self._history) == self.window
-        if full and (updates < p.lost_update_fraction
-                     or outlier_share > p.lost_outlier_fraction):
+        if ((len(self._updates) == self.window and updates < p.lost_update_fraction)
+                or (full and outlier_share > p.lost_outlier_fraction)):
             if not self.lost:
                 self._history.clear()      # a recovery must fill a whole new window
+                self._updates.clear()
             self.lost = True
             return TrackingStatus.LOST
         degraded = (updates < p.degraded_update_fraction

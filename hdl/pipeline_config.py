@@ -11,6 +11,7 @@ typed twice.
 No Amaranth at import time.
 """
 
+import math
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
@@ -94,6 +95,11 @@ class PipelineConfig:
     frame_rows : float
         Row periods per frame period (``1/(fps·t_r)``, blanking included): the
         consistency stage's reference-time correction.
+    trigger_skew_rows : float
+        Largest difference of the cameras' trigger offsets, in row periods: how far
+        apart in time the cameras read the same row index (0 for synchronized triggers;
+        stereo8-board: 1.5 ms = 108 rows). :meth:`alignment_shortfall` compares it with
+        what the front end's row aligner holds.
     """
     top: TopParams
     table: np.ndarray
@@ -107,6 +113,7 @@ class PipelineConfig:
     row_store: PoseSolverParams
     rig_name: str
     frame_rows: float
+    trigger_skew_rows: float
 
     @classmethod
     def for_rig(cls, rig, *, segments=DEFAULT_SEGMENTS, coef_width=DEFAULT_COEF_WIDTH,
@@ -164,7 +171,8 @@ class PipelineConfig:
                      coef_error_lsb=error, row_table=row_table, row_coef_raw=row_coef_raw,
                      row_coef_store=row_coef_store, row_coef_error_lsb=row_error,
                      row_store=row_store, rig_name=rig.name,
-                     frame_rows=1.0 / (rig.cameras[0].fps * rig.cameras[0].t_r))
+                     frame_rows=1.0 / (rig.cameras[0].fps * rig.cameras[0].t_r),
+                     trigger_skew_rows=_trigger_skew_rows(rig))
         if not closed_loop:
             return config
         return replace(config, top=top.closing(config.forecast(), config.consistency()))
@@ -239,6 +247,23 @@ class PipelineConfig:
                               replace(stage, solver=window.solver,
                                       max_row_offset=min(stage.max_row_offset, rows - 1)))
 
+    def alignment_shortfall(self):
+        """``None`` when the front end's row aligner can form this pipeline's row sets
+        (row ``y`` of every camera, what the emulator's pipeline feeds the lanes), else
+        a sentence saying why not: the rig's trigger skew in rows against
+        :meth:`hdl.front_end.params.CameraParams.skew_rows_held` and the buffer and row
+        queue the skew would need."""
+        camera, width = self.top.camera, self.router.temporal.width
+        held = camera.skew_rows_held(width)
+        skew = math.ceil(self.trigger_skew_rows - 1e-9)
+        if skew <= held:
+            return None
+        return (f"the rig's trigger offsets read the same row {self.trigger_skew_rows:.1f} "
+                f"row periods apart, the row aligner holds {held} (buffer_depth "
+                f"{camera.buffer_depth} pixels, row_queue_depth {camera.row_queue_depth} at "
+                f"{width}-pixel rows): row sets of row y need buffer_depth ≥ {skew * width} "
+                f"and row_queue_depth ≥ {skew + 1} per camera")
+
     # --- the parts each model reads ------------------------------------------------------
 
     @property
@@ -258,6 +283,13 @@ class PipelineConfig:
 def fields_default(cls, name):
     """The default of dataclass ``cls``'s field ``name``."""
     return next(f.default for f in fields(cls) if f.name == name)
+
+
+def _trigger_skew_rows(rig):
+    """Largest difference of ``rig``'s trigger offsets, each in its camera's row
+    periods."""
+    offsets = [cam.trigger_offset / cam.t_r for cam in rig.cameras]
+    return float(max(offsets) - min(offsets))
 
 
 def _store(solver, table, degree, rig_name, name):

@@ -70,6 +70,10 @@ class RowDescriptor(wiring.Component):
     centre : In(params.centre_fmt.shape()), without ``follow`` only
         Window centre in pixels (e.g. the shift predicted from the motion), sampled
         with each row's first pixel, saturated to ``±centre_range``.
+    half_width : In(params.half_width_fmt.shape())
+        Run-time half-width ``w`` of the shift window: shifts ``centre ± w`` within the
+        built window, sampled with each row's first pixel; outside ``min_half_width …
+        max_half_width`` (0 included) the built maximum (the engine flags it).
     o : Out(stream.Signature(params.measurement_layout()))
         Measurements (formats in ``hdl.descriptor.params.row_measurement_layout``).
     out_of_range : Out(hdl.descriptor.store.COUNT_BITS), with ``follow`` only
@@ -90,6 +94,7 @@ class RowDescriptor(wiring.Component):
         self.fir = DescriptorFIR(params)
         self.matcher = ShiftMatcher(params)
         members = {"i": In(stream.Signature(params.input_layout(follow))),
+                   "half_width": In(params.half_width_fmt.shape()),
                    "o": Out(stream.Signature(params.measurement_layout()))}
         if follow:
             members["out_of_range"] = Out(COUNT_BITS)
@@ -109,6 +114,7 @@ class RowDescriptor(wiring.Component):
         m.submodules.store = self.store
         m.submodules.matcher = self.matcher
         wiring.connect(m, wiring.flipped(self.i), self.framer.i)
+        m.d.comb += self.framer.half_width.eq(self.half_width)
         if self.follow:
             m.d.comb += self.out_of_range.eq(self.store.out_of_range)
         else:
@@ -134,6 +140,8 @@ class StereoRowDescriptor(wiring.Component):
     o : Out(stream.Signature(params.measurement_layout()))
         Measurements with ``a``'s metadata; ``bad`` if either row was bad;
         ``no_reference`` is always 0.
+
+    The stereo lane searches its whole built window (no run-time half-width).
 
     Latency :attr:`latency` from the later of the pair's last pixels to segment 0.
     No memory: the reference is the partner row itself.
@@ -164,7 +172,8 @@ class StereoRowDescriptor(wiring.Component):
             m.submodules[name] = getattr(self, name)
         wiring.connect(m, wiring.flipped(self.a), self.framer_a.i)
         wiring.connect(m, wiring.flipped(self.b), self.framer_b.i)
-        m.d.comb += [self.framer_a.centre.eq(self.centre), self.framer_b.centre.eq(0)]
+        m.d.comb += [self.framer_a.centre.eq(self.centre), self.framer_b.centre.eq(0),
+                     self.framer_a.half_width.eq(self.params.max_half_width)]
         wiring.connect(m, self.framer_a.o, self.join.a)
         wiring.connect(m, self.framer_b.o, self.join.b)
         wiring.connect(m, self.join.o, self.fir.i)

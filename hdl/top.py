@@ -39,7 +39,7 @@ from hdl.bus.register_file import RegisterFile
 from hdl.streams import dvp_signature
 from hdl.top_params import DEFAULT_SEGMENTS, TopParams
 
-__all__ = ["RowtrackTop", "register_file", "closed_loop_top"]
+__all__ = ["RowtrackTop", "register_file", "board_config", "closed_loop_top"]
 
 
 def register_file(params=TopParams()):
@@ -47,13 +47,20 @@ def register_file(params=TopParams()):
     return RegisterFile(params.regmap())
 
 
-def closed_loop_top(rig_name="stereo8-board"):
-    """The closed-loop top of preset rig ``rig_name`` (its cameras, pairs and coefficient
-    stores, K = K_s = 4): the catalog's ``top_closed``, the build a board user loads."""
-    from golden.rig import preset
+def board_config(rig, **changes):
+    """The closed-loop pipeline a board carries for ``rig`` (a :class:`golden.rig.Rig`):
+    its cameras, pairs and coefficient stores, K = K_s = :data:`DEFAULT_SEGMENTS`;
+    ``changes`` go to :meth:`PipelineConfig.for_rig` (e.g. ``clk_hz``, ``baud``)."""
     from hdl.pipeline_config import PipelineConfig
-    config = PipelineConfig.for_rig(preset(rig_name), closed_loop=True,
-                                    stereo_segments=DEFAULT_SEGMENTS)
+    return PipelineConfig.for_rig(rig, closed_loop=True, stereo_segments=DEFAULT_SEGMENTS,
+                                  **changes)
+
+
+def closed_loop_top(rig_name="stereo8-board"):
+    """The closed-loop top of preset rig ``rig_name`` (:func:`board_config`): the
+    catalog's ``top_closed``, the build a board user loads."""
+    from golden.rig import preset
+    config = board_config(preset(rig_name))
     return RowtrackTop(config.top, coefficients=config.coef_store,
                        forecast_stores=config.forecast_stores)
 

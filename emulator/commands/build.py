@@ -9,6 +9,10 @@ NAME = "build"
 HELP = ("write Verilog, XDC and a Vivado Tcl script for a Zynq board "
         "(and the register map, packet format and board docs)")
 
+#: The board whose build the generated docs describe (``--write-docs`` without
+#: ``--board``): the one that carries the board rig.
+DOCS_BOARD = "microzed-7020"
+
 
 def add_arguments(parser):
     from hdl import board
@@ -21,41 +25,53 @@ def add_arguments(parser):
     parser.add_argument("--baud", type=int, default=3_000_000,
                         help="pose UART baud rate after reset (default: %(default)s)")
     parser.add_argument("--rig", metavar="RIG",
-                        help="build the pipeline of this rig (a preset or a .yaml/.toml "
-                             "file; one camera per camera port, in stereo pairs), with its "
-                             "coefficient table in the solver's store; default: the board's "
-                             "ports paired (0, 1), (2, 3), ... and an empty store")
+                        help="build the closed-loop pipeline of this rig (a preset or a "
+                             ".yaml/.toml file; one camera per camera port, in stereo pairs), "
+                             "with its coefficient tables in the solver's and the forecast's "
+                             "stores; default: the board's rig (microzed-7020: stereo8-board), "
+                             "or for a board without one its ports paired (0, 1), (2, 3), ... "
+                             "open loop with an empty store")
     parser.add_argument("--write-docs", type=Path, metavar="DIR",
                         help="write DIR/register_map.md, DIR/packet_format.md, DIR/board.md")
 
 
 def _params(spec, args):
-    """The top's parameters and the solver's initial coefficients (None: empty store)."""
+    """The top's parameters, the solver's initial coefficients and the forecast's stores
+    (None, None: empty store, open loop)."""
     from hdl.board.zynq import default_params
     fclk_hz = round(args.fclk_mhz * 1e6)
     if not 10e6 <= fclk_hz <= 250e6:
         raise UsageError(f"--fclk-mhz must be between 10 and 250, not {args.fclk_mhz:g}")
-    if args.rig is not None:
-        return _rig_params(spec, args.rig, fclk_hz, args.baud)
+    rig = args.rig if args.rig is not None else spec.rig
+    if rig is not None:
+        return _rig_params(spec, rig, fclk_hz, args.baud)
     try:
-        return default_params(spec, fclk_hz).replace(baud=args.baud), None
+        return default_params(spec, fclk_hz).replace(baud=args.baud), None, None
     except ValueError as exc:
         raise UsageError(f"--baud: {exc}") from None
 
 
 def _rig_params(spec, rig_name, fclk_hz, baud):
-    """The board top built through the one configuration door for ``rig_name``."""
+    """The board top of ``rig_name``, closed loop (:func:`hdl.top.board_config`)."""
     from golden.rig import load_rig
-    from hdl.pipeline_config import PipelineConfig
+    from hdl.top import board_config
     try:
         rig = load_rig(rig_name)
         if len(rig.cameras) != spec.n_cameras:
             raise ValueError(f"{len(rig.cameras)} cameras, but {spec.name} has "
                              f"{spec.n_cameras} camera ports")
-        config = PipelineConfig.for_rig(rig, clk_hz=fclk_hz, baud=baud)
+        config = board_config(rig, clk_hz=fclk_hz, baud=baud)
     except (OSError, TypeError, ValueError) as exc:
         raise UsageError(f"--rig {rig_name}: {exc}") from None
-    return config.top, config.coef_store
+    return config.top, config.coef_store, config.forecast_stores
+
+
+def docs_params():
+    """The parameters the generated docs describe: :data:`DOCS_BOARD`'s default build."""
+    from emulator.cli import build_parser
+    from hdl import board
+    args = build_parser().parse_args(["build", "--write-docs", "docs"])
+    return _params(board.board(DOCS_BOARD), args)[0]
 
 
 def write_docs(out_dir, params):
@@ -84,19 +100,21 @@ def run(args):
         raise UsageError("give --board NAME (and/or --write-docs DIR)")
     if args.board is not None and args.board not in board.BOARDS:
         raise UsageError(f"unknown board {args.board!r}; boards are: {', '.join(board.names())}")
-    spec = board.board(args.board or "arty-z7-20")
-    params, coefficients = _params(spec, args)
+    spec = board.board(args.board or DOCS_BOARD)
+    params, coefficients, forecast_stores = _params(spec, args)
     if args.write_docs is not None:
         for path in write_docs(args.write_docs, params):
             print(f"wrote {path}")
     if args.board is None:
         return 0
     out = args.out or Path("build") / args.board
-    files = board.build_board(spec, out, params, coefficients=coefficients)
+    files = board.build_board(spec, out, params, coefficients=coefficients,
+                              forecast_stores=forecast_stores)
     regmap = params.regmap()
     info = {"board": spec.name, "part": spec.platform_class.device + spec.platform_class.package
             + "-" + spec.platform_class.speed, "fclk_hz": params.clk_hz, "baud": params.baud,
-            "n_cameras": spec.n_cameras, "rig": args.rig, "reg_base": regmap.base, "reg_size": regmap.size,
+            "n_cameras": spec.n_cameras, "rig": args.rig or spec.rig,
+            "closed_loop": params.closed_loop, "reg_base": regmap.base, "reg_size": regmap.size,
             "map_crc": regmap.layout_crc(), "files": files}
     (out / "build_info.json").write_text(json.dumps(info, indent=2) + "\n")
     for name in files:

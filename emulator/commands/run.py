@@ -106,7 +106,8 @@ class Job:
 
 
 def _cut_rows(rig, rows):
-    """``rig`` with its middle ``rows`` rows, read out over the same frame period."""
+    """``rig`` with its middle ``rows`` rows, read out over the same time (frame period,
+    blanking and exposure unchanged, so a rig with vertical blanking cuts too)."""
     if rows is None:
         return rig
     height = {cam.height for cam in rig.cameras}
@@ -115,9 +116,12 @@ def _cut_rows(rig, rows):
     height, = height
     if not 3 <= rows <= height:
         raise UsageError(f"--rows must be between 3 and the rig's height {height}, not {rows}")
-    fps = rig.cameras[0].fps
+    readouts = {cam.t_r * height for cam in rig.cameras}
+    if max(readouts) - min(readouts) > 1e-12:
+        raise UsageError("--rows needs cameras of one readout time")
     try:
-        return rig.replace_cameras(height=rows, cy=(rows - 1) / 2, t_r=1 / (fps * rows))
+        return rig.replace_cameras(height=rows, cy=(rows - 1) / 2,
+                                   t_r=max(readouts) / rows)
     except (TypeError, ValueError) as exc:
         raise UsageError(f"--rows {rows}: {exc}") from None
 

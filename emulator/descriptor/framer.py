@@ -16,7 +16,9 @@ class FramedRow:
 
     ``bad`` is the row's final verdict (reason bits, short, long, or interrupted row, row
     index outside the frame); ``centre`` is the saturated centre sampled with its first
-    pixel; ``padded`` says the framer filled the row's end with zero pixels.
+    pixel; ``padded`` says the framer filled the row's end with zero pixels;
+    ``half_width`` is the saturated run-time half-width of the shift window (``None``:
+    the built maximum, ``RowDescriptorParams.max_half_width``).
     """
     pixels: np.ndarray
     camera: int
@@ -26,17 +28,19 @@ class FramedRow:
     centre: int
     bad: bool
     padded: bool
+    half_width: int = None
 
     def meta(self):
         return {"camera": self.camera, "frame": self.frame, "row": self.row,
                 "t_first": self.t_first}
 
 
-def frame_rows(beats, centres, params):
+def frame_rows(beats, centres, params, half_widths=None):
     """The framer: a camera beat stream to rows of exactly ``params.width`` pixels.
 
-    ``centres[i]`` is the centre port's value when beat ``i`` is accepted (only the one
-    with a row's ``first`` beat is used). A ``first`` beat opens a row (and pads the end
+    ``centres[i]`` (and ``half_widths[i]``, default the built maximum) is the centre
+    (half-width) port's value when beat ``i`` is accepted (only the one with a row's
+    ``first`` beat is used; the half-width saturated by ``params.saturate_half_width``). A ``first`` beat opens a row (and pads the end
     of a row left incomplete); beats outside an open row are dropped; a row whose
     ``last`` comes early is padded with zeros, one whose pixel ``width − 1`` lacks
     ``last`` is complete there and the rest is dropped. All those rows are bad.
@@ -50,14 +54,17 @@ def frame_rows(beats, centres, params):
         rows.append(row)
 
     pixels = []
-    for beat, centre in zip(beats, centres):
+    if half_widths is None:
+        half_widths = [params.max_half_width] * len(beats)
+    for beat, centre, half_width in zip(beats, centres, half_widths):
         if beat["first"]:
             if cur is not None:
                 close(cur, pixels)
             cur, pixels = FramedRow(
                 pixels=None, camera=beat["camera"], frame=beat["frame"], row=beat["row"],
                 t_first=beat["t_first"], centre=params.clamp_centre(centre),
-                bad=beat["row"] >= params.height, padded=False), []
+                bad=beat["row"] >= params.height, padded=False,
+                half_width=params.saturate_half_width(half_width)[0]), []
         elif cur is None:
             continue
         pixels.append(beat["data"])

@@ -13,6 +13,7 @@ from golden.descriptor import (cost_peaks, describe, match, segment_bounds, stre
 from hdl.fixed import UQ, Overflow, Rounding, resize
 
 __all__ = ["descriptor_bits", "hamming_costs", "measure_rows", "measure_segments",
+           "window_bounds",
            "against_golden", "subpixel_errors", "confidences"]
 
 
@@ -94,18 +95,41 @@ def _per_row(name, values, n):
     return np.broadcast_to(values.reshape(-1), (n,))
 
 
-def _cost_facts(cur_bits, ref_bits, centres, params, cur_strong):
-    """:func:`golden.descriptor.cost_peaks` and the textureless flags of rows ``(N, W)``
-    at clamped ``centres`` ``(N,)``: one batched call per distinct centre (it sets the
-    compared columns and the shifts)."""
+def window_bounds(half_widths, params):
+    """First and last cost index ``(N,)`` of the run-time windows of saturated
+    half-widths ``(N,)`` (``params.window_indices``)."""
+    w = np.asarray(half_widths, dtype=np.int64)
+    return (np.maximum(0, -w - params.match.shift_min),
+            np.minimum(params.n_shifts - 1, w - params.match.shift_min))
+
+
+def _windowed_peaks(costs, first, last, params):
+    """:func:`golden.descriptor.cost_peaks` of ``(N, K, n)`` costs with the shifts
+    outside each row's run-time window ``first … last`` ``(N,)`` read as the matcher's
+    ``top`` (above every cost: a segment is shorter than ``width − 2R``) and the edge
+    at the run-time window's ends; the arithmetic of :mod:`hdl.descriptor.matcher`."""
+    index = np.arange(params.n_shifts)
+    outside = (index < first[:, None, None]) | (index > last[:, None, None])
+    top = (1 << params.cost_fmt.width) - 1
+    peaks = cost_peaks(np.where(outside, top, costs))._asdict()
+    best = peaks["best"]
+    peaks["edge"] = (best == first[:, None]) | (best == last[:, None])
+    return peaks
+
+
+def _cost_facts(cur_bits, ref_bits, centres, half_widths, params, cur_strong):
+    """:func:`_windowed_peaks` and the textureless flags of rows ``(N, W)`` at clamped
+    ``centres`` and saturated ``half_widths`` ``(N,)``: one batched call per distinct
+    centre (it sets the compared columns and the shifts)."""
     n, k = len(cur_bits), params.segments
     facts = {name: np.zeros((n, k), dtype=np.int64)
              for name in ("best", "c0", "c2", "cm", "cp", "edge", "flat")}
     d, m = params.descriptor, params.match
+    first, last = window_bounds(half_widths, params)
     for c in np.unique(centres):
         at = centres == c
         costs = hamming_costs(cur_bits[at], ref_bits[at], int(c), params)
-        for name, value in cost_peaks(costs)._asdict().items():
+        for name, value in _windowed_peaks(costs, first[at], last[at], params).items():
             facts[name][at] = value
         strong = None if cur_strong is None else cur_strong[at]
         facts["flat"][at] = textureless(cur_bits[at], d, m, int(c), strong)
@@ -113,12 +137,14 @@ def _cost_facts(cur_bits, ref_bits, centres, params, cur_strong):
 
 
 def measure_rows(cur_bits, ref_bits, centres, params, *, cur_strong=None, bad=False,
-                 no_reference=False):
+                 no_reference=False, half_widths=None):
     """Per-segment results of ``N`` rows, each field an int array of shape ``(N, K)``.
 
     ``cur_bits``, ``ref_bits`` (and ``cur_strong``, the current rows' strong columns, see
     ``golden.descriptor.textureless``): ``(N, W)``; ``centres``, ``bad``,
-    ``no_reference``: one per row (or one for all). Fields: ``shift`` (d*),
+    ``no_reference``, ``half_widths`` (the run-time half-width, saturated by
+    ``params.saturate_half_width``; ``None``: the built maximum): one per row (or one
+    for all). Fields: ``shift`` (d*),
     ``subpixel`` (raw ``subpixel_fmt``: |δ| = floor(|C₋ − C₊|·2^f / D) rounded half-up
     on the magnitude, D = C₋ − 2C₀ + C₊; 0 on the window edge), ``confidence`` (raw
     ``confidence_fmt``: (c₂ + κ)/(c₁ + κ) floored to one extra fraction bit, saturated,
@@ -132,7 +158,11 @@ def measure_rows(cur_bits, ref_bits, centres, params, *, cur_strong=None, bad=Fa
     no_reference = _per_row("no_reference", np.asarray(no_reference, dtype=bool), n)[:, None]
     if cur_strong is not None:
         cur_strong = np.asarray(cur_strong, dtype=bool)
-    f = _cost_facts(cur_bits, ref_bits, centres, params, cur_strong)
+    if half_widths is None:
+        half_widths = params.max_half_width
+    half_widths = _per_row("half_widths", [params.saturate_half_width(w)[0]
+                                           for w in np.ravel(half_widths)], n)
+    f = _cost_facts(cur_bits, ref_bits, centres, half_widths, params, cur_strong)
     c0, cm, cp, edge = f["c0"], f["cm"], f["cp"], f["edge"].astype(bool)
     sub = params.subpixel_frac_bits
     den = np.where(edge, 1, cm - 2 * c0 + cp)
@@ -154,26 +184,33 @@ def measure_rows(cur_bits, ref_bits, centres, params, *, cur_strong=None, bad=Fa
 
 
 def measure_segments(cur_bits, ref_bits, centre, params, *, cur_strong=None, bad=False,
-                     no_reference=False):
+                     no_reference=False, half_width=None):
     """:func:`measure_rows` of one row: each field an int array of shape ``(K,)``."""
     strong = None if cur_strong is None else np.asarray(cur_strong)[None]
     results = measure_rows(np.asarray(cur_bits)[None], np.asarray(ref_bits)[None], centre,
-                           params, cur_strong=strong, bad=bad, no_reference=no_reference)
+                           params, cur_strong=strong, bad=bad, no_reference=no_reference,
+                           half_widths=half_width)
     return {key: value[0] for key, value in results.items()}
 
 
-def against_golden(cur, ref, centre, params):
+def against_golden(cur, ref, centre, params, half_width=None):
     """The golden float matcher and this model on the same rows (current and reference
     pixels, ``(W,)``): returns ``(golden MatchResult, model results, model shift in
-    pixels)``; level 2 of the three levels of truth."""
+    pixels)``; level 2 of the three levels of truth. With a run-time ``half_width`` the
+    golden matcher searches the equivalent float window ``[−w, w] ∩ [shift_min,
+    shift_max]`` (its compared columns follow that window, the model's the built one)."""
     c = params.clamp_centre(centre)
     d, m = params.descriptor, params.match
+    if half_width is not None:
+        w = params.saturate_half_width(half_width)[0]
+        m = m.replace(shift_min=max(m.shift_min, -w), shift_max=min(m.shift_max, w))
     cur_f, ref_f = np.asarray(cur, dtype=np.float64), np.asarray(ref, dtype=np.float64)
     golden = match(describe(cur_f, d), describe(ref_f, d), d, m, c,
                    cur_strong=strength(cur_f, d))
     cur_bits, cur_strong = descriptor_bits(cur, params)
     ref_bits, _ = descriptor_bits(ref, params)
-    model = measure_segments(cur_bits, ref_bits, c, params, cur_strong=cur_strong)
+    model = measure_segments(cur_bits, ref_bits, c, params, cur_strong=cur_strong,
+                             half_width=half_width)
     return golden, model, model["shift"] + params.subpixel_fmt.to_float(model["subpixel"])
 
 

@@ -24,7 +24,8 @@ a camera with ``|Δ| > max_row_offset`` gets zero confidence (counted):
 5. scale: ``u = min(|r|/kσ, 1)²``, ``ρ/c_k = 1 − (1 − u)³`` (each product half-even
    into ``ratio_fmt``), factor ``f = (1 − λ) + λc_k · ρ/c_k`` (half-even into
    ``gain_fmt``), ``σ'² = σ² f`` (half-even to twice ``scale_fmt``'s fraction bits), ``σ'`` its square
-   root rounded to nearest, saturated into ``scale_fmt`` (counted), at least the floor.
+   root rounded to nearest, at most the ceiling ``scale_ceiling`` (≤ the format's
+   largest; an update beyond it is counted ``scale_saturated``), at least the floor.
 
 Per row, the golden's gates: unless some confidence reaches ``min_confidence`` and at
 least ``min_cameras`` cameras have a confidence, every confidence of the row is set to 0
@@ -132,8 +133,8 @@ class ConsistencyModel:
         n = resize(*mul(square, square_fmt, factor, p.gain_fmt), wide, Rounding.HALF_EVEN,
                    Overflow.ERROR)
         root = _nearest_sqrt(n)
-        self.counts["scale_saturated"] += int(np.count_nonzero(root > p.scale_fmt.max_raw))
-        return np.maximum(np.minimum(root, p.scale_fmt.max_raw), p.floor_raw)
+        self.counts["scale_saturated"] += int(np.count_nonzero(root > p.ceiling_raw))
+        return np.maximum(np.minimum(root, p.ceiling_raw), p.floor_raw)
 
     def time_factor(self, delta):
         """Raw ``time_fmt`` factors ``P/(P − Δ)`` of row offsets ``delta`` (integers)."""

@@ -10,8 +10,9 @@ A *row set* is what the row aligner hands on for one row key: ``{camera: beats}`
 each present camera's beats (dicts of ``hdl.streams.camera_pixel_layout`` fields) from
 its ``first`` to its ``last`` beat. A *configuration* is a dict of the engine's ``cfg``
 port fields (:func:`hdl.measurement.engine_params.engine_config_layout`): ``temporal``
-and ``stereo`` window centres and ``enable``, as they stand when the set's first column
-enters (the hardware samples them there).
+and ``stereo`` window centres, ``enable`` and the temporal lanes' ``half_width``, as they
+stand when the set's first column enters (the hardware samples them there);
+``half_width`` may be left out: its register's reset, the built maximum.
 
 In the closed loop (``EngineParams.follow``) the temporal lanes follow rows and the
 engine also takes the forecast's transfers (``hdl.measurement.engine_params.
@@ -47,6 +48,8 @@ class ForkResult:
         lane takes at each beat.
     stereo : list of (beats_a, centres, beats_b)
         Per pair: its stereo lane's two beat streams and the centre at each ``a`` beat.
+    half_widths : list of list of int
+        Per camera: the ``cfg.half_width`` its temporal lane takes at each beat.
     status : dict
         ``row_sets``, ``dropped``, ``stereo_skipped`` (list per pair); with ``follow``
         also ``forecast_skipped``, ``unforecast``; unwrapped counts.
@@ -55,6 +58,13 @@ class ForkResult:
     temporal: list
     stereo: list
     status: dict
+    half_widths: list
+
+
+def _half_width(params, cfg):
+    """A configuration's temporal half-width (absent: the built maximum, the register's
+    reset)."""
+    return cfg.get("half_width", params.temporal.max_half_width)
 
 
 @dataclass(frozen=True)
@@ -69,7 +79,8 @@ class EngineResult:
     transfers : list of dict
         The solver's input stream (``hdl.pose_solver.measurement_layout`` fields).
     status : dict
-        The ``status`` port's fields (unwrapped): the fork's counters and ``router``.
+        The ``status`` port's fields (unwrapped): the fork's counters, ``router`` and
+        ``half_width_error`` (of the last configuration: the hardware's bit is live).
     """
     fork: ForkResult
     temporal: list
@@ -156,6 +167,7 @@ def fork_row_sets(params, row_sets, configs, joined=None):
         raise ValueError("joined must be given exactly when params.follow")
     temporal = [([], [], []) if follow else ([], []) for _ in range(params.cameras)]
     stereo = [([], [], []) for _ in params.pairs]
+    half_widths = [[] for _ in range(params.cameras)]
     tickets = []
     status = {"row_sets": 0, "dropped": 0, "stereo_skipped": [0] * len(params.pairs)}
     for n, (row_set, cfg) in enumerate(zip(row_sets, configs, strict=True)):
@@ -170,6 +182,7 @@ def fork_row_sets(params, row_sets, configs, joined=None):
         for k in cameras:
             beats, centres, *sources = temporal[k]
             beats += row_set[k]
+            half_widths[k] += [_half_width(params, cfg)] * len(row_set[k])
             if follow:
                 centres += [joined[n]["centre"][k]] * len(row_set[k])
                 sources[0].extend([joined[n]["source"][k]] * len(row_set[k]))
@@ -187,14 +200,15 @@ def fork_row_sets(params, row_sets, configs, joined=None):
         tickets.append({"cameras": sum(1 << k for k in cameras),
                         "pairs": sum(1 << j for j, ok in enumerate(complete) if ok),
                         "frame": frame, "row": row})
-    return ForkResult(tickets=tickets, temporal=temporal, stereo=stereo, status=status)
+    return ForkResult(tickets=tickets, temporal=temporal, stereo=stereo, status=status,
+                      half_widths=half_widths)
 
 
-def _followed_lane(params, beats, centres, sources):
+def _followed_lane(params, beats, centres, sources, half_widths):
     """A following temporal lane on its beats: ``(measurements, out_of_range)``; each
-    row takes the centre and source row of its ``first`` beat."""
+    row takes the centre, source row and half-width of its ``first`` beat."""
     lane = TemporalLaneModel(params, follow=True)
-    rows = frame_rows(beats, centres, params)
+    rows = frame_rows(beats, centres, params, half_widths)
     firsts = [source for beat, source in zip(beats, sources) if beat["first"]]
     return lane.process_rows(rows, firsts[:len(rows)]), lane.store.out_of_range
 
@@ -210,16 +224,20 @@ def run_engine(params, row_sets, configs, forecast=None):
         joined, join_status = join_forecasts(params, row_sets, configs, rows)
         fork = fork_row_sets(params, row_sets, configs, joined)
         fork.status.update(join_status)
-        lanes = [_followed_lane(params.temporal, *lane) for lane in fork.temporal]
+        lanes = [_followed_lane(params.temporal, *lane, widths)
+                 for lane, widths in zip(fork.temporal, fork.half_widths)]
         temporal = [measurements for measurements, _ in lanes]
         extra["out_of_range"] = [count for _, count in lanes]
     else:
         fork = fork_row_sets(params, row_sets, configs)
-        temporal = [TemporalLaneModel(params.temporal).run(beats, centres)
-                    for beats, centres in fork.temporal]
+        temporal = [TemporalLaneModel(params.temporal).run(beats, centres, widths)
+                    for (beats, centres), widths in zip(fork.temporal, fork.half_widths)]
     stereo = [StereoLaneModel(params.stereo).run(beats_a, centres, beats_b)
               for beats_a, centres, beats_b in fork.stereo]
     transfers, router = route_tickets(params.router, fork.tickets, temporal, stereo)
+    last = configs[-1] if configs else {}
+    extra["half_width_error"] = int(params.temporal.saturate_half_width(
+        _half_width(params, last))[1])
     return EngineResult(fork=fork, temporal=temporal, stereo=stereo, transfers=transfers,
                         status={**fork.status, **extra, "router": router})
 

@@ -45,21 +45,32 @@ def cdc_constraints(spec):
             f"set_clock_groups -asynchronous {' '.join(groups)}")
 
 
-def build_board(spec, out_dir, params=None, *, coefficients=None, name="top"):
+def build_board(spec, out_dir, params=None, *, coefficients=None, forecast_stores=None,
+                name="top"):
     """Write the Vivado inputs for ``spec`` to ``out_dir``; returns the file names.
 
     ``out_dir`` receives ``top.v``, ``top.xdc`` (pins, I/O standards, clocks, the
     asynchronous clock groups of :func:`cdc_constraints`), ``top.tcl`` (project for the
     board's part, synthesis with the false paths Amaranth's FIFOs and synchronizers
-    need, place, route, reports, bitstream) and ``build_top.sh``. ``params`` and
-    ``coefficients`` (the solver's initial coefficient store) are :class:`ZynqTop`'s.
+    need, place, route, reports, bitstream) and ``build_top.sh``. ``params``,
+    ``coefficients`` (the solver's initial coefficient store) and ``forecast_stores``
+    are :class:`ZynqTop`'s.
     """
     from hdl.board.zynq import ZynqTop
     platform = spec.platform()
-    plan = platform.build(ZynqTop(spec, params, coefficients), name=name, do_build=False,
+    top = ZynqTop(spec, params, coefficients, forecast_stores)
+    plan = platform.build(top, name=name, do_build=False,
                           add_constraints=cdc_constraints(spec))
     plan.extract(out_dir)
     return sorted(plan.files)
+
+
+def _default_build(spec):
+    if spec.rig is not None:
+        return (f"Without `--rig` it builds the closed-loop top of rig `{spec.rig}` "
+                f"(`hdl.top.board_config`), its coefficient stores preloaded.")
+    return ("Without `--rig` it builds its ports paired (0, 1), (2, 3), ... open loop with "
+            "an empty coefficient store (load `solver.coef` before the first frame).")
 
 
 def markdown(fclk_hz=100_000_000):
@@ -74,7 +85,7 @@ def markdown(fclk_hz=100_000_000):
         sections.append(f"""## {spec.title}: `--board {board_name}`
 
 Part `{part}`, {spec.n_cameras} cameras, register window `{params.reg_base:#010x}` +
-`{params.reg_size:#x}`. {spec.notes}
+`{params.reg_size:#x}`. {_default_build(spec)} {spec.notes}
 
 Pixel clocks are constrained for up to {spec.pclk_hz / 1e6:g} MHz; I/O standard
 {spec.iostandard}.
@@ -109,8 +120,10 @@ FCLK0 is set to {fclk_hz / 1e6:g} MHz (e.g. `/sys/devices/soc0/fclk0`), then rea
 
 The tracker is the whole pipeline of `hdl/top.py`: camera front end, measurement
 engine (a temporal row-descriptor lane per camera, a stereo lane per neighbouring pair
-of camera ports, the router), pose solver, pose output. The lanes are built for
-full-width rows (`camera.max_width`): set `camera.input.width` to it. Load the solver's
+of camera ports, the router), pose solver, pose output, and for a rig's build the closed
+measurement loop (forecast, consistency, tracking status; [architecture.md](architecture.md)).
+The lanes are built for full-width rows (`camera.max_width`): set `camera.input.width` to
+it. A build without a rig starts with an empty coefficient store: load the solver's
 coefficients (`solver.coef`, the rig's table) before the first frame.
 
 Each camera's PCLK drives its own clock domain (`pclk<k>`, reset from the system reset

@@ -5,6 +5,10 @@ Each camera's PCLK is on the P pin of a clock-capable pair (JA pin 7 = U18, Chip
 IO29 = U7, IO37 = Y7, IO41 = Y9), the only four such pins the board brings to its
 headers. The ChipKit digital pins have series resistors on the board; keep camera
 cables short at the pixel clocks in mind here (up to 48 MHz).
+
+Four cameras are all it can take: the board rig (eight cameras) needs 97 pins, eight of
+them clock-capable, and the headers bring out 59 PL pins, four clock-capable; it is
+built for the MicroZed 7020 (:mod:`hdl.board.microzed`).
 """
 
 from amaranth_boards.arty_z7 import ArtyZ720Platform
@@ -25,6 +29,13 @@ def _jb(pin):
 
 def _ck(pin):
     return ("ck_io", 0, pin)
+
+
+def _header_pins():
+    """Package pins of the Pmod JA and JB and the ChipKit digital/analog headers."""
+    return frozenset(pin for c in ArtyZ720Platform.connectors
+                     if (c.name, c.number) in (("pmod", 0), ("pmod", 1), ("ck_io", 0))
+                     for pin in c.mapping.values() if pin != "-")
 
 
 ARTY_Z7_20 = BoardSpec(
@@ -48,7 +59,10 @@ ARTY_Z7_20 = BoardSpec(
     clock_capable=XC7Z020_CLG400_CLOCK_P,
     connector_names={("pmod", 0): "Pmod JA pin", ("pmod", 1): "Pmod JB pin",
                      ("ck_io", 0): "ChipKit"},
-    notes="The pose UART's TXD is on Pmod JB pin 2, the TXD position of a Digilent "
+    user_pins=_header_pins(),
+    notes="Four cameras in two stereo pairs cannot observe all six axes; the board rig "
+          "(eight cameras) does not fit these headers and is built for the MicroZed 7020. "
+          "The pose UART's TXD is on Pmod JB pin 2, the TXD position of a Digilent "
           "type-4 (UART) Pmod: a Pmod USBUART (or any 3.3 V USB-serial adapter's RXD) "
           "in the top row of JB receives the packets. The Arty Z7's own USB-UART is "
           "wired to the PS (MIO), not to the fabric.",

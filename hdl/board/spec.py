@@ -56,6 +56,14 @@ class BoardSpec:
     connector_names : dict
         Board-silkscreen names of amaranth-boards connectors, ``(name, number) -> str``,
         for the pin table.
+    user_pins : frozenset of str
+        Package pins of the PL user I/O the board brings to its connectors (from the
+        board's documentation), to count the pins a build leaves free; every assigned
+        pin must be one of them. Empty: not counted.
+    rig : str, optional
+        The rig preset whose closed-loop top ``rowtrack build --board`` builds by
+        default (:func:`hdl.top.board_config`); None: the ports paired and an empty
+        coefficient store (:func:`hdl.board.zynq.default_params`).
     """
     name: str
     title: str
@@ -67,9 +75,10 @@ class BoardSpec:
     pclk_hz: float = 48e6
     notes: str = ""
     connector_names: dict = None
+    user_pins: frozenset = frozenset()
+    rig: str = None
 
     def __post_init__(self):
-        used = [self.uart_tx]
         for k, cam in enumerate(self.cameras):
             if len(cam.data) != 8:
                 raise ValueError(f"camera {k} of {self.name} must have 8 data pins, "
@@ -77,11 +86,24 @@ class BoardSpec:
             if self.resolve(cam.pclk) not in self.clock_capable:
                 raise ValueError(f"pclk of camera {k} on {self.name} must be a clock-capable "
                                  f"P pin, not {self.resolve(cam.pclk)}")
-            used += [cam.pclk, cam.vsync, cam.href, *cam.data, cam.fsin]
-        physical = [self.resolve(pin) for pin in used]
+        physical = self.pins_used()
         twice = {p for p in physical if physical.count(p) > 1}
         if twice:
             raise ValueError(f"pin {sorted(twice)[0]} of {self.name} is assigned twice")
+        outside = sorted(set(physical) - self.user_pins) if self.user_pins else []
+        if outside:
+            raise ValueError(f"pin {outside[0]} of {self.name} is not one of its user_pins")
+
+    def pins_used(self):
+        """Package pins the cameras and the UART take."""
+        pins = [self.uart_tx]
+        for cam in self.cameras:
+            pins += [cam.pclk, cam.vsync, cam.href, *cam.data, cam.fsin]
+        return [self.resolve(pin) for pin in pins]
+
+    def pins_left(self):
+        """Package pins of :attr:`user_pins` no camera or UART takes, sorted."""
+        return sorted(self.user_pins - set(self.pins_used()))
 
     @property
     def n_cameras(self):
@@ -140,4 +162,9 @@ class BoardSpec:
                 row(f"camera {k} D{bit}", pin)
             row(f"camera {k} FSIN (out)", cam.fsin)
         row("pose UART TXD (out)", self.uart_tx)
+        if self.user_pins:
+            left = self.pins_left()
+            rows.append(f"\n{len(self.pins_used())} of the board's {len(self.user_pins)} "
+                        f"user PL pins on these connectors are taken; {len(left)} left"
+                        + (f" ({', '.join(left)})." if left else "."))
         return "\n".join(rows)

@@ -56,12 +56,14 @@ class ZynqTop(Elaboratable):
     params : TopParams, optional
         Default: :func:`default_params`. ``camera.n_cameras`` must equal the board's
         camera ports; ``clk_hz`` is the FCLK_CLK0 frequency the PS is configured for.
-        For a rig: ``PipelineConfig.for_rig(rig, clk_hz=...).top``.
+        For a rig: ``hdl.top.board_config(rig, clk_hz=...).top``.
     coefficients : ndarray, optional
-        The solver's initial coefficient store (a rig's ``PipelineConfig.coef_raw``).
+        The solver's initial coefficient store (a rig's ``PipelineConfig.coef_store``).
+    forecast_stores : (ndarray, ndarray), closed loop only
+        The forecast's stores (``PipelineConfig.forecast_stores``).
     """
 
-    def __init__(self, board, params=None, coefficients=None):
+    def __init__(self, board, params=None, coefficients=None, forecast_stores=None):
         if not isinstance(board, BoardSpec):
             raise TypeError(f"board must be a BoardSpec, not {board!r}")
         params = default_params(board) if params is None else params
@@ -73,6 +75,7 @@ class ZynqTop(Elaboratable):
         self.board = board
         self.params = params
         self.coefficients = coefficients
+        self.forecast_stores = forecast_stores
 
     def elaborate(self, platform):
         m = Module()
@@ -81,7 +84,8 @@ class ZynqTop(Elaboratable):
         m.d.comb += ClockSignal("sync").eq(getattr(ps7, FCLK0_NET))
         m.submodules.reset_sync = ResetSynchronizer(ps7.reset, domain="sync")
         m.submodules.gp0 = bridge = GP0ToAXI4Lite()
-        m.submodules.tracker = tracker = RowtrackTop(self.params, coefficients=self.coefficients)
+        m.submodules.tracker = tracker = RowtrackTop(self.params, coefficients=self.coefficients,
+                                                      forecast_stores=self.forecast_stores)
         wiring.connect(m, ps7.gp0, bridge.gp0)
         wiring.connect(m, bridge.lite, tracker.axi)
 

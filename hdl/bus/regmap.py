@@ -24,9 +24,12 @@ __all__ = ["rowtrack_map", "MAGIC", "GROUP_OFFSETS"]
 #: ``ident.magic``: ASCII "RWTK".
 MAGIC = 0x5257544B
 
-#: Byte offset of each block's group in the window.
-GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "camera": 0x200, "solver": 0x400,
-                 "engine": 0x500, "status": 0x600, "loop": 0x700}
+#: Byte offset of each block's group in the window. The camera group grows with the
+#: number of cameras (about 25 bytes each), so it has the window's upper half
+#: (0x800..0xFFF, room for about 75 cameras; stereo20 uses 0x214 bytes); every other
+#: group has 0x100 bytes.
+GROUP_OFFSETS = {"ident": 0x000, "pose_out": 0x100, "solver": 0x400, "engine": 0x500,
+                 "status": 0x600, "loop": 0x700, "camera": 0x800}
 
 
 def _package_version():
@@ -160,25 +163,30 @@ def _engine(params):
                          f"(`min_strong` = {temporal.match.min_strong} columns per segment), "
                          "the bit-transition limit and the peak-ratio cap and offset are "
                          "quantized into the lanes at build time "
-                         "(`hdl/descriptor/params.py`); only the search-window centres "
-                         "move at run time.", [
+                         "(`hdl/descriptor/params.py`); the search-window centres and the "
+                         "temporal window's half-width are set at run time.", [
         Register("geometry", data.StructLayout({"segments": 8, "pairs": 8, "slots": 16}),
                  Access.CONST, "temporal segments per row, stereo pairs and the solver "
                  "slots they fill",
                  value=params.segments | len(params.pairs) << 8
                  | params.solver.slots << 16),
-        Register("control", engine_config_layout(engine), Access.RW, "pipeline enable "
-                 "and the search-window centres, integer pixels, saturated to "
-                 f"±{temporal.centre_range} (temporal) and ±{stereo.centre_range} (stereo) "
-                 "(reset: enabled, every centre 0: temporal shifts "
+        Register("control", engine_config_layout(engine), Access.RW, "pipeline enable, "
+                 "the search-window centres, integer pixels, saturated to "
+                 f"±{temporal.centre_range} (temporal) and ±{stereo.centre_range} (stereo), "
+                 "and `half_width` w, the temporal lanes' search window `centre ± w` within "
+                 f"the built one ({temporal.min_half_width}…{temporal.max_half_width}; "
+                 "outside: the built maximum, and `status.half_width_error` is set; the "
+                 "stereo lanes search their whole window) "
+                 "(reset: enabled, every centre 0, w the built maximum: temporal shifts "
                  f"{temporal.match.shift_min}…{temporal.match.shift_max}, disparities "
                  f"{stereo.match.shift_min}…{stereo.match.shift_max})",
-                 reset={"enable": 1}),
+                 reset={"enable": 1, "half_width": temporal.max_half_width}),
         Register("status", engine_status_layout(engine), Access.RO, "wrapping counters: "
                  "row sets received, dropped (`enable` 0), skipped per stereo pair (a "
                  "camera of the pair missing); the router's rows sent to the solver, rows "
                  "without a weighted measurement, misaligned measurements and stereo lanes "
-                 "that had no measurement of their row"),
+                 "that had no measurement of their row; `half_width_error`: "
+                 "`control.half_width` is out of range (live)"),
     ])
 
 

@@ -9,7 +9,15 @@ from amaranth.lib.wiring import In, Out
 from hdl.descriptor.layouts import framed_layout
 from hdl.descriptor.params import check_lane_params
 
-__all__ = ["RowFramer", "StereoJoin"]
+__all__ = ["RowFramer", "StereoJoin", "saturate_half_width"]
+
+
+def saturate_half_width(params, value):
+    """``(w in force, out of range)`` of a run-time half-width ``value`` (an unsigned
+    ``half_width_fmt`` value): ``params.saturate_half_width`` in gateware, the one
+    definition the lanes and the engine's status bit share."""
+    ok = (value >= params.min_half_width) & (value <= params.max_half_width)
+    return Mux(ok, value, params.max_half_width), ~ok
 
 
 class RowFramer(wiring.Component):
@@ -38,6 +46,11 @@ class RowFramer(wiring.Component):
     centre : In(params.centre_fmt.shape()), without ``follow`` only
         Shift-window centre, integer pixels, sampled with each row's first beat and
         saturated to ``±centre_range`` (with ``follow``: the beat's ``centre``).
+    half_width : In(params.half_width_fmt.shape())
+        Run-time half-width ``w`` of the shift window (``[−w, w]`` around the centre,
+        within the built window), sampled with each row's first beat; a value outside
+        ``min_half_width … max_half_width`` (0 included) is taken as the built maximum
+        (``saturate_half_width``; the engine flags it).
     o : Out(stream.Signature(framed_layout(params, 1)))
 
     Latency 1 (output register); one beat per clock, except one clock per pad pixel.
@@ -50,7 +63,8 @@ class RowFramer(wiring.Component):
         self.params = check_lane_params(params)
         self.follow = follow
         members = {"i": In(stream.Signature(params.input_layout(follow))),
-                   "o": Out(stream.Signature(framed_layout(params, 1)))}
+                   "o": Out(stream.Signature(framed_layout(params, 1))),
+                   "half_width": In(params.half_width_fmt.shape())}
         if not follow:
             members["centre"] = In(params.centre_fmt.shape())
         super().__init__(members)
@@ -84,6 +98,7 @@ class RowFramer(wiring.Component):
                 item.meta.camera.eq(beat.camera), item.meta.frame.eq(beat.frame),
                 item.meta.row.eq(beat.row), item.meta.t_first.eq(beat.t_first),
                 item.meta.centre.eq(centre), item.meta.source.eq(source),
+                item.meta.half_width.eq(saturate_half_width(p, self.half_width)[0]),
             ]
         with m.Else():
             m.d.comb += item.meta.eq(meta)

@@ -10,7 +10,7 @@ results leave together, in segment order, once its last segment is done: only th
 the row's bad verdict known (a camera reports reason bits with the last pixel).
 """
 
-from amaranth.hdl import Array, Cat, Const, Elaboratable, Module, Mux, Signal
+from amaranth.hdl import Array, Cat, Const, Elaboratable, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -76,11 +76,17 @@ class ShiftMatcher(wiring.Component):
     delay lines (taps from the row's centre: ``params.delays``) line ``cur[x]`` up with
     ``ref[x − centre − shift_min]``; an ``n``-bit window of later reference bits gives
     every shift of the window. Columns outside ``params.compare_range(centre)`` are not
-    counted; the range is cut into K equal segments by a Bresenham stepper (golden's
+    counted (they depend on the built window only); the range is cut into K equal segments by a Bresenham stepper (golden's
     ``lo + (hi − lo)·k // K`` bounds exactly). When a segment ends its costs are frozen
     for the engine and the counters restart; if the engine is still busy with the
     previous segment, the input stalls (never when every segment is at least
     ``params.engine_period`` columns long, which the parameters guarantee).
+
+    The row's run-time half-width ``meta.half_width`` (saturated by the framer) limits
+    the search to ``[−w, w]`` around the centre: costs outside are read as ``top`` (above
+    any cost), so they win neither minimum nor count as neighbours, and a best shift on
+    the run-time window's first or last shift is ``edge_hit`` (no sub-pixel), as on the
+    built window's. At ``max_half_width`` nothing changes (bit for bit).
 
     Members
     -------
@@ -246,18 +252,27 @@ class ShiftMatcher(wiring.Component):
             "meta": meta_layout(p), "no_reference": 1}))
         step = Signal(range(p.engine_result_step + 1))
         m.d.comb += front["busy"].eq(step != 0)
+        # the run-time window's first and last cost index (p.window_indices)
+        first, last = Signal(range(n), name="win_first"), Signal(range(n), name="win_last")
+        half_width = Signal(signed(p.half_width_fmt.width + 1))
+        m.d.comb += half_width.eq(front["s2"].meta.half_width)
         with m.If(front["snapshot"]):
             s2 = front["s2"]
+            below = -p.match.shift_min - half_width
+            above = half_width - p.match.shift_min
             m.d.sync += [sh.eq(v) for sh, v in zip(shadow, front["costs"])]
             m.d.sync += [snap.textureless.eq(front["textureless"]), snap.seg.eq(s2.seg),
                          snap.meta.eq(s2.meta), snap.no_reference.eq(s2.no_reference),
-                         step.eq(1)]
+                         first.eq(Mux(below > 0, below, 0)),
+                         last.eq(Mux(above < n - 1, above, n - 1)), step.eq(1)]
 
         def during(first, last):
             return (step >= first) & (step <= last)
 
-        # read: one group of costs per step into the lane registers (index ≥ n: padding
-        # above every cost); steps 1 … G (pass 1) and G + 2 … 2G + 1 (pass 2)
+        # read: one group of costs per step into the lane registers (an index outside
+        # the run-time window, or ≥ n (padding): ``top``, above every cost, since a
+        # segment is shorter than ``width − 2R``); steps 1 … G (pass 1) and G + 2 … 2G + 1
+        # (pass 2)
         group = Signal(max(groups - 1, 1).bit_length())
         reading = during(1, groups) | during(groups + 2, 2 * groups + 1)
         with m.If(reading):
@@ -267,8 +282,10 @@ class ShiftMatcher(wiring.Component):
         for lane in range(lanes):
             column = [shadow[g * lanes + lane] if g * lanes + lane < n else Const(top)
                       for g in range(groups)]
-            m.d.sync += [lane_value[lane].eq(Array(column)[group]),
-                         lane_index[lane].eq(group * lanes + lane)]
+            index = group * lanes + lane
+            inside = (index >= first) & (index <= last)
+            m.d.sync += [lane_value[lane].eq(Mux(inside, Array(column)[group], top)),
+                         lane_index[lane].eq(index)]
 
         # pass 1: each group's first minimum (steps 2 … G + 1), folded (3 … G + 2)
         r1_value, r1_index = Signal(cost_shape), Signal(idx_shape)
@@ -285,7 +302,7 @@ class ShiftMatcher(wiring.Component):
             "value": data.ArrayLayout(cost_shape, lanes)}))
         for lane, (value, index) in enumerate(zip(lane_value, lane_index)):
             offset = index - i1
-            real = index < n
+            real = (index >= first) & (index <= last)
             m.d.sync += [
                 marks.far[lane].eq(Mux(real & ((offset >= 2) | (offset <= -2)), value, top)),
                 marks.below[lane].eq(real & (offset == -1)),
@@ -314,7 +331,7 @@ class ShiftMatcher(wiring.Component):
                 m.d.sync += cp.eq(r2.cp)
 
         # step 2G + 5: load both dividers; they run for the next Q steps
-        edge = (i1 == 0) | (i1 == n - 1)
+        edge = (i1 == first) | (i1 == last)
         cf, fs = p.confidence_fmt, p.subpixel_frac_bits
         kappa = p.match.peak_ratio_offset
         offset_width = max(cost_fmt.width, kappa.bit_length()) + 1

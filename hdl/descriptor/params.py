@@ -179,6 +179,49 @@ class RowDescriptorParams:
         return (self.radius + max(a + self.n_shifts - 1, 0),
                 self.width - self.radius + min(a, 0))
 
+    # --- run-time search-window half-width -------------------------------------------------
+
+    @property
+    def max_half_width(self):
+        """The built maximum of the run-time half-width ``w``: the window ``[−w, w]``
+        around the centre covers the built window ``[shift_min, shift_max]``."""
+        return max(-self.match.shift_min, self.match.shift_max, 0)
+
+    @property
+    def min_half_width(self):
+        """The smallest run-time half-width whose window ``[−w, w] ∩ [shift_min,
+        shift_max]`` holds 4 shifts (as the built window must, so that a second minimum
+        at distance ≥ 2 exists wherever the first lies)."""
+        w = 1
+        while self._window_size(w) < 4:
+            w += 1
+        return w
+
+    def _window_size(self, w):
+        first, last = self.window_indices(w)
+        return last - first + 1
+
+    @property
+    def half_width_fmt(self):
+        """The run-time half-width port: an unsigned integer wide enough for
+        :attr:`max_half_width` (larger values it can hold are out of range)."""
+        return UQ(self.max_half_width.bit_length(), 0)
+
+    def saturate_half_width(self, w):
+        """``(w in force, out of range)``: ``w`` if ``min_half_width ≤ w ≤
+        max_half_width``, else the built maximum (and ``True``: counted, never silent)."""
+        w = int(w)
+        if self.min_half_width <= w <= self.max_half_width:
+            return w, False
+        return self.max_half_width, True
+
+    def window_indices(self, w):
+        """Cost indices ``(first, last)`` (0 … n_shifts − 1, shift ``shift_min + i``)
+        of the run-time window ``[−w, w] ∩ [shift_min, shift_max]`` around the centre;
+        ``(0, n_shifts − 1)`` at :attr:`max_half_width`."""
+        m = self.match
+        return max(0, -w - m.shift_min), min(self.n_shifts - 1, w - m.shift_min)
+
     def delays(self, centre):
         """``(current, reference)`` delays in columns that line up ``cur[x]`` with
         ``ref[x − centre − shift_min]``; one of them is zero."""

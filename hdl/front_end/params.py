@@ -99,6 +99,16 @@ class CameraParams:
     def camera_bits(self):
         return max(1, (self.n_cameras - 1).bit_length())
 
+    def skew_rows_held(self, width):
+        """Whole rows of trigger skew between cameras the row aligner absorbs at rows of
+        ``width`` pixels. A row set of row ``y`` streams once every camera has shown row
+        ``y``; a camera ``s`` rows ahead has meanwhile read ``s`` more rows, which wait in
+        its ``buffer_depth`` pixels, and has ``s + 1`` rows started in its
+        ``row_queue_depth`` records (docs/front_end/camera.md, "Aligner": size the buffer
+        for the skew between cameras)."""
+        check_int("width", width, 1, self.max_width)
+        return min(self.buffer_depth // width, self.row_queue_depth - 1)
+
     # --- stream layouts ----------------------------------------------------------------
 
     def pixel_layout(self):

@@ -9,11 +9,11 @@ docstring lists every step and rounding; formats in
   the innovation, ``kσ``, the outlier test and the ratio division, then the output
   register. The two divisions share one :class:`SerialDivider`;
 * an *updater* that runs the scale recursion (four product stages, a
-  :class:`SerialSqrt`, rounding, floor) of the previous measurement while the judge works
+  :class:`SerialSqrt`, rounding, ceiling, floor) of the previous measurement while the judge works
   on the next one; the judge waits only if the next measurement's channel is the one
   being updated (a row's channels are distinct, so only across rows);
-* per-channel ``σ`` in a ``slots``-word memory, written with ``max(scale_initial,
-  scale_floor)`` after reset (``slots`` clocks, the stage is not ready meanwhile).
+* per-channel ``σ`` in a ``slots``-word memory, written with ``min(max(scale_initial,
+  scale_floor), scale_ceiling)`` after reset (``slots`` clocks, the stage is not ready meanwhile).
 
 Measurements are forwarded as they are judged (not buffered per row: a row of 80 would
 add 80 judge periods, ~9 µs, to the loop's latency). The row gates need all of a row,
@@ -60,16 +60,17 @@ def settings_layout(params):
     return data.StructLayout({
         "frame_rows": params.frame_rows_fmt.width, "max_row_offset": params.solver.row_bits,
         "huber_k": params.k_fmt.width, "scale_initial": params.scale_fmt.width,
-        "scale_floor": params.scale_fmt.width, "keep": params.gain_fmt.width,
-        "lam_ck": params.gain_fmt.width, "min_confidence": params.solver.conf_fmt.width,
-        "min_cameras": range(params.cameras + 1)})
+        "scale_floor": params.scale_fmt.width, "scale_ceiling": params.scale_fmt.width,
+        "keep": params.gain_fmt.width, "lam_ck": params.gain_fmt.width,
+        "min_confidence": params.solver.conf_fmt.width, "min_cameras": range(params.cameras + 1)})
 
 
 def settings_init(params):
     """The registers' reset values: the parameters'."""
     return {"frame_rows": params.frame_rows_raw, "max_row_offset": params.max_row_offset,
             "huber_k": params.k_raw, "scale_initial": params.initial_raw,
-            "scale_floor": params.floor_raw, "keep": params.keep_raw,
+            "scale_floor": params.floor_raw, "scale_ceiling": params.ceiling_raw,
+            "keep": params.keep_raw,
             "lam_ck": params.lam_ck_raw, "min_confidence": params.min_confidence_raw,
             "min_cameras": params.min_cameras}
 
@@ -310,7 +311,7 @@ class ConsistencyStage(wiring.Component):
                                                         + _popcount(far_seen))]
                     m.next = "TAKE"
 
-        # --- updater: σ' = max(min(round(√(σ² f)), max), floor) -----------------------------
+        # --- updater: σ' = max(min(round(√(σ² f)), ceiling), floor) -------------------------
         rf, gf = p.ratio_fmt, p.gain_fmt
 
         def ratio(x, y):
@@ -323,10 +324,11 @@ class ConsistencyStage(wiring.Component):
         n = _net(m, hdl_resize(*hdl_mul(square, self.square_fmt, u_factor, gf), self.wide_fmt,
                                HE, ERR), "n")
         root = _net(m, sqrt.root + (sqrt.remainder > sqrt.root), "root")
-        top = p.scale_fmt.max_raw
+        top = cfg.scale_ceiling
         capped = _net(m, Mux(root > top, top, root), "capped")
-        initial = _net(m, Mux(cfg.scale_initial > cfg.scale_floor, cfg.scale_initial,
-                              cfg.scale_floor), "initial")
+        raised = _net(m, Mux(cfg.scale_initial > cfg.scale_floor, cfg.scale_initial,
+                             cfg.scale_floor), "raised")
+        initial = _net(m, Mux(raised > top, top, raised), "initial")
         with m.FSM(name="updater"):
             with m.State("CLEAR"):
                 m.d.comb += [write.en.eq(1), write.addr.eq(clear_addr), write.data.eq(initial)]

@@ -15,7 +15,9 @@ against the forecast's predicted shift, as :class:`golden.temporal_filter.Robust
 does in float: the innovation ``r = shift − predicted``, the robust scale ``σ`` of the
 channel (its only state), the Huber weight ``min(1, kσ/|r|)`` that multiplies the peak
 ratio into the confidence, an outlier (``|r| > kσ``) replaced by the prediction, and
-the τ²-scale recursion ``σ'² = σ²(1 − λ + λ c_k ρ(r/σ))`` with the biweight ``ρ``.
+the τ²-scale recursion ``σ'² = σ²(1 − λ + λ c_k ρ(r/σ))`` with the biweight ``ρ``,
+between a floor and a ceiling (the golden's ``scale_ceiling``: without it a persistent
+bias raises the scale until it is accepted).
 Per row it applies the golden tracker's gates (some confidence ≥ ``min_confidence``,
 at least ``min_cameras`` cameras with a confidence); the solver's own pivot check stands
 for the golden's condition-number gate.
@@ -24,7 +26,7 @@ for the golden's condition-number gate.
 from dataclasses import dataclass, replace
 
 from golden.checks import check_int, check_number
-from golden.temporal_filter import BIWEIGHT_CK, HUBER_K
+from golden.temporal_filter import BIWEIGHT_CK, HUBER_K, SCALE_CEILING
 
 from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, check_format
 from hdl.pose.params import PoseSolverParams
@@ -58,6 +60,11 @@ class ConsistencyParams:
     scale_initial, scale_floor : float
         Starting scale of every channel and its lower bound, pixels (registers,
         ``scale_fmt``).
+    scale_ceiling : float
+        Upper bound of the scale, pixels (register, ``scale_fmt``; default the golden
+        tracker's, :data:`golden.temporal_filter.SCALE_CEILING`): an innovation beyond
+        ``huber_k · scale_ceiling`` always stays an outlier. At least ``scale_floor``;
+        the starting scale is ``min(max(scale_initial, scale_floor), scale_ceiling)``.
     smoothing : float
         λ of the scale recursion, in (0, 1] (register: ``1 − λ`` and ``λ·c_k`` in
         ``gain_fmt``).
@@ -88,6 +95,7 @@ class ConsistencyParams:
     huber_k: float = HUBER_K
     scale_initial: float = 0.5
     scale_floor: float = 0.1
+    scale_ceiling: float = SCALE_CEILING
     smoothing: float = 0.1
     biweight_ck: float = BIWEIGHT_CK
     min_confidence: float = 1.0
@@ -116,6 +124,7 @@ class ConsistencyParams:
             raise ValueError(f"ratio_fmt must hold 1, not {self.ratio_fmt}")
         for name in ("huber_k", "scale_initial", "scale_floor"):
             check_number(name, getattr(self, name), 0, low_open=True)
+        check_number("scale_ceiling", self.scale_ceiling, self.scale_floor)
         check_number("smoothing", self.smoothing, 0, 1, low_open=True)
         rows = self.solver.rows
         check_number("frame_rows", self.frame_rows, rows, self.frame_rows_fmt.max_value)
@@ -132,6 +141,7 @@ class ConsistencyParams:
         for name, value, fmt in (("huber_k", self.huber_k, self.k_fmt),
                                  ("scale_initial", self.scale_initial, self.scale_fmt),
                                  ("scale_floor", self.scale_floor, self.scale_fmt),
+                                 ("scale_ceiling", self.scale_ceiling, self.scale_fmt),
                                  ("min_confidence", self.min_confidence,
                                   self.solver.conf_fmt)):
             if value > fmt.max_value:
@@ -169,11 +179,16 @@ class ConsistencyParams:
 
     @property
     def initial_raw(self):
-        return self._raw(max(self.scale_initial, self.scale_floor), self.scale_fmt)
+        return self._raw(min(max(self.scale_initial, self.scale_floor), self.scale_ceiling),
+                         self.scale_fmt)
 
     @property
     def floor_raw(self):
         return self._raw(self.scale_floor, self.scale_fmt)
+
+    @property
+    def ceiling_raw(self):
+        return self._raw(self.scale_ceiling, self.scale_fmt)
 
     @property
     def keep_raw(self):

@@ -33,6 +33,7 @@ from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from hdl.descriptor.framer import saturate_half_width
 from hdl.front_end.params import CameraParams
 from hdl.measurement.engine_params import (EngineParams, engine_config_layout,
                                            engine_status_layout)
@@ -85,12 +86,15 @@ class MeasurementEngine(wiring.Component):
         lane; ``stereo[j]``: of pair ``j``'s stereo lane (integer pixels,
         ``centre_fmt``, sampled with each row's first pixel, saturated to
         ``±centre_range``); ``enable``: 0 drops row sets (counted), sampled with each
-        set's first column.
+        set's first column; ``half_width``: every temporal lane's run-time window
+        half-width (``centre ± w`` within the built window, sampled with each row's
+        first pixel; out of range: the built maximum, ``status.half_width_error``).
     o : Out(stream.Signature(hdl.pose_solver.measurement_layout(params.router.solver)))
         The pose solver's input (``slot, row, time, shift, cue, conf, last``).
     status : Out(engine_status_layout(params))
         ``row_sets``, ``dropped``, ``stereo_skipped[j]`` (the fork's) and ``router``
-        (the router's counters); all wrap. With ``follow`` also ``forecast_skipped``,
+        (the router's counters); all wrap. ``half_width_error``: ``cfg.half_width``
+        is out of range (live). With ``follow`` also ``forecast_skipped``,
         ``unforecast`` (the fork's join), ``malformed`` (forecast rows discarded) and
         ``out_of_range[k]`` (the lanes' ring stores, saturating).
 
@@ -157,6 +161,7 @@ class MeasurementEngine(wiring.Component):
             m.submodules[f"temporal{k}"] = lane
             wiring.connect(m, fork.temporal[k], lane.i)
             wiring.connect(m, lane.o, router.temporal[k])
+            m.d.comb += lane.half_width.eq(self.cfg.half_width)
             if self.params.follow:
                 m.d.comb += self.status.out_of_range[k].eq(lane.out_of_range)
             else:
@@ -181,7 +186,9 @@ class MeasurementEngine(wiring.Component):
                          self.status.malformed.eq(forecast_rows.malformed)]
         wiring.connect(m, fork.tickets, router.tickets)
         wiring.connect(m, router.o, wiring.flipped(self.o))
-        m.d.comb += [self.status.row_sets.eq(fork.status.row_sets),
+        m.d.comb += [self.status.half_width_error.eq(
+                         saturate_half_width(self.params.temporal, self.cfg.half_width)[1]),
+                     self.status.row_sets.eq(fork.status.row_sets),
                      self.status.dropped.eq(fork.status.dropped),
                      self.status.stereo_skipped.eq(fork.status.stereo_skipped),
                      self.status.router.eq(router.status)]

@@ -199,6 +199,12 @@ def engine_config_layout(params):
     enable : 1
         0: row sets are consumed, counted as dropped, and reach no lane. Sampled at
         the first column of each row set.
+    half_width : temporal.half_width_fmt
+        Run-time half-width ``w`` of every temporal lane's shift window (``centre ± w``
+        within the built window), integer pixels, sampled with each row's first pixel;
+        outside ``temporal.min_half_width … max_half_width`` the lanes use the built
+        maximum and ``status.half_width_error`` is set. The stereo lanes always search
+        their built window.
 
     With ``follow`` there is no ``temporal`` field: the forecast gives those centres.
     """
@@ -209,6 +215,7 @@ def engine_config_layout(params):
         **fields,
         "stereo": data.ArrayLayout(params.stereo.centre_fmt.shape(), len(params.pairs)),
         "enable": 1,
+        "half_width": params.temporal.half_width_fmt.shape(),
     })
 
 
@@ -236,8 +243,10 @@ def fork_status_layout(params):
 
 
 def engine_status_layout(params):
-    """The fork's counters (:func:`fork_status_layout`) and the router's (``router``);
-    with ``follow`` also ``malformed`` (forecast rows discarded by
+    """The fork's counters (:func:`fork_status_layout`), the router's (``router``) and
+    ``half_width_error`` (1 while ``cfg.half_width`` is out of range and the lanes use
+    the built maximum; last, so that the counters keep their addresses); with
+    ``follow`` also ``malformed`` (forecast rows discarded by
     :class:`hdl.measurement.forecast_rows.ForecastRows`, ``count_bits``, wrapping)
     and ``out_of_range[k]`` (camera ``k``'s lane: rows whose source row the ring
     could not serve, saturating at ``OUT_OF_RANGE_BITS``)."""
@@ -248,4 +257,5 @@ def engine_status_layout(params):
     if params.follow:
         fields["malformed"] = params.count_bits
         fields["out_of_range"] = data.ArrayLayout(OUT_OF_RANGE_BITS, params.cameras)
-    return data.StructLayout({**fields, "router": router_status_layout(params.router)})
+    return data.StructLayout({**fields, "router": router_status_layout(params.router),
+                              "half_width_error": 1})

@@ -197,9 +197,8 @@ def test_register_file_reads_writes_and_errors():
 
 def test_register_map_doc_is_generated_from_the_declaration():
     """docs/register_map.md is the markdown of the map `rowtrack build` uses."""
-    from hdl.board import board
-    from hdl.board.zynq import default_params
-    regmap = default_params(board("arty-z7-20")).regmap()
+    from emulator.commands.build import docs_params
+    regmap = docs_params().regmap()
     text = (DOCS / "register_map.md").read_text()
     assert regmap.markdown() in text, \
         "docs/register_map.md is stale: run `rowtrack build --write-docs docs`"
@@ -218,8 +217,9 @@ def test_rowtrack_map_binds_every_block():
 
 
 def test_engine_group_binds_the_engine_layouts():
-    """Control is the engine's cfg (enabled after reset, centres 0), status its counters;
-    the group says that the lanes have no run-time thresholds."""
+    """Control is the engine's cfg (enabled after reset, centres 0, the temporal window's
+    half-width the built maximum), status its counters; the group says that the lanes
+    have no run-time thresholds."""
     from amaranth.lib import data
 
     from hdl.measurement.engine_params import engine_config_layout, engine_status_layout
@@ -230,7 +230,31 @@ def test_engine_group_binds_the_engine_layouts():
     assert control.shape == engine_config_layout(params.engine)
     assert status.shape == engine_status_layout(params.engine)
     assert data.Const(control.shape, control.reset_raw).enable == 1
-    assert control.reset_raw == 1 << control.shape["enable"].offset
+    w = params.engine.temporal.max_half_width
+    assert data.Const(control.shape, control.reset_raw).half_width == w == 20
+    assert control.reset_raw == (1 << control.shape["enable"].offset
+                                 | w << control.shape["half_width"].offset)
     geometry = next(r for r in engine.registers if r.name == "geometry")
     assert geometry.value == params.segments | len(params.pairs) << 8 | params.solver.slots << 16
     assert "no run-time thresholds" in engine.doc
+
+
+def test_stereo20_closed_loop_map_fits_the_window():
+    """20 cameras' registers fit beside every other group (they overlapped the solver's at
+    0x400 when the camera group had 0x200 bytes)."""
+    from golden.rig import load_rig
+    from hdl.pipeline_config import PipelineConfig
+    regmap = PipelineConfig.for_rig(load_rig("stereo20"), closed_loop=True).top.regmap()
+    assert regmap.find("camera", "inputs").register.count == 20
+    assert "loop" in [g.name for g in regmap.groups]
+
+
+def test_the_most_cameras_a_front_end_takes_fit_the_camera_group():
+    """The front end takes at most 32 cameras; their group must still end in the window
+    (RegisterMap raises naming the group otherwise)."""
+    from dataclasses import replace
+    params = TopParams()
+    with pytest.raises(ValueError, match="n_cameras"):
+        replace(params.camera, n_cameras=33)
+    widest = TopParams.for_pairs([(2 * i, 2 * i + 1) for i in range(16)]).regmap()
+    assert widest.find("camera", "inputs").register.count == 32

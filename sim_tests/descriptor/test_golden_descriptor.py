@@ -167,3 +167,16 @@ def test_bad_match_params(kwargs, error, message):
 def test_window_too_wide_for_the_row():
     with pytest.raises(ValueError, match="too few for 4 segment"):
         compare_range(50, DescriptorParams(), MatchParams(segments=4))
+
+
+def test_flat_stretches_set_no_bit():
+    """A flat stretch's exact response is 0, as the hardware's integer arithmetic gives;
+    float rounding noise (±1e-14 × pixel) must not set its bits (it did for about half
+    the pixel values, so the golden and the model disagreed on saturated rows)."""
+    params = DescriptorParams()
+    flats = np.repeat(np.arange(256, dtype=np.float64)[:, None], 64, axis=1)
+    assert not describe(flats, params).any()
+    row = np.zeros(128)
+    row[40:] = 255.0                       # saturated step: only the columns near it respond
+    bits = np.flatnonzero(describe(row, params))
+    assert bits.size and np.all(np.abs(bits - 40) <= params.radius)

@@ -36,7 +36,7 @@ SMALL_STEREO = RowDescriptorParams(width=160, height=4, centre_range=4, match=ST
 
 
 def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_prob=1.0,
-             final=None):
+             final=None, half_widths=None):
     """Drive beat lists into the named input ports of a lane and collect its outputs.
 
     ``streams`` maps port name → beats (sources hold each beat until it is taken and,
@@ -45,6 +45,8 @@ def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_pro
     lane, whose beats carry it). Returns ``(outputs, accepted)``:
     ``[(cycle, measurement dict)]`` and, per port, the cycle of every transfer; the
     names in the dict ``final`` get the values of those ports of ``dut`` at the end.
+    ``half_widths`` gives the half-width port's value with each beat of the first
+    stream, like ``centres`` (default: the port stays 0, read as the built maximum).
     """
     rng = random.Random(seed)
     params = dut.params
@@ -72,6 +74,9 @@ def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_pro
                     ctx.set(port.payload.as_value(), pack(in_layout, streams[name][idx]))
             if centres is not None:
                 ctx.set(dut.centre, centres[min(len(accepted[names[0]]), len(centres) - 1)])
+            if half_widths is not None:
+                ctx.set(dut.half_width, half_widths[min(len(accepted[names[0]]),
+                                                        len(half_widths) - 1)])
             ready = rng.random() < ready_prob
             ctx.set(dut.o.ready, ready)
             taken = {name: ctx.get(getattr(dut, name).valid) and ctx.get(getattr(dut, name).ready)

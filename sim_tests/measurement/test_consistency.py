@@ -56,7 +56,8 @@ def test_scales_and_weights_follow_the_golden_robust_scale():
     lam = 1 - p.gain_fmt.to_float(p.keep_raw)
     golden = RobustScale(p.channels, initial=p.scale_fmt.to_float(p.initial_raw),
                          floor=p.scale_fmt.to_float(p.floor_raw), smoothing=lam,
-                         k=p.k_fmt.to_float(p.k_raw))
+                         k=p.k_fmt.to_float(p.k_raw),
+                         ceiling=p.scale_fmt.to_float(p.ceiling_raw))
     # λ·c_k is its own register: its c_k differs from the golden's by 7e-5 (relative)
     assert abs(p.gain_fmt.to_float(p.lam_ck_raw) / lam / p.biweight_ck - 1) < 1e-4
     s = SOLVER
@@ -158,7 +159,7 @@ def test_saturation_at_the_format_extremes_is_counted_not_raised():
     a prediction beyond the shift format replacing an outlier, the largest scale with the
     largest factor, the largest shift times the largest time factor."""
     p = params(huber_k=1.5, max_row_offset=ROWS - 1, frame_rows=float(ROWS),
-               time_fmt=UQ(6, 16))
+               time_fmt=UQ(6, 16), scale_ceiling=UQ(5, 11).max_value)
     s = SOLVER
     model = ConsistencyModel(p)
     model.scale[:] = p.scale_fmt.max_raw
@@ -178,6 +179,33 @@ def test_saturation_at_the_format_extremes_is_counted_not_raised():
     scaled = model.to_one_frame([s.shift_fmt.max_raw, s.shift_fmt.min_raw], [ROWS - 1] * 2)
     assert list(scaled) == [s.shift_fmt.max_raw, s.shift_fmt.min_raw]
     assert model.counts["time_saturated"] == 2
+
+
+def test_a_persistent_bias_stays_an_outlier_beyond_the_ceiling():
+    """A channel whose innovations keep a bias of 3 px: without a ceiling (the format's
+    largest) the scale grows until the bias is accepted with full weight; with the
+    default ceiling (1 px, k = 2) every one stays an outlier, replaced by the prediction,
+    and the scale stops at the ceiling (each capped update counted)."""
+    bias = SOLVER.shift_fmt.quantize(np.full(1, 3.0))
+    conf = SOLVER.conf_fmt.quantize(np.full(1, 1.5))
+    verdicts = {}
+    for name, p in (("uncapped", params(scale_ceiling=UQ(5, 11).max_value)),
+                    ("capped", params())):
+        model = ConsistencyModel(p)
+        verdicts[name] = [bool(model.judge([0], bias, [0], conf)["outlier"][0])
+                          for _ in range(100)]
+        verdicts[name + " scale"] = p.scale_fmt.to_float(model.scale[0])
+        verdicts[name + " count"] = model.counts["scale_saturated"]
+    print(verdicts["uncapped scale"], verdicts["capped scale"])
+    assert not any(verdicts["uncapped"][-50:]) and verdicts["uncapped scale"] > 1.5
+    assert verdicts["uncapped count"] == 0
+    assert all(verdicts["capped"]) and verdicts["capped scale"] == 1.0
+    assert verdicts["capped count"] > 50
+
+
+def test_the_starting_scale_is_within_floor_and_ceiling():
+    assert params(scale_initial=3.0).initial_raw == params().ceiling_raw
+    assert params(scale_initial=0.05).initial_raw == params().floor_raw
 
 
 @pytest.mark.parametrize("changes, error, message", [
@@ -204,6 +232,9 @@ def test_saturation_at_the_format_extremes_is_counted_not_raised():
     ({"huber_k": 9.0}, ValueError, r"huber_k must be at most 7.99609375 \(UQ\(3, 8\)\), not 9.0"),
     ({"min_confidence": 5.0}, ValueError, r"min_confidence must be at most 3.99609375"),
     ({"scale_floor": 1e-5}, ValueError, r"scale_floor 1e-05 rounds to 0 in UQ\(5, 11\)"),
+    ({"scale_ceiling": 0.05}, ValueError,
+     "scale_ceiling must be a number at least 0.1, not 0.05"),
+    ({"scale_ceiling": 40.0}, ValueError, r"scale_ceiling must be at most 31.99951171875"),
     ({"smoothing": 1e-6}, ValueError, r"smoothing·biweight_ck .* rounds to 0 in gain_fmt"),
 ])
 def test_bad_parameters_are_named(changes, error, message):

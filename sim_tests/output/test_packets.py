@@ -201,12 +201,11 @@ def test_damaged_stream_marks_intact_packets():
 
 
 def test_packet_format_doc_is_generated_from_the_parameters():
-    from hdl.board.zynq import default_params
-    from hdl.board import board
+    from emulator.commands.build import docs_params
     text = packets.format_markdown(P)
     assert f"## Layout ({P.packet_bytes} bytes)" in text
     assert "| 3 | 2 | seq (u16) |" in text and "| 34 | 2 | crc |" in text
-    params = default_params(board("arty-z7-20"))
+    params = docs_params()
     expected = packets.format_markdown(params.pose_output.packet, clk_hz=params.clk_hz,
                                        uart=params.uart)
     assert (DOCS / "packet_format.md").read_text() == expected, \

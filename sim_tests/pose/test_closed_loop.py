@@ -97,8 +97,9 @@ def test_the_closed_loop_tracks(config, dataset, golden_b, closed):
 
 @pytest.mark.xfail(strict=True, reason="issue 18's stereo depth rules made golden (b) "
                    "better (Tx 0.094 -> 0.050 mm here) and are not in the hardware path "
-                   "yet: Tx measured 2.8x golden (b), bound 2.5x; strict, so the test "
-                   "fails once the hardware path catches up and the mark must go")
+                   "yet: Tx measured 2.57x golden (b) (2.8x before the consistency "
+                   "stage's scale ceiling), bound 2.5x; strict, so the test fails once "
+                   "the hardware path catches up and the mark must go")
 def test_the_closed_loop_tracks_like_golden_b(config, dataset, golden_b, closed):
     emulator, golden, _, _ = _figures(config, dataset, golden_b, closed)
     for k, name in enumerate(UNKNOWNS):
@@ -107,12 +108,13 @@ def test_the_closed_loop_tracks_like_golden_b(config, dataset, golden_b, closed)
 
 def test_the_loop_judged_and_followed(closed):
     """The pieces ran: rows followed and centred by the forecast, outliers replaced,
-    nothing saturated."""
+    no innovation saturated (``scale_saturated`` counts the scales held at the stage's
+    ceiling, which the loop reaches by design)."""
     loop = closed.loop
     counts = loop["counts"]
     print(counts)
     assert counts["outliers"] > 0
-    assert counts["innovation_saturated"] == counts["scale_saturated"] == 0
+    assert counts["innovation_saturated"] == 0
     assert len(loop["row"]) == FRAMES * ROWS
     assert loop["centre"].any() and (loop["source_row"] != loop["row"][:, None]).any()
 

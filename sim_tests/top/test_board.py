@@ -1,6 +1,7 @@
 """Board specs, the PS7 wrapper against the primitive's ports, and `rowtrack build` for
 every board (Verilog, XDC, Tcl written; nothing run)."""
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -55,12 +56,36 @@ def test_ps7_parameter_checks():
 @pytest.mark.parametrize("name", board.names())
 def test_board_pins_are_unique_and_clock_capable(name):
     spec = board.board(name)
-    assert spec.n_cameras == 4
     for cam in spec.cameras:
         assert spec.resolve(cam.pclk) in XC7Z020_CLG400_CLOCK_P
+    used = spec.pins_used()
+    assert len(set(used)) == len(used) == 12 * spec.n_cameras + 1
+    assert set(used) <= spec.user_pins
     table = spec.pin_table()
-    assert table.count("\n") == 2 + 12 * spec.n_cameras
+    assert table.count("| camera ") == 12 * spec.n_cameras
     assert "| pose UART TXD (out) | " in table
+    assert f"{len(used)} of the board's {len(spec.user_pins)} user PL pins" in table
+
+
+def test_the_board_rig_fits_the_microzed_pins_with_three_left():
+    """Issue 17: eight cameras (the board rig) on the MicroZed's 100 user I/O, one PCLK
+    per clock-capable pair of banks 34 and 35; the Arty's headers take four."""
+    from golden.rig import preset
+    microzed, arty = board.board("microzed-7020"), board.board("arty-z7-20")
+    assert microzed.n_cameras == len(preset(microzed.rig).cameras) == 8
+    assert len(microzed.user_pins) == 100
+    assert microzed.pins_left() == ["J16", "M15", "P16"]
+    assert arty.rig is None and arty.n_cameras == 4
+    assert len(arty.user_pins) < 12 * 8 + 1
+    assert len(arty.clock_capable & arty.user_pins) == 4
+
+
+def test_a_pin_off_the_board_s_user_io_is_refused():
+    spec = board.board("microzed-7020")
+    jtag = ("JX1", 0, "1")
+    camera = dataclasses.replace(spec.cameras[0], fsin=jtag)
+    with pytest.raises(ValueError, match="pin F9 of microzed-7020 is not one of its user_pins"):
+        dataclasses.replace(spec, cameras=(camera, *spec.cameras[1:]))
 
 
 def test_board_spec_checks():
@@ -145,22 +170,26 @@ def _rotated(x, yaw_deg):
 
 
 def test_build_for_a_rig_goes_through_the_configuration_door(tmp_path):
-    """``rowtrack build --rig`` builds the board top from PipelineConfig.for_rig: the same
-    TopParams the emulator and the co-simulation use, and the rig's coefficient table as
-    the store's initial contents."""
+    """``rowtrack build --rig`` builds the closed-loop board top of
+    :func:`hdl.top.board_config` (PipelineConfig.for_rig: the same TopParams the emulator
+    and the co-simulation use), with the rig's coefficient tables as the solver's and the
+    forecast's initial store contents."""
     import argparse
 
     import numpy as np
     from emulator.commands import build
     from golden.rig import load_rig
-    from hdl.pipeline_config import PipelineConfig
+    from hdl.top import board_config
     path = _rig_file(tmp_path, 2)
     args = argparse.Namespace(rig=path, fclk_mhz=100.0, baud=3_000_000)
-    params, coefficients = build._params(board.board("arty-z7-20"), args)
-    config = PipelineConfig.for_rig(load_rig(path), clk_hz=100_000_000)
+    params, coefficients, forecast_stores = build._params(board.board("arty-z7-20"), args)
+    config = board_config(load_rig(path), clk_hz=100_000_000)
     assert params == config.top and params.camera.max_width == 320
+    assert params.closed_loop
     np.testing.assert_array_equal(coefficients, config.coef_store)
     assert coefficients.any()
+    for built, expected in zip(forecast_stores, config.forecast_stores):
+        np.testing.assert_array_equal(built, expected)
 
 
 def test_build_for_a_rig_checks_it_fits_the_board(tmp_path, capsys):

@@ -109,6 +109,36 @@ def test_a_camera_without_stereo_partner_is_rejected():
         PipelineConfig.for_rig(preset("radial4"))
 
 
+def test_the_row_aligner_must_hold_the_rig_s_trigger_skew(config):
+    """The pipeline is fed row sets of row y of every camera. stereo8-board triggers pair
+    k k × 0.5 ms after pair 0, so its cameras read the same row up to 108 row periods
+    apart; the front end's aligner (1,024 pixels and 4 row records per camera: one
+    640-pixel row) cannot buffer that, and the configuration says so with what it would
+    need. The same rig synchronized, or with an aligner sized for the skew, has no
+    shortfall; one pixel less and it has; a synchronized rig (the tiny stereo20) none."""
+    from hdl.front_end.params import CameraParams
+    board = preset("stereo8-board")
+    staggered = PipelineConfig.for_rig(board, stereo_segments=K)
+    assert staggered.trigger_skew_rows == pytest.approx(108)
+    message = staggered.alignment_shortfall()
+    print(message)
+    assert "108.0 row periods apart, the row aligner holds 1" in message
+    assert "buffer_depth ≥ 69120 and row_queue_depth ≥ 109" in message
+    synchronized = PipelineConfig.for_rig(board.replace_cameras(trigger_offset=0.0),
+                                          stereo_segments=K)
+    assert synchronized.trigger_skew_rows == 0
+    assert synchronized.alignment_shortfall() is None
+    sized = CameraParams(buffer_depth=108 * 640, row_queue_depth=109)
+    assert PipelineConfig.for_rig(board, stereo_segments=K,
+                                  camera=sized).alignment_shortfall() is None
+    short = PipelineConfig.for_rig(board, stereo_segments=K,
+                                   camera=sized.replace(buffer_depth=108 * 640 - 1))
+    assert "holds 107" in short.alignment_shortfall()
+    assert config.trigger_skew_rows == 0 and config.alignment_shortfall() is None
+    with pytest.raises(ValueError, match="width"):
+        CameraParams().skew_rows_held(641)
+
+
 def test_coefficient_table_is_camera_major(rig, config):
     table = coefficient_table(rig, config.router.temporal, np.ones(20))
     assert table.shape == (20 * K, ROWS, 9)

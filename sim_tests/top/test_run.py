@@ -242,16 +242,24 @@ def test_end_to_end_with_the_cosimulation(tmp_path, capsys):
 
 def test_check_closed_loop_can_pass(outcome):
     """The tolerance check gives no line when every bound is met: the tiny run's figures
-    with golden (b) as good as the hardware path on every axis."""
+    with golden (b) as good as the hardware path on every axis (its synchronized cameras
+    fit the row aligner); a front end that cannot form the row sets is one line."""
     from emulator.e2e import check_closed_loop
     figures = dict(outcome.comparison)
     for name in UNKNOWNS:
         figures[f"golden_b_vs_truth.rms.{name}"] = figures[f"emulator_vs_truth.rms.{name}"]
         figures[f"ratio_to_golden_b.{name}"] = 1.0
     assert check_closed_loop(figures) == []
+    assert figures["front_end.trigger_skew_rows"] == 0
+    assert figures["front_end.skew_rows_held"] == 1
+    assert figures["front_end.shortfall"] is None
     figures["solved_fraction"] = 0.5
     assert check_closed_loop(figures) == [
         "hardware path: 50.0% of the rows of frames ≥ 1 solved, below 95%"]
+    figures.update({"solved_fraction": 1.0, "front_end.shortfall": "skew beyond the buffer"})
+    assert check_closed_loop(figures) == [
+        "front end: skew beyond the buffer; the hardware path assumes row sets this front "
+        "end cannot form"]
 
 
 def test_a_dataset_runs_the_same_closed_loop(outcome, tmp_path):
@@ -478,3 +486,15 @@ def test_the_lanes_in_the_loop_equal_the_float_matcher_and_can_fail(outcome):
         if line.startswith("lanes")]
     print(lines)
     assert lines and all(re.search(r"camera [01], segment", line) for line in lines)
+
+
+def test_rows_cut_a_rig_with_vertical_blanking():
+    """stereo8-board reads out over 80 % of its frame period: the cut keeps the frame
+    period, blanking and readout time (it took 1/(fps·rows) per row and was infeasible)."""
+    from golden.rig import preset
+    rig = preset("stereo8-board")
+    cut = run_command._cut_rows(rig, 96)
+    for before, after in zip(rig.cameras, cut.cameras):
+        assert after.height == 96
+        assert after.fps == before.fps and after.t_f == before.t_f
+        assert after.t_r * 96 == pytest.approx(before.t_r * before.height, rel=1e-12)

@@ -70,6 +70,7 @@ async def following_lane_matches_model(dut, traffic):
                           valid_prob=1.0 if busy else 0.7)
     sink = StreamSink(dut, "o", params.measurement_layout(), clock, rng=rng,
                       ready_prob=1.0 if busy else 0.4)
+    dut.half_width.value = params.max_half_width      # the built window (driven: Icarus)
     await reset(dut)
     beats, per_beat, sources = stimulus(params, np.random.default_rng(seed))
     model = _MODELS.setdefault("lane", TemporalLaneModel(params, follow=True))

@@ -35,6 +35,7 @@ async def temporal_lane_matches_model(dut, traffic, rows):
     rng = random.Random(cocotb.RANDOM_SEED)
     np_rng = np.random.default_rng(cocotb.RANDOM_SEED)
     lane = Lane(dut, params, ["i"], rng, busy=busy)
+    dut.half_width.value = params.max_half_width      # the built window (driven: Icarus)
     await lane.start()
     data = dataset_rows(params) if rows == "dataset" else None
     beat_rows, centres = make_stimulus(params, rows, np_rng, data)
@@ -48,4 +49,33 @@ async def temporal_lane_matches_model(dut, traffic, rows):
         cycles = [c for c, _ in sent]
         assert cycles == list(range(cycles[0], cycles[0] + len(cycles))), "input bubbles"
     last_cycles = [c for c, b in sent if b["last"]] if rows != "faults" else None
+    await lane.check(expected, load_sidecar()["latency"], busy, last_cycles)
+
+
+@cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"])
+async def temporal_lane_half_width_per_row(dut, traffic):
+    """A random run-time half-width per row, over the whole port (0, below the minimum
+    and above the built maximum included: the built maximum), set with each row's
+    first beat like the centre."""
+    params = load_params()
+    busy = traffic == "full_rate"
+    print(f"SEED={cocotb.RANDOM_SEED}")
+    rng = random.Random(cocotb.RANDOM_SEED)
+    np_rng = np.random.default_rng(cocotb.RANDOM_SEED)
+    lane = Lane(dut, params, ["i"], rng, busy=busy)
+    await lane.start()
+    beat_rows, centres = make_stimulus(params, "textured", np_rng)
+    widths = [int(w) for w in np_rng.integers(0, 1 << params.half_width_fmt.width,
+                                              len(beat_rows))]
+    beats = [b for row in beat_rows for b in row]
+    per_beat = [c for row, c in zip(beat_rows, centres) for _ in row]
+    per_beat_w = [w for row, w in zip(beat_rows, widths) for _ in row]
+    model = _MODELS.setdefault("lane", TemporalLaneModel(params))
+    expected = model.run(beats, per_beat, per_beat_w)
+    assert any(m["edge_hit"] for m in expected)
+    for row, centre, width in zip(beat_rows, centres, widths):
+        dut.centre.value, dut.half_width.value = centre, width
+        await lane.sources["i"].send(row)
+    dut.half_width.value = params.max_half_width
+    last_cycles = [c for c, b in lane.sources["i"].sent if b["last"]]
     await lane.check(expected, load_sidecar()["latency"], busy, last_cycles)

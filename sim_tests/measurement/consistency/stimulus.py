@@ -12,11 +12,14 @@ from hdl.measurement.consistency import COUNTER_BITS
 from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.pose.params import PoseSolverParams
 
-#: A small stage for the random rows: 4 cameras × 2 segments, P = 40, offsets up to 16.
+#: A small stage for the random rows: 4 cameras × 2 segments, P = 40, offsets up to 16,
+#: the default scale ceiling (1 px: gross innovations reach it).
 SMALL = ConsistencyParams(solver=PoseSolverParams(slots=8, rows=32, row_bits=6),
                           segments=2, frame_rows=40.0, huber_k=1.0, min_cameras=3)
-#: ... and with scales started near the top of ``scale_fmt``: outliers saturate them.
-LARGE = dataclasses.replace(SMALL, scale_initial=31.0)
+#: ... and with scales started near the top of ``scale_fmt``, the ceiling that top:
+#: outliers saturate them.
+LARGE = dataclasses.replace(SMALL, scale_initial=31.0,
+                            scale_ceiling=SMALL.scale_fmt.max_value)
 
 
 def check_against_model(params, rows, got):

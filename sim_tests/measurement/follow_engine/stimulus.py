@@ -92,8 +92,10 @@ def closed_loop(dataset, frames, frame0=0):
 
 
 def configs(params, n, enable=1):
-    """``n`` configurations: stereo centres 0 (as in the pipeline)."""
-    return [{"stereo": [0] * len(params.pairs), "enable": enable}] * n
+    """``n`` configurations: stereo centres 0 and the built window (as in the
+    pipeline)."""
+    return [{"stereo": [0] * len(params.pairs), "enable": enable,
+             "half_width": params.temporal.max_half_width}] * n
 
 
 def priming(params, frame0):

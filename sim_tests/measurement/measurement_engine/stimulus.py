@@ -53,12 +53,17 @@ class Stimulus:
     configs: list
 
 
-def _config(params, rng, enable):
+def _config(params, rng, enable, half_width=None):
+    """Random centres (``half_width``: over the whole port, out of range included,
+    unless given)."""
     span_t = params.temporal.centre_range + 2        # also exercise the saturation
     span_s = params.stereo.centre_range + 2
-    return {"temporal": [int(c) for c in rng.integers(-span_t, span_t + 1, params.cameras)],
-            "stereo": [int(c) for c in rng.integers(-span_s, span_s + 1, len(params.pairs))],
-            "enable": int(enable)}
+    cfg = {"temporal": [int(c) for c in rng.integers(-span_t, span_t + 1, params.cameras)],
+           "stereo": [int(c) for c in rng.integers(-span_s, span_s + 1, len(params.pairs))],
+           "enable": int(enable), "half_width": half_width}
+    if half_width is None:
+        cfg["half_width"] = int(rng.integers(1 << params.temporal.half_width_fmt.width))
+    return cfg
 
 
 def _damage(rng, beats, width):
@@ -77,11 +82,12 @@ def make_stimulus(params, dataset, rng, *, faults, clk_hz=100e6):
 
     With ``faults``, sets lose a camera or a whole pair, carry a bad row, or are sent
     with ``enable`` 0; the first frame is always complete and enabled (so later frames
-    have references), and the centres change from set to set. Without, centres are
-    fixed and non-zero and every set is complete.
+    have references), and the centres and the temporal half-width change from set to
+    set. Without, centres are fixed and non-zero, the half-width is the built maximum
+    and every set is complete.
     """
     t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
-    fixed = _config(params, rng, True)
+    fixed = _config(params, rng, True, params.temporal.max_half_width)
     row_sets, configs = [], []
     for f in range(FRAMES):
         for y in range(HEIGHT):
@@ -115,7 +121,8 @@ def priming_frame(params):
     black = np.zeros(params.temporal.width, dtype=np.uint8)
     row_sets = [{k: row_beats(black, camera=k, frame=frame, row=y) for k in range(params.cameras)}
                 for y in range(params.temporal.height)]
-    cfg = {"temporal": [0] * params.cameras, "stereo": [0] * len(params.pairs), "enable": 1}
+    cfg = {"temporal": [0] * params.cameras, "stereo": [0] * len(params.pairs), "enable": 1,
+           "half_width": params.temporal.max_half_width}
     return Stimulus(row_sets=row_sets, configs=[cfg] * len(row_sets))
 
 

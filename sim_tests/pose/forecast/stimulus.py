@@ -28,9 +28,10 @@ __all__ = ["random_case", "closed_loop_case", "expected_outputs", "record", "sat
            "cached", "CACHE"]
 
 CACHE = Path(__file__).resolve().parents[3] / "build" / "forecast_stimulus"
-#: Part of the cached cases' names: bumped when a case's keys change (v2: the stores'
-#: contents and the model's tables apart).
-VERSION = "v2"
+#: Part of the cached cases' names: bumped when a case's keys or the models behind it
+#: change (v2: the stores' contents and the model's tables apart; v3: the consistency
+#: stage's scale ceiling).
+VERSION = "v3"
 
 
 def record(params, step=None, row=0, time=0, flags=0):
