@@ -139,12 +139,12 @@ class LoopCosimResult:
 
 
 def _config(rig, records):
+    """The board's closed-loop pipeline for ``rig`` (:func:`hdl.top.board_config`) with
+    a PS FIFO deep enough for ``records`` records."""
     from hdl.output.params import PoseOutputParams
-    from hdl.pipeline_config import PipelineConfig
-    from hdl.top_params import DEFAULT_SEGMENTS
+    from hdl.top import board_config
     depth = 1 << max(records, 2).bit_length()
-    return PipelineConfig.for_rig(rig, closed_loop=True, stereo_segments=DEFAULT_SEGMENTS,
-                                  pose_output=PoseOutputParams(fifo_depth=depth))
+    return board_config(rig, pose_output=PoseOutputParams(fifo_depth=depth))
 
 
 def loop_expected(config, dataset, frames, times):
