@@ -19,7 +19,8 @@ import numpy as np
 from hdl.descriptor.params import DEFAULT_SEGMENTS
 
 __all__ = ["RECORD_FIELDS", "CosimResult", "compare_records", "slice_rig", "slice_params",
-           "NoSolvingWindow", "solving_window", "cosim_slice"]
+           "NoSolvingWindow", "solving_window", "checked_input", "camera_stimulus",
+           "run_bench", "pin_latencies", "latency_clocks", "cosim_slice"]
 
 #: Fields of the PS FIFO's records compared, element by element (``quaternion`` and
 #: ``position`` are arrays): what a record says of its pose (``seq`` counts records and
@@ -99,10 +100,10 @@ class CosimResult:
         return self.clocks / self.wall_s
 
 
-def _record_values(records, k):
+def _record_values(records, k, fields=RECORD_FIELDS):
     """``(label, value)`` of every compared element of record ``k``."""
     out = []
-    for name in RECORD_FIELDS:
+    for name in fields:
         value = np.asarray(records[name])[k]
         if np.ndim(value):
             out += [(f"{name}[{i}]", int(v)) for i, v in enumerate(value)]
@@ -111,11 +112,11 @@ def _record_values(records, k):
     return out
 
 
-def compare_records(records, expected, frames=None):
+def compare_records(records, expected, frames=None, fields=RECORD_FIELDS):
     """Count the record fields in which the HDL's ``records`` differ from ``expected``.
 
     Records are compared in order, element by element (``quaternion`` and ``position``
-    per component);
+    per component), over ``fields`` (default the PS FIFO's :data:`RECORD_FIELDS`);
     a record present on one side only counts all of its elements. ``frames`` (optional,
     one per expected record) names the frame in the message.
 
@@ -127,7 +128,7 @@ def compare_records(records, expected, frames=None):
     """
     counts = []
     for name, side in (("records", records), ("expected", expected)):
-        missing = [f for f in RECORD_FIELDS if f not in side]
+        missing = [f for f in fields if f not in side]
         if missing:
             raise ValueError(f"{name} lacks the fields {missing}")
         counts.append(len(np.asarray(side["row"])))
@@ -139,14 +140,14 @@ def compare_records(records, expected, frames=None):
                                    and k < len(frames) else "") + \
             f"row {int(np.asarray(side['row'])[k])})"
         if k >= n_hdl or k >= n_model:
-            fields = _record_values(side, k)
-            mismatches += len(fields)
+            values = _record_values(side, k, fields)
+            mismatches += len(values)
             if first is None:
                 first = f"{where}: only the {'emulator' if k >= n_hdl else 'HDL'} has it " \
                         f"({n_hdl} HDL records, {n_model} emulator records)"
             continue
-        for (label, got), (_, want) in zip(_record_values(records, k),
-                                           _record_values(expected, k)):
+        for (label, got), (_, want) in zip(_record_values(records, k, fields),
+                                           _record_values(expected, k, fields)):
             if got != want:
                 mismatches += 1
                 if first is None:
@@ -287,16 +288,22 @@ def record_arrays(packet, records):
         for name in RECORD_FIELDS}
 
 
-def _latency(out, sets, frames_of_sets, fifo_clocks):
-    """Largest clocks from a row set's last pixel at the pins to its record in the FIFO
-    (record ``k`` is set ``k``'s: the router emits one row per set handed on)."""
-    worst = 0
-    for k, (row_set, clock) in enumerate(zip(sets, fifo_clocks)):
+def pin_latencies(out, sets, frames_of_sets, clocks):
+    """Per row set ``k`` (of the first ``len(clocks)``): clocks from its last pixel at the
+    pins (the latest of its cameras) to ``clocks[k]``."""
+    latencies = []
+    for k, (row_set, clock) in enumerate(zip(sets, clocks)):
         frame = frames_of_sets[k]
         row = next(iter(row_set.values()))[0]["row"]
-        pins = max(out["row_end_clocks"][cam][frame, row] for cam in row_set)
-        worst = max(worst, clock - pins)
-    return int(worst)
+        latencies.append(clock - max(out["row_end_clocks"][cam][frame, row]
+                                     for cam in row_set))
+    return latencies
+
+
+def latency_clocks(out, sets, frames_of_sets, fifo_clocks):
+    """Largest clocks from a row set's last pixel at the pins to its record in the FIFO
+    (record ``k`` is set ``k``'s: the router emits one row per set handed on)."""
+    return int(max(pin_latencies(out, sets, frames_of_sets, fifo_clocks), default=0))
 
 
 def _benchmark_times():
@@ -306,6 +313,68 @@ def _benchmark_times():
     figures = benchmark_figures()
     return {phase: figures[f"e2e.wall_s.cosim_{phase}"] for phase in ("elaborate", "simulate")
             if f"e2e.wall_s.cosim_{phase}" in figures}
+
+
+def checked_input(dataset, sim):
+    """``dataset`` (a :class:`golden.dataset.Dataset` or its path) loaded, after checking
+    ``sim`` names a simulator."""
+    from golden.dataset import Dataset
+    from emulator.hdl_sim.runner import SIMULATORS
+    if sim not in SIMULATORS:
+        raise ValueError(f"sim must be one of {', '.join(SIMULATORS)}, not {sim!r}")
+    return Dataset.load(dataset) if isinstance(dataset, (str, os.PathLike)) else dataset
+
+
+def camera_stimulus(images, clk_hz, row_period_s=None):
+    """The bench's camera stimulus for ``images`` (cameras, frames, rows, width): the
+    slice's DVP timing (:data:`PCLK_PS`, :data:`PCLK_STEP_PS`, :data:`HBLANK`; ``hblank``
+    per camera), the UART :data:`DIVISOR` and a trigger period a quarter longer than the
+    longest camera frame (system clocks of ``clk_hz``).
+
+    With ``row_period_s`` every camera's horizontal blanking is stretched so that its rows
+    last that long (within a PCLK), as the cameras of one rig read their rows at one rate
+    (without it, a faster camera gains ``PCLK_STEP_PS`` per pixel on the slower ones).
+
+    Raises
+    ------
+    ValueError
+        When ``row_period_s`` leaves a camera less than :data:`HBLANK` PCLKs of blanking.
+    """
+    from emulator.hdl_sim.dvp import DvpTiming
+    cameras, _, rows, width = images.shape
+    pclk_ps = [PCLK_PS + k * PCLK_STEP_PS for k in range(cameras)]
+    hblank = [HBLANK] * cameras
+    if row_period_s is not None:
+        row_ps = round(row_period_s * 1e12)
+        hblank = [-(-row_ps // p) - width for p in pclk_ps]
+        if min(hblank) < HBLANK:
+            raise ValueError(f"row_period_s must leave every camera {HBLANK} PCLKs of "
+                             f"blanking after its {width} pixels (at least "
+                             f"{(width + HBLANK) * max(pclk_ps) * 1e-12:.3g} s), not "
+                             f"{row_period_s!r}")
+    frame_ps = max(DvpTiming(width=width, height=rows, hblank=h).frame_pclks * p
+                   for h, p in zip(hblank, pclk_ps))
+    period = frame_ps // round(1e12 / clk_hz) * 5 // 4 + 2_000
+    return {"images": images, "divisor": DIVISOR, "hblank": hblank, "pclk_ps": pclk_ps,
+            "period": period}
+
+
+def run_bench(top, stim, build_dir, **cocotb_args):
+    """``top`` through :mod:`emulator.hdl_sim.cosim_bench` with stimulus ``stim`` (saved
+    under ``build_dir``); the bench's record. ``cocotb_args`` go to
+    :func:`emulator.hdl_sim.runner.run_cocotb` (``name``, ``sim``, ``seed``, ...)."""
+    from emulator.hdl_sim.runner import run_cocotb
+    build_dir = Path(build_dir)
+    build_dir.mkdir(parents=True, exist_ok=True)
+    paths = {"in": build_dir / "stimulus.pkl", "out": build_dir / "record.pkl"}
+    with open(paths["in"], "wb") as f:
+        pickle.dump(stim, f)
+    paths["out"].unlink(missing_ok=True)
+    run_cocotb(top, test_module="emulator.hdl_sim.cosim_bench",
+               extra_env={"ROWTRACK_COSIM_IN": str(paths["in"].resolve()),
+                          "ROWTRACK_COSIM_OUT": str(paths["out"].resolve())}, **cocotb_args)
+    with open(paths["out"], "rb") as f:
+        return pickle.load(f)
 
 
 def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, segments=DEFAULT_SEGMENTS,
@@ -334,15 +403,9 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, segments=DEFAULT_SEGMEN
     NoSolvingWindow
         When the slice's cameras solve no row set in the emulator.
     """
-    from golden.dataset import Dataset
     from golden.checks import check_int
     from hdl.top import RowtrackTop
-    from emulator.hdl_sim.runner import SIMULATORS, run_cocotb
-    from emulator.hdl_sim.dvp import DvpTiming
-    if isinstance(dataset, (str, os.PathLike)):
-        dataset = Dataset.load(dataset)
-    if sim not in SIMULATORS:
-        raise ValueError(f"sim must be one of {', '.join(SIMULATORS)}, not {sim!r}")
+    dataset = checked_input(dataset, sim)
     n_frames, height, width = dataset.cameras[0].rows.shape
     check_int("frames", frames, 1, n_frames)
     check_int("rows", rows, 1, height)
@@ -351,32 +414,17 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, segments=DEFAULT_SEGMEN
     say = print if progress else (lambda *_: None)
     first_row, solvable = solving_window(config, dataset, chosen, frames, rows)
     coef_raw = config.coef_raw[:, first_row:first_row + rows]
-    build_dir = Path(build_dir)
-    build_dir.mkdir(parents=True, exist_ok=True)
     window = slice(first_row, first_row + rows)
     images = np.stack([dataset.cameras[k].rows[:frames, window] for k in chosen])
-    timing = DvpTiming(width=width, height=rows, hblank=HBLANK)
-    pclk_ps = [PCLK_PS + k * PCLK_STEP_PS for k in range(cameras)]
-    clock_ps = round(1e12 / params.clk_hz)
-    period = timing.frame_pclks * max(pclk_ps) // clock_ps * 5 // 4 + 2_000
-    stim = {"images": images, "coef": config.store_window(first_row, rows), "divisor": DIVISOR,
-            "hblank": HBLANK, "pclk_ps": pclk_ps, "period": period}
-    paths = {"in": build_dir / "stimulus.pkl", "out": build_dir / "record.pkl"}
-    with open(paths["in"], "wb") as f:
-        pickle.dump(stim, f)
-    paths["out"].unlink(missing_ok=True)
+    stim = {**camera_stimulus(images, params.clk_hz),
+            "coef": config.store_window(first_row, rows)}
     say(f"[cosim] cameras {list(chosen)} × {frames} frames × rows {first_row}–"
         f"{first_row + rows - 1} of {width} pixels on {sim} (the emulator solves "
         f"{solvable} of these row sets)")
     timings = {}
-    run_cocotb(RowtrackTop(params), name="rowtrack_cosim", sim=sim, waves=waves, seed=seed,
-               test_module="emulator.hdl_sim.cosim_bench", tag=f"{cameras}x{width}",
-               extra_env={"ROWTRACK_COSIM_IN": str(paths["in"].resolve()),
-                          "ROWTRACK_COSIM_OUT": str(paths["out"].resolve())},
-               timings=timings, progress=progress, cache_key=repr(params),
-               estimates=_benchmark_times())
-    with open(paths["out"], "rb") as f:
-        out = pickle.load(f)
+    out = run_bench(RowtrackTop(params), stim, build_dir, name="rowtrack_cosim", sim=sim,
+                    waves=waves, seed=seed, tag=f"{cameras}x{width}", timings=timings,
+                    progress=progress, cache_key=repr(params), estimates=_benchmark_times())
 
     sets, spans = row_sets_from_columns(params.camera.aligned_layout(), out["columns"])
     order = {}
@@ -385,7 +433,7 @@ def cosim_slice(dataset, *, cameras=6, frames=3, rows=8, segments=DEFAULT_SEGMEN
     expected, uart = expected_records(params, coef_raw, sets)
     records = record_arrays(params.pose_output.packet, out["fifo_records"])
     mismatches, first = compare_records(records, expected, frames_of_sets)
-    latency = _latency(out, sets, frames_of_sets, out["fifo_clocks"]) \
+    latency = latency_clocks(out, sets, frames_of_sets, out["fifo_clocks"]) \
         if len(sets) == len(out["fifo_clocks"]) else -1
     say(f"[cosim] {len(sets)} row sets, {len(out['fifo_records'])} records, "
         f"{mismatches} mismatches; counters {out['status']}")

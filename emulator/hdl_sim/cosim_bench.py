@@ -7,6 +7,12 @@ clock it was taken), the pose records read from the PS FIFO registers with the c
 each became available, the bytes on the UART line, the clock of every row's last pixel
 at the pins, and the block counters. The stimulus comes from the pickle named by
 ``ROWTRACK_COSIM_IN``; the record goes to ``ROWTRACK_COSIM_OUT``.
+
+A closed-loop top (:func:`emulator.cosim_loop.closed_loop_cosim`, stimulus key ``loop``)
+has its coefficients built in and runs its loop from reset (the filter at rest, the
+registers' reset ``frame_rows``); the bench also records, from reset on, the tracking
+loop's records (with their steps, in the solver's formats) and the forecast transfers
+the engine takes, and the clocks a row set or a forecast waited at the engine's input.
 """
 
 import os
@@ -20,7 +26,7 @@ from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
 from emulator.hdl_sim.clocking import CLOCK_PERIOD_NS
 from emulator.hdl_sim.dvp import DvpPlayer, DvpTiming, drive_cocotb
 from emulator.hdl_sim.payload import unpack
-from emulator.hdl_sim.top_harness import engine_input, start_top
+from emulator.hdl_sim.top_harness import engine_input, start_top, stream_monitor
 from emulator.hdl_sim.uart_line import UartMonitor, wait_idle
 
 #: Clocks without a new pose record, once the cameras are done, that end the run.
@@ -88,12 +94,34 @@ async def _read_fifo(regs, po, count):
     return records
 
 
+#: Registers read at the end, (group, register); a closed loop's too.
+STATUS_REGISTERS = (("engine", "status"), ("solver", "counters"), ("pose_out", "status"))
+LOOP_REGISTERS = (("loop", "counts"), ("loop", "forecast_counters"), ("loop", "counters"),
+                  ("status", "state"), ("camera", "align_status"), ("camera", "sync_status"))
+
+
+async def read_status(regs, registers, n_cameras):
+    """``{"group.name": fields}`` of ``registers`` and ``camera.inputs[k]`` of every
+    camera (its dropped rows: words a full FIFO lost)."""
+    status = {}
+    elements = [(group, name, 0, name) for group, name in registers] + \
+        [("camera", "inputs", k, f"inputs[{k}]") for k in range(n_cameras)]
+    for group, name, index, label in elements:
+        shape = regs.regmap.find(group, name).register.shape
+        status[f"{group}.{label}"] = unpack(shape, await regs.read_register(group, name, index))
+    return status
+
+
 @cocotb.test()
 async def cosim_slice(dut):
     wall_start = time.perf_counter()
     with open(os.environ["ROWTRACK_COSIM_IN"], "rb") as f:
         stim = pickle.load(f)
     params, regmap, regs, clock = await start_top(dut)
+    loop = stim.get("loop")
+    if loop:     # the loop forecasts its first rows right after reset
+        loop_records = stream_monitor(dut, dut.loop, "records", clock)
+        forecasts = stream_monitor(dut, dut.engine, "forecast", clock)
     cam, po = params.camera, params.pose_output
     images = stim["images"]                         # (cameras, frames, rows, width)
     n_cams, n_frames, height, width = images.shape
@@ -101,7 +129,8 @@ async def cosim_slice(dut):
 
     await regs.write_register("camera", "input", {"width": width, "height": height,
                                                   "pclk_timeout": 200})
-    await load_coefficients(regs, params.solver, stim["coef"])
+    if not loop:
+        await load_coefficients(regs, params.solver, stim["coef"])
     await regs.write(regs.address(regmap.find("pose_out", "uart_divisor")), stim["divisor"])
     uart = UartMonitor(dut, params.uart, stim["divisor"], line="uart_tx")
     engine_in = engine_input(dut, clock)
@@ -109,8 +138,9 @@ async def cosim_slice(dut):
 
     # The cameras start after the set-up: their PCLKs are driven from Python, the
     # costliest part of the simulation.
-    timing = DvpTiming(width=width, height=height, hblank=stim["hblank"])
-    players = [DvpPlayer(frames=images[k], timing=timing, period_ps=stim["pclk_ps"][k],
+    players = [DvpPlayer(frames=images[k], period_ps=stim["pclk_ps"][k],
+                         timing=DvpTiming(width=width, height=height,
+                                          hblank=stim["hblank"][k]),
                          phase_ps=3_001 + 2_222 * k, rng=rng) for k in range(n_cams)]
     for k, player in enumerate(players):
         cocotb.start_soon(drive_cocotb(dut, f"dvp__{k}", f"pclk{k}_clk", player,
@@ -129,11 +159,8 @@ async def cosim_slice(dut):
         await ClockCycles(dut.clk, QUIET_CLOCKS)
     await wait_idle(dut, uart, 100)
 
-    status = {}
-    for group, name, layout in (("engine", "status", None), ("solver", "counters", None),
-                                ("pose_out", "status", po.status_layout())):
-        shape = layout or regmap.find(group, name).register.shape
-        status[f"{group}.{name}"] = unpack(shape, await regs.read_register(group, name))
+    status = await read_status(regs, STATUS_REGISTERS + (LOOP_REGISTERS if loop else ()),
+                               cam.n_cameras)
     fifo_level = status["pose_out.status"]["fifo_level"]
     assert fifo_level == len(arrivals.clocks), \
         f"FIFO holds {fifo_level} records but {len(arrivals.clocks)} arrived"
@@ -143,7 +170,10 @@ async def cosim_slice(dut):
            "uart_framing_errors": uart.framing_errors,
            "row_end_clocks": [row_end_clocks(p, height) for p in players],
            "clocks": clock.cycle, "wall_s": time.perf_counter() - wall_start,
-           "status": status}
+           "status": status, "engine_stalls": engine_in.stalls}
+    if loop:
+        out.update(loop_records=loop_records.columns, forecasts=forecasts.columns,
+                   forecast_stalls=forecasts.stalls)
     with open(os.environ["ROWTRACK_COSIM_OUT"], "wb") as f:
         pickle.dump(out, f)
     dut._log.info(f"{len(engine_in.columns)} columns into the engine, {len(records)} pose "

@@ -11,7 +11,7 @@ from emulator.hdl_sim.clocking import reset, start_clock
 from emulator.hdl_sim.cocotb_env import load_params
 from emulator.hdl_sim.registers import Registers
 
-__all__ = ["child", "ColumnMonitor", "engine_input", "start_top"]
+__all__ = ["child", "ColumnMonitor", "engine_input", "stream_monitor", "start_top"]
 
 
 def child(parent, name):
@@ -24,13 +24,13 @@ def child(parent, name):
 
 class ColumnMonitor:
     """Every column taken on a stream (its ``valid``/``ready``/``payload`` handles), raw,
-    with the clock it was taken."""
+    with the clock it was taken; ``stalls``: the clocks it was offered and not taken."""
 
     def __init__(self, dut, valid, ready, payload, clock):
         self.handles = (valid, ready, payload)
         self.clock = clock
         self.dut = dut
-        self.columns = []
+        self.columns, self.stalls = [], []
         cocotb.start_soon(self._run())
 
     async def _run(self):
@@ -38,14 +38,24 @@ class ColumnMonitor:
         while True:
             await RisingEdge(self.dut.clk)
             await ReadOnly()
-            if int(valid.value) and int(ready.value):
-                self.columns.append((self.clock.cycle, int(payload.value)))
+            if int(valid.value):
+                if int(ready.value):
+                    self.columns.append((self.clock.cycle, int(payload.value)))
+                else:
+                    self.stalls.append(self.clock.cycle)
 
 
 def engine_input(dut, clock):
     """A :class:`ColumnMonitor` of the row sets entering the measurement engine."""
     fork = child(dut.engine, "fork")
     return ColumnMonitor(dut, fork.i__valid, fork.i__ready, fork.i__payload, clock)
+
+
+def stream_monitor(dut, instance, port, clock):
+    """A :class:`ColumnMonitor` of stream ``port`` of sub-instance ``instance``."""
+    return ColumnMonitor(dut, getattr(instance, f"{port}__valid"),
+                         getattr(instance, f"{port}__ready"),
+                         getattr(instance, f"{port}__payload"), clock)
 
 
 async def start_top(dut):
