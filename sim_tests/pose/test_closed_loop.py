@@ -95,11 +95,6 @@ def test_the_closed_loop_tracks(config, dataset, golden_b, closed):
         assert emulator[k] <= SHARE_OF_MOTION * motion[k], name
 
 
-@pytest.mark.xfail(strict=True, reason="issue 18's stereo depth rules made golden (b) "
-                   "better (Tx 0.094 -> 0.050 mm here) and are not in the hardware path "
-                   "yet: Tx measured 2.57x golden (b) (2.8x before the consistency "
-                   "stage's scale ceiling), bound 2.5x; strict, so the test fails once "
-                   "the hardware path catches up and the mark must go")
 def test_the_closed_loop_tracks_like_golden_b(config, dataset, golden_b, closed):
     emulator, golden, _, _ = _figures(config, dataset, golden_b, closed)
     for k, name in enumerate(UNKNOWNS):
