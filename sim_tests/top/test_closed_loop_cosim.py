@@ -78,23 +78,21 @@ def _check(result, frames, rows):
             assert fields["dropped_rows"] == 0 and fields["bad_rows"] == 0, name
 
 
+def _run_and_check(sim, rows, frames):
+    from emulator.cosim_loop import closed_loop_cosim
+    result = closed_loop_cosim(_dataset(rows, frames), row_period_s=ROW_PERIOD_S,
+                               frames=frames, sim=sim, seed=SEED,
+                               build_dir=f"build/cosim_loop_{sim}")
+    _check(result, frames, rows)
+
+
 @pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="minutes on Verilator: RUN_SLOW=1")
 def test_closed_loop_top_equals_the_emulator_on_verilator():
-    from emulator.cosim_loop import closed_loop_cosim
-    rows, frames = 24, 3
-    result = closed_loop_cosim(_dataset(rows, frames), row_period_s=ROW_PERIOD_S,
-                               frames=frames, sim="verilator", seed=SEED,
-                               build_dir="build/cosim_loop_verilator")
-    _check(result, frames, rows)
+    _run_and_check("verilator", rows=24, frames=3)
 
 
 def test_closed_loop_top_equals_the_emulator_on_icarus():
-    from emulator.cosim_loop import closed_loop_cosim
-    rows, frames = 8, 2
-    result = closed_loop_cosim(_dataset(rows, frames), row_period_s=ROW_PERIOD_S,
-                               frames=frames, sim="icarus", seed=SEED,
-                               build_dir="build/cosim_loop_icarus")
-    _check(result, frames, rows)
+    _run_and_check("icarus", rows=8, frames=2)
 
 
 # --- the judge's helpers ---------------------------------------------------------------
