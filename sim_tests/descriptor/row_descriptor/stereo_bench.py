@@ -35,7 +35,11 @@ async def stereo_lane_matches_model(dut, traffic, faults):
     np_rng = np.random.default_rng(cocotb.RANDOM_SEED)
     lane = Lane(dut, params, ["a", "b"], rng, busy=busy)
     await lane.start()
-    disparity = int(np_rng.integers(params.match.shift_min + 2, params.match.shift_max - 1))
+    # The true disparity lies inside every row's window (the window moves with the row's
+    # centre), so the model must find it wherever the texture allows.
+    margin = params.centre_range + 2
+    disparity = int(np_rng.integers(params.match.shift_min + margin,
+                                    params.match.shift_max - margin + 1))
     rows_a, rows_b = pair_stimulus(params, np_rng, disparity, faults)
     centres = [int(c) for c in np_rng.integers(-params.centre_range, params.centre_range + 1,
                                                len(rows_a))]
