@@ -7,12 +7,16 @@ the arithmetic of :mod:`hdl.fixed`:
 
 1. :class:`MotionFilter`: Holt–Winters on the one-frame motion ``Y`` with scalar gains
    (the golden tracker's ``motion_gain="scalar"``): ``p = L + B``,
-   ``L' = p + α (y − p)``, ``B' = B + β (L' − L − B)``, each product rounded half-even
-   into ``motion_fmt``; a row without a solved step keeps ``L' = p``, ``B' = B``.
+   ``L' = p + α (y − p)``, ``B' = B + β (L' − p)``, each product rounded half-even; a
+   row without a solved step keeps ``L' = p``, ``B' = B``. ``p``, ``L'`` and ``B'`` are
+   saturated into ``motion_fmt`` and the update counted (:attr:`MotionFilter.saturated`):
+   a diverging loop stops at the format's bound (±1 m or rad per frame) and says so,
+   instead of wrapping to the opposite sign.
 2. The loop delay: a row's forecast is made from the filter's state after the newest row
    solved ``loop_delay_rows`` row periods before it starts,
    ``Ŷ = L_j + k·B_j`` on raw integers (:class:`golden.temporal_filter.DelayedForecast`
-   does the bookkeeping, the same code as the golden tracker's).
+   does the bookkeeping, the same code as the golden tracker's), saturated into
+   ``motion_fmt`` and counted (:attr:`ForecastModel.saturated`).
 3. :meth:`ForecastModel.predict`: for a camera row ``y`` with the depth cue of each
    segment, the design rows of the solver's store (:func:`emulator.pose_solver.design_row`,
    the solver's own rounding) give each segment's predicted shift ``a·Ŷ`` and, from the
@@ -30,7 +34,7 @@ from hdl.fixed import SQ, Overflow, Rounding, mul, resize
 from emulator.pose.program import Value, dot
 from emulator.pose_solver import PoseRows, design_row
 
-__all__ = ["MotionFilter", "ForecastModel", "output_transfers"]
+__all__ = ["MotionFilter", "ForecastModel", "output_transfers", "clamp", "sum_format"]
 
 
 class MotionFilter:
@@ -47,12 +51,16 @@ class MotionFilter:
         self.params = params
         self.level = params.motion_fmt.raw(np.asarray(level, dtype=np.int64))
         self.trend = np.zeros_like(self.level)
+        #: Updates in which some value was saturated into ``motion_fmt``.
+        self.saturated = 0
 
-    def _gained(self, gain_raw, raw, fmt):
-        """``gain · raw`` rounded half-even into ``motion_fmt``."""
+    def _gained(self, gain_raw, raw):
+        """``gain · raw`` (``raw`` a difference of two ``motion_fmt`` values, |raw| < 2)
+        rounded half-even, one integer bit wider than ``motion_fmt``."""
         p = self.params
-        product, product_fmt = mul(gain_raw, p.gain_fmt, raw, fmt)
-        return resize(product, product_fmt, p.motion_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+        product, product_fmt = mul(gain_raw, p.gain_fmt, raw, sum_format(p.motion_fmt, 2))
+        return resize(product, product_fmt, sum_format(p.motion_fmt, 1), Rounding.HALF_EVEN,
+                      Overflow.ERROR)
 
     def update(self, value=None, gain=None):
         """Take a solved step (raw ``solver.step_fmt``, (6,)) or none; returns the new
@@ -61,20 +69,34 @@ class MotionFilter:
         if gain is not None:
             raise ValueError(f"gain must be None (scalar gains only), not {gain!r}")
         p = self.params
-        fmt = p.motion_fmt
-        predicted = fmt.raw(self.level + self.trend)
+        clamps = []
+        predicted = clamp(p.motion_fmt, self.level + self.trend, clamps)
         level = predicted
         if value is not None:
             step_fmt = p.solver.step_fmt
-            y = resize(step_fmt.raw(np.asarray(value, dtype=np.int64)), step_fmt, fmt,
-                       Rounding.HALF_EVEN, Overflow.ERROR)
-            wide = SQ(fmt.int_bits + 1, fmt.frac_bits)
-            level = fmt.raw(predicted + self._gained(p.alpha_raw, y - predicted, wide))
-        change = SQ(fmt.int_bits + 2, fmt.frac_bits)
-        self.trend = self.trend + self._gained(p.beta_raw, level - self.level - self.trend,
-                                               change)
+            y = resize(step_fmt.raw(np.asarray(value, dtype=np.int64)), step_fmt,
+                       p.motion_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+            level = clamp(p.motion_fmt, predicted + self._gained(p.alpha_raw, y - predicted),
+                          clamps)
+        self.trend = clamp(p.motion_fmt,
+                           self.trend + self._gained(p.beta_raw, level - predicted), clamps)
         self.level = level
+        self.saturated += any(clamps)
         return level
+
+
+def sum_format(fmt, extra):
+    """``fmt`` with ``extra`` more integer bits: where sums of its values are formed."""
+    return SQ(fmt.int_bits + extra, fmt.frac_bits)
+
+
+def clamp(fmt, raw, clamps):
+    """Raw sums of ``fmt`` values (same fraction bits) saturated into ``fmt``
+    (``Overflow.SATURATE``); appends to ``clamps`` whether any was out of range."""
+    raw = np.asarray(raw, dtype=np.int64)
+    out = np.clip(raw, fmt.min_raw, fmt.max_raw)
+    clamps.append(bool(np.any(out != raw)))
+    return out
 
 
 class ForecastModel:
@@ -96,6 +118,7 @@ class ForecastModel:
         self.coef_raw, self.row_coef_raw = coef_raw, row_coef_raw
         self.filter = MotionFilter(params, initial)
         self.loop = DelayedForecast(self.filter, params.loop_delay_rows)
+        self._saturated_queries = 0
 
     def take(self, slot, step=None):
         """The solver's step of row slot ``slot`` (raw ``step_fmt``; ``None`` if the row
@@ -103,9 +126,18 @@ class ForecastModel:
         return self.loop.update(slot, step)
 
     def motion(self, slot):
-        """Forecast ``Ŷ`` (raw ``motion_fmt``) for row slot ``slot``, whose step will be the
-        next the filter takes."""
-        return self.params.motion_fmt.raw(self.loop.forecast(slot))
+        """Forecast ``Ŷ`` (raw ``motion_fmt``, saturated) for row slot ``slot``, whose
+        step will be the next the filter takes."""
+        clamps = []
+        motion = clamp(self.params.motion_fmt, self.loop.forecast(slot), clamps)
+        self._saturated_queries += clamps[0]
+        return motion
+
+    @property
+    def saturated(self):
+        """Filter updates and forecasts in which a value was saturated into
+        ``motion_fmt`` (the gateware's ``loop.counters.motion_saturated``)."""
+        return self.filter.saturated + self._saturated_queries
 
     def _displacements(self, store, coef_raw, row, cue, motion):
         slots = self.params.solver.slots

@@ -263,7 +263,9 @@ def _loop(params):
         Register("counts", counts_layout(), Access.RO, "consistency counters (wrap): rows "
                  "whose source was too far, saturations, outliers replaced, rows gated"),
         Register("forecast_counters", forecast_counters_layout(forecast), Access.RO,
-                 "forecast saturations (centres, rows, displacements)"),
+                 "forecast saturations (centres, rows, displacements; `motion`: filter "
+                 "updates and forecasts saturated into the motion format, a diverging "
+                 "loop)"),
         Register("counters", loop_counters_layout(forecast), Access.RO, "measurements of "
                  "another row than the forecast's, predicted shifts saturated"),
     ])

@@ -121,6 +121,7 @@ class Forecast(wiring.Component):
             predictor.start.eq(request.valid & request.ready),
             predictor.row.eq(request.payload.row), predictor.cue.eq(request.payload.cue),
             predictor.motion.eq(motion.motion), predictor.motion_valid.eq(motion.motion_valid),
+            predictor.motion_saturated.eq(motion.saturated),
             self.motion.eq(motion.motion), self.counters.eq(predictor.counters),
             motion.alpha.eq(self.alpha), motion.beta.eq(self.beta),
             motion.initial.eq(self.initial), motion.restart.eq(self.restart),

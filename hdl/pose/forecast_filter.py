@@ -16,7 +16,7 @@ record it needs (of a slot at most ``slot − 1 − loop_delay_rows``) is outsta
 solver later than the loop delay stalls the rows instead of forecasting from old states.
 """
 
-from amaranth.hdl import Array, Module, Mux, Signal, unsigned
+from amaranth.hdl import Array, Cat, Module, Mux, Signal, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -25,6 +25,11 @@ from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import solver_source
 
 __all__ = ["MotionFilter", "DEFAULT_SLOT_BITS"]
+
+
+def outside(value, fmt):
+    """Whether the raw ``value`` (same fraction bits as ``fmt``) is beyond ``fmt``'s range."""
+    return (value < fmt.min_raw) | (value > fmt.max_raw)
 
 #: Width of the row slot counter (wraps; slots are compared modulo ``2**slot_bits``).
 DEFAULT_SLOT_BITS = 16
@@ -91,6 +96,7 @@ class MotionFilter(wiring.Component):
             "initial": In(motion),
             "restart": In(1),
             "busy": Out(1),
+            "saturated": Out(1),
         })
 
     @property
@@ -157,13 +163,17 @@ class MotionFilter(wiring.Component):
         with m.If(take_query):
             m.d.sync += [sel_level.eq(chosen.level), sel_trend.eq(chosen.trend),
                          ahead.eq(queries + 1 - chosen.count)]
-        with m.If(selected):
-            for i in range(6):
-                scaled, scaled_fmt = hdl_mul(sel_trend[i], fmt, ahead, UQ(count_bits, 0))
-                total = sel_level[i] + scaled
-                m.d.sync += self.motion[i].eq(hdl_resize(total, SQ(scaled_fmt.int_bits + 1,
-                                                                   fmt.frac_bits),
-                                                         fmt, Rounding.FLOOR, Overflow.WRAP))
+        # L + k·B per axis, saturated into motion_fmt
+        query_clamped = []
+        for i in range(6):
+            scaled, scaled_fmt = hdl_mul(sel_trend[i], fmt, ahead, UQ(count_bits, 0))
+            total_fmt = SQ(scaled_fmt.int_bits + 1, fmt.frac_bits)
+            total = Signal(total_fmt.shape(), name=f"forecast{i}")
+            m.d.comb += total.eq(sel_level[i] + scaled)
+            query_clamped.append(outside(total, fmt))
+            with m.If(selected):
+                m.d.sync += self.motion[i].eq(hdl_resize(total, total_fmt, fmt,
+                                                         Rounding.FLOOR, Overflow.SATURATE))
 
         # --- update: axis by axis, one multiplier for both gains
         axis = Signal(range(6))
@@ -175,17 +185,23 @@ class MotionFilter(wiring.Component):
         product, product_fmt = hdl_mul(gain, p.gain_fmt, operand,
                                        SQ(fmt.int_bits + 2, fmt.frac_bits))
         product_reg = Signal(product_fmt.shape())
-        gained = hdl_resize(product_reg, product_fmt, fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+        # |gain · (difference of two motion_fmt values)| < 2: one integer bit more
+        gained = hdl_resize(product_reg, product_fmt, SQ(fmt.int_bits + 1, fmt.frac_bits),
+                            Rounding.HALF_EVEN, Overflow.ERROR)
         predicted = Signal(fmt.shape())
         new_level = Signal(fmt.shape())
 
         level_i, trend_i = newest.level[axis], newest.trend[axis]
         y = hdl_resize(step[axis], self.source.step_fmt, fmt, Rounding.HALF_EVEN,
                        Overflow.ERROR)
-        sum_fmt = SQ(fmt.int_bits + 1, fmt.frac_bits)
+        update_clamped = Signal()                  # some value of this update saturated
 
-        def wrap(value):
-            return hdl_resize(value, sum_fmt, fmt, Rounding.FLOOR, Overflow.WRAP)
+        def clamp(value, extra):
+            """``value`` (``extra`` integer bits wider than motion_fmt) saturated into it,
+            noted in ``update_clamped``."""
+            m.d.sync += update_clamped.eq(update_clamped | outside(value, fmt))
+            return hdl_resize(value, SQ(fmt.int_bits + extra, fmt.frac_bits), fmt,
+                              Rounding.FLOOR, Overflow.SATURATE)
 
         m.d.sync += product_reg.eq(product)
         m.d.sync += push.eq(0)
@@ -193,25 +209,31 @@ class MotionFilter(wiring.Component):
             m.d.sync += [running.eq(1), axis.eq(0), phase.eq(0),
                          solved.eq(self.records.payload.flags == 0),
                          step.eq(self.records.payload.step), updates.eq(updates + 1),
+                         update_clamped.eq(0),
                          staged.kind.eq(2), staged.slot.eq(pending[0]),
                          staged.count.eq(updates + 1)]
         with m.Elif(running & ~push):
             m.d.sync += phase.eq(Mux(phase == self.PHASES - 1, 0, phase + 1))
             with m.Switch(phase):
                 with m.Case(0):                    # p = L + B, d = y − p (0 if unsolved)
-                    p_value = wrap(level_i + trend_i)
+                    p_value = clamp(level_i + trend_i, 1)
                     m.d.sync += [predicted.eq(p_value), gain.eq(self.alpha),
                                  operand.eq(Mux(solved, y - p_value, 0))]
                 with m.Case(2):                    # L' = p + α d, e = L' − p
-                    level_new = wrap(predicted + gained)
+                    level_new = clamp(predicted + gained, 2)
                     m.d.sync += [new_level.eq(level_new), gain.eq(self.beta),
                                  operand.eq(level_new - predicted)]
                 with m.Case(4):                    # B' = B + β e
                     m.d.sync += [staged.level[axis].eq(new_level),
-                                 staged.trend[axis].eq(wrap(trend_i + gained)),
+                                 staged.trend[axis].eq(clamp(trend_i + gained, 2)),
                                  axis.eq(axis + 1)]
                     with m.If(axis == 5):
                         m.d.sync += push.eq(1)
+        # one strobe per update and per forecast in which some value saturated (they
+        # never coincide: a forecast follows its query by a clock, an update takes 30)
+        m.d.comb += self.saturated.eq((push & update_clamped)
+                                      | (selected & Cat(query_clamped).any()))
+
         # the staged state becomes the newest one clock after its last axis
         with m.If(push):
             m.d.sync += running.eq(0)

@@ -39,9 +39,11 @@ TERM_STAGES = 6
 
 def counters_layout(params):
     """Saturations since reset (wrapping, ``solver.counter_bits`` each): window centres,
-    row addresses, and segment values (shift or across-rows displacement, each counted)."""
+    row addresses, segment values (shift or across-rows displacement, each counted), and
+    the motion filter's updates and forecasts with a value saturated into ``motion_fmt``
+    (the loop diverging)."""
     bits = params.solver.counter_bits
-    return data.StructLayout({"centre": bits, "row": bits, "segment": bits})
+    return data.StructLayout({"centre": bits, "row": bits, "segment": bits, "motion": bits})
 
 
 def output_layout(params):
@@ -91,6 +93,9 @@ class RowPredictor(wiring.Component):
     cue : In(ArrayLayout(cue_fmt, slots))
     motion : In(ArrayLayout(motion_fmt, 6)); motion_valid : In(1)
         The forecast ``Ŷ`` for the row.
+    motion_saturated : In(1)
+        The motion filter's strobe (:attr:`hdl.pose.forecast_filter.MotionFilter.saturated`),
+        counted in ``counters.motion``.
     idle : Out(1)
     o : Out(stream.Signature(output_layout(params)))
     counters : Out(counters_layout(params))
@@ -127,6 +132,7 @@ class RowPredictor(wiring.Component):
             "cue": In(data.ArrayLayout(s.cue_fmt.shape(), s.slots)),
             "motion": In(data.ArrayLayout(params.motion_fmt.shape(), 6)),
             "motion_valid": In(1),
+            "motion_saturated": In(1),
             "idle": Out(1),
             "o": Out(stream.Signature(output_layout(params))),
             "counters": Out(counters_layout(params)),
@@ -223,6 +229,8 @@ class RowPredictor(wiring.Component):
                 counters.row.eq(counters.row + row_over),
                 counters.segment.eq(counters.segment + segments_over),
             ]
+        with m.If(self.motion_saturated):
+            m.d.sync += counters.motion.eq(counters.motion + 1)
         with m.If(self.o.valid & self.o.ready):
             m.d.sync += [self.o.valid.eq(0), camera.eq(camera + 1)]
             with m.If(last_camera):

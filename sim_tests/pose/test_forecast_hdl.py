@@ -21,7 +21,7 @@ from hdl.pose.forecast import Forecast
 from hdl.pose.params import PoseFlag, PoseSolverParams
 
 from sim_tests.pose.forecast.stimulus import (expected_outputs, polynomial_params,
-                                              random_case, record, saturations,
+                                              random_case, record, run_model, saturations,
                                               small_params)
 
 SEED = int(os.environ.get("SEED", "5"))
@@ -54,7 +54,7 @@ def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_
             await ctx.tick()
             cycle += 1
         counters.update({name: ctx.get(getattr(dut.counters, name))
-                         for name in ("centre", "row", "segment")})
+                         for name in ("centre", "row", "segment", "motion")})
 
     def driver(port, items, cycles, wait=0):
         async def run(ctx):
@@ -222,11 +222,32 @@ def test_saturation_at_the_extremes_is_flagged(sign):
     got, motions, *_, counters = simulate(_build(case), case, gaps=True, seed=SEED)
     _check(case, got, motions)
     flat = [o for outs in expected for o in outs]
-    assert counters == saturations(flat)
+    assert counters == saturations(flat)          # the motion itself never saturates
     r = params.centre_range
     assert {o["centre"] for o in flat if o["centre_saturated"]} == {-r, r}
     assert {o["source_row"] for o in flat if o["row_saturated"]} == {0, params.height - 1}
     assert any(o["shift_saturated"] for o in flat) and any(o["across_saturated"] for o in flat)
+
+
+@pytest.mark.parametrize("sign", [1, -1])
+def test_a_diverging_loop_saturates_the_motion_and_counts_it(sign):
+    """Steps at the end of the range from the other end: the level and the trend run
+    into motion_fmt's bound; the filter saturates (never wraps to the other sign) as the
+    model does, bit for bit, and counts every update and forecast that saturated."""
+    case = random_case(SEED)
+    params = case["params"]
+    fmt, step_fmt = params.motion_fmt, params.solver.step_fmt
+    initial = np.full(6, -sign * fmt.max_raw)
+    step = step_fmt.quantize(np.full(6, sign * 0.99))
+    records = [record(params, step) for _ in case["records"]]
+    expected, motion, model = run_model(params, case["coef_raw"], case["row_coef_raw"],
+                                        initial, case["requests"], records)
+    assert model.saturated > 0, "the stimulus did not drive the filter to its bound"
+    assert all(np.sign(m[0]) == sign for m in motion[len(motion) // 2:])   # no wrap
+    case = dict(case, initial=initial, records=records, expected=expected, motion=motion)
+    got, motions, *_, counters = simulate(_build(case), case, gaps=True, seed=SEED)
+    _check(case, got, motions)
+    assert counters == saturations([o for outs in expected for o in outs], model.saturated)
 
 
 @pytest.mark.parametrize("build, error, message", [

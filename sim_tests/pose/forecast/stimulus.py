@@ -41,9 +41,9 @@ def record(params, step=None, row=0, time=0, flags=0):
             "p": [0, 0, 0], "step": [int(v) for v in step]}
 
 
-def expected_outputs(params, coefficients, row_coefficients, initial, requests, records):
-    """Per request, the per-camera outputs and Ŷ of the model in its order (predict the
-    row, then take its record)."""
+def run_model(params, coefficients, row_coefficients, initial, requests, records):
+    """The model in the gateware's order (predict the row, then take its record): per
+    request the per-camera outputs and Ŷ, and the model at the end."""
     model = ForecastModel(params, coefficients, row_coefficients, initial)
     outputs, motions = [], []
     for request, rec in zip(requests, records):
@@ -51,15 +51,22 @@ def expected_outputs(params, coefficients, row_coefficients, initial, requests, 
         outputs.append(output_transfers(params, out, request["row"]))
         motions.append([int(v) for v in out["motion"]])
         model.take(request["slot"], np.array(rec["step"]) if rec["flags"] == 0 else None)
-    return outputs, motions
+    return outputs, motions, model
 
 
-def saturations(outputs):
-    """The block's saturation counters after ``outputs`` (per-camera output dicts)."""
+def expected_outputs(params, coefficients, row_coefficients, initial, requests, records):
+    """Per request, the per-camera outputs and Ŷ of the model (:func:`run_model`)."""
+    return run_model(params, coefficients, row_coefficients, initial, requests, records)[:2]
+
+
+def saturations(outputs, motion=0):
+    """The block's saturation counters after ``outputs`` (per-camera output dicts) and
+    ``motion`` saturated filter updates and forecasts."""
     return {"centre": sum(o["centre_saturated"] for o in outputs),
             "row": sum(o["row_saturated"] for o in outputs),
             "segment": sum(bin(o["shift_saturated"]).count("1")
-                           + bin(o["across_saturated"]).count("1") for o in outputs)}
+                           + bin(o["across_saturated"]).count("1") for o in outputs),
+            "motion": motion}
 
 
 def _finish(case):
