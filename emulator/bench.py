@@ -26,6 +26,7 @@ BENCHES = {
     "row_descriptor": "emulator.benches.row_descriptor",
     "e2e": "emulator.benches.e2e",
     "hw_tracking": "emulator.benches.hw_tracking",
+    "robustness": "emulator.benches.robustness",
 }
 
 

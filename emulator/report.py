@@ -208,11 +208,12 @@ def benchmark_figures(path=FIGURES_JSON):
         return {}
 
 
-def resources(path=FIGURES_JSON):
-    """The top's synthesis estimates ``top.*`` from ``docs/results/figures.json`` (empty
-    when the file or the figures are missing)."""
-    return {k[4:]: v for k, v in benchmark_figures(path).items()
-            if k.startswith("top.") and k.count(".") == 1}
+def resources(rig, path=FIGURES_JSON):
+    """The synthesis and timing figures ``top.<rig>.*`` of ``rig``'s board top from
+    ``docs/results/figures.json`` (empty when the file or the figures are missing)."""
+    prefix = f"top.{rig}."
+    return {k[len(prefix):]: v for k, v in benchmark_figures(path).items()
+            if k.startswith(prefix)}
 
 
 def _ms(times):
@@ -368,14 +369,16 @@ def _markdown(outcome, m, plots):
     source = (f"dataset `{job.dataset_path}`" if job.dataset_path is not None
               else f"simulated, `{job.trajectory}` motion, seed {job.seed}")
     failures = outcome.all_failures()
-    res = resources()
+    res = resources(m["rig"])
     if res:
-        resource_text = ("From `docs/results/figures.json` (`top.*`, yosys `synth_xilinx` "
-                         "of the pipeline top, measured by `rowtrack bench --only top`; not "
-                         "by this run):\n\n" + table(sorted(res.items())))
+        resource_text = (f"From `docs/results/figures.json` (`top.{m['rig']}.*`, yosys "
+                         "`synth_xilinx` of the rig's closed-loop board top and a "
+                         "co-simulated slice of it, measured by `rowtrack bench --only top`; "
+                         "not by this run):\n\n" + table(sorted(res.items())))
     else:
-        resource_text = ("`docs/results/figures.json` holds no `top.*` figures; run "
-                         "`rowtrack bench --only top --write-docs docs/results`.")
+        resource_text = (f"`docs/results/figures.json` holds no `top.{m['rig']}.*` figures "
+                         "(`rowtrack bench --only top` measures the boards' rigs: "
+                         "docs/results/top.md).")
     walls = table([(phase, f"{seconds:.1f} s") for phase, seconds in wall_times(m)])
     return "\n".join([
         "# rowtrack run", "",
