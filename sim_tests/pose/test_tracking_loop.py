@@ -16,7 +16,7 @@ from amaranth.sim import Simulator
 
 from hdl.measurement.consistency import COUNTS
 from hdl.pose.tracking_loop import TrackingLoop
-from sim_tests.pose.tracking_loop.stimulus import closed_loop_case
+from sim_tests.pose.tracking_loop.stimulus import closed_loop_case, restart_after
 
 SEED = int(os.environ.get("SEED", "1"))
 OUT_FIELDS = ("camera", "row", "centre", "source_row", "centre_saturated", "row_saturated",
@@ -37,9 +37,8 @@ def record_dict(record):
 def run_loop(case, *, seed, gaps, limit=400000):
     """The case's inputs through the gateware; returns the forecast transfers and the
     records (each with its clock), the clocks of the input transfers, the counters.
-    With the case's ``restart`` (frame ``F``, motion) ``initial`` is set to the motion
-    and ``restart`` strobed once two rows of frame ``F − 1`` are forecast (the loop is
-    then ``loop_delay_rows + 1`` rows ahead of its records)."""
+    With the case's ``restart`` (frame, motion) ``initial`` is set to the motion and
+    ``restart`` strobed after :func:`restart_after` forecast transfers."""
     dut = build(case)
     rng = random.Random(seed)
     prob = 0.6 if gaps else 1.0
@@ -48,10 +47,7 @@ def run_loop(case, *, seed, gaps, limit=400000):
            "predicted": [], "verdicts": [], "counts": None}
     requests, judged, predicted = dut._requests.o, dut._stage.i, dut._shift.o
 
-    restart = case.get("restart")
-    if restart is not None:
-        frame, motion = restart
-        restart_at = ((frame - 1) * case["params"].height + 2) * case["params"].cameras
+    restart_at = restart_after(case)
 
     async def bench(ctx):
         ctx.set(dut.initial, [int(v) for v in case["initial"]])
@@ -61,11 +57,10 @@ def run_loop(case, *, seed, gaps, limit=400000):
         queue, cycle = list(case["inputs"]), 0
         valid = was_shown = False
         while (len(got["o"]) < want_out or len(got["records"]) < len(case["records"])):
-            strobe = restart is not None and len(got["o"]) == restart_at and \
-                "restart" not in got
+            strobe = len(got["o"]) == restart_at and "restart" not in got
             if strobe:
                 got["restart"] = cycle
-                ctx.set(dut.initial, [int(v) for v in motion])
+                ctx.set(dut.initial, [int(v) for v in case["restart"][1]])
             ctx.set(dut.restart, strobe)
             if not valid and queue and rng.random() < prob:
                 ctx.set(dut.i.payload, queue[0])

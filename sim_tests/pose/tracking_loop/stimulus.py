@@ -25,7 +25,7 @@ from emulator.pose.forecast import output_transfers
 from emulator.pose.tracking_loop import TrackingLoopModel
 from sim_tests.pose.forecast.stimulus import VERSION, cached
 
-__all__ = ["closed_loop_case", "PAIRS", "CACHE"]
+__all__ = ["closed_loop_case", "restart_after", "PAIRS", "CACHE"]
 
 CACHE = Path(__file__).resolve().parents[3] / "build" / "tracking_loop_stimulus"
 #: stereo20's pairs kept: the front pair, the one beside it rolled 90°, a tilted one
@@ -55,6 +55,18 @@ def closed_loop_case(rows=32, frames=3, seed=1, pairs=PAIRS, delay=1, restart=No
             f"{tail}_{VERSION}.pkl")
     return cached(CACHE / name, lambda: _closed_loop(rows, frames, seed, pairs, delay,
                                                      restart))
+
+
+def restart_after(case):
+    """The forecast transfers after which the benches strobe a restart case's
+    ``restart`` (with ``initial`` its motion): two rows into the frame before the
+    restart's (the loop is then ``loop_delay_rows + 1`` rows ahead of its records, the
+    strobe mid-frame); None without a restart."""
+    restart = case.get("restart")
+    if restart is None:
+        return None
+    params = case["params"]
+    return ((restart[0] - 1) * params.height + 2) * params.cameras
 
 
 def _closed_loop(rows, frames, seed, pairs, delay, restart):
