@@ -28,7 +28,9 @@ Only wiring of blocks with their own modules and tests::
 The loop delay is ``loop_delay_rows`` (ForecastParams): a request of slot ``s`` waits for
 the record of slot ``s − 1 − loop_delay_rows``. Assumed: every row forecast gets at least
 one measurement (the engine emits every slot of every row), else its record never comes
-and the requests stop.
+and the requests stop. ``restart`` waits for a clean point, the next frame boundary of
+the requests with every forecast row's record in (:mod:`hdl.pose.loop_requests`), so no
+stale context is ever joined.
 """
 
 from amaranth.hdl import Module, Signal, signed
