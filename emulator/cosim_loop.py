@@ -12,9 +12,10 @@ does. Forecast → lane centre and row address → measurement → solver → fo
 in the HDL; nothing of the loop is fed from the model.
 
 The loop runs from reset (the forecast filter at rest, the emulator's initial motion
-0): a ``restart`` over the registers once the loop has forecast its first rows leaves
-those rows' contexts in the loop and their forecasts in the engine, and the rows after
-it join the wrong ones (measured: ``loop.counters.mismatched`` 292 on 14 rows).
+0); no ``restart`` is written. One written over the registers takes effect at the next
+frame boundary of the forecast once the rows already forecast are solved (from frame 1
+when written after reset; :class:`hdl.pose.tracking_loop.TrackingLoop`), which
+:func:`emulator.pipeline.run`'s ``restart=(frame, motion)`` models.
 
 The emulator counts row slots from the dataset's time stamps, the hardware from the
 row order and ``frame_rows`` (:mod:`hdl.pose.loop_requests`): the rig's frame period
@@ -153,9 +154,9 @@ def loop_expected(config, dataset, frames, times):
     (:data:`emulator.cosim.RECORD_FIELDS`, :data:`SOLVER_FIELDS`,
     :data:`FORECAST_FIELDS`). ``times``: the time stamp of each record (the HDL row sets',
     router rule; the emulator's own where the HDL has fewer). Started as the gateware
-    after reset: the forecast filter at rest (initial motion 0) — a ``restart`` over the
-    registers does not recall the forecast rows the loop has already issued — and the
-    flags through the status unit's model with the registers' reset settings."""
+    after reset: the forecast filter at rest (initial motion 0), no ``restart`` (one
+    would be ``run``'s ``restart`` before the frame it took effect at), and the flags
+    through the status unit's model with the registers' reset settings."""
     from emulator.output import packets
     from emulator.pipeline import run
     from emulator.pose.tracking_status import StatusUnitModel, annotate

@@ -100,7 +100,7 @@ def _framed(dataset, camera, frame, row, config, t0):
 
 
 def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_motion=None,
-        consistency=None, cue_fallback=False):
+        consistency=None, cue_fallback=False, restart=None):
     """Run the dataset (first ``frames`` frames, default all) through the pipeline of
     ``config`` (:class:`hdl.pipeline_config.PipelineConfig`); ``progress`` shows a bar
     over the frames.
@@ -120,7 +120,10 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
     against the forecast's predicted shifts (with the row's own depth cues) before the
     solver. With ``cue_fallback`` a segment whose stereo match fails takes its pair's
     last usable cue of the same row (the previous frame's; a store of
-    ``pairs × K_s × height`` cues)."""
+    ``pairs × K_s × height`` cues). With ``restart`` = ``(frame, motion)`` (closed loop
+    only) the loop restarts before that frame's first row at ``motion`` (float (6,)),
+    its row slots counted from that row (:meth:`TrackingLoopModel.restart`, where the
+    gateware's ``restart`` takes effect)."""
     from tqdm import tqdm
     router = config.router
     cams = range(router.cameras)
@@ -134,6 +137,8 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
     t0 = min(float(cam.time[0, 0]) for cam in dataset.cameras)
     if consistency is not None and not follow:
         raise ValueError("consistency needs forecast (it judges shifts against it)")
+    if restart is not None and not follow:
+        raise ValueError("restart needs forecast (it restarts the loop)")
     loop = _Loop(config, forecast, initial_motion, dataset, t0, consistency) if follow \
         else None
     start = time.perf_counter()
@@ -145,6 +150,8 @@ def run(config, dataset, frames=None, *, progress=False, forecast=None, initial_
                                  for n, lane in zip(cams, temporal_lanes)]
         s = [lane.process_pairs(rows[a], rows[b])
              for lane, (a, b) in zip(stereo_lanes, router.pairs)]
+        if restart is not None and frame == restart[0]:
+            loop.restart(frame, restart[1])
         for row in range(height):
             if follow:
                 t_row = loop.measure(temporal_lanes, [rows[n][row] for n in cams], frame)
@@ -188,6 +195,12 @@ class _Loop:
 
     def slot(self, frame, row):
         return int(round((self.time[frame, row] - self.t0) / self.t_r))
+
+    def restart(self, frame, motion):
+        """The loop restarted at ``motion`` (float (6,)) before ``frame``'s first row,
+        which becomes row slot 0."""
+        self.model.restart(self.params.motion_fmt.quantize(motion))
+        self.t0 = float(self.time[frame, 0])
 
     def measure(self, lanes, rows, frame):
         """The temporal measurements of one row set at the forecast centres and rows."""

@@ -15,7 +15,13 @@ to be read, composed of the blocks' own models:
    measurement, ``a·Ŷ`` with the measurement's own cue and the row's forecast ``Ŷ``, and
    each camera's row offset ``source − row`` of the row's forecast; the cue store keeps
    every non-zero cue; the solver's step of the judged row (none if flagged: a gated
-   row has all confidences 0, so EMPTY) updates the forecast's filter.
+   row has all confidences 0, so EMPTY) updates the forecast's filter;
+3. :meth:`TrackingLoopModel.restart`: between a frame's last row and the next frame's
+   first, the filter starts again at ``initial`` (as constructed) and the row slots at
+   0; the cue store and the consistency stage's scales are kept (they hold the previous
+   frame's cues and the measurements' statistics, which a restart does not change). The
+   gateware's ``restart`` takes effect at such a point: the first frame boundary of its
+   requests after the strobe, once every row forecast before it has its record.
 """
 
 import numpy as np
@@ -45,7 +51,7 @@ class TrackingLoopModel:
     """
 
     def __init__(self, params, coef_raw, row_coef_raw, initial, consistency=None):
-        self.params, self.coef_raw = params, coef_raw
+        self.params, self.coef_raw, self.row_coef_raw = params, coef_raw, row_coef_raw
         self.forecast = ForecastModel(params, coef_raw, row_coef_raw, initial)
         self.consistency = None if consistency is None else ConsistencyModel(consistency)
         self.cues = np.zeros((params.solver.slots, params.height), dtype=np.int64)
@@ -59,6 +65,13 @@ class TrackingLoopModel:
     def counts(self):
         """The consistency stage's counters (empty without one)."""
         return {} if self.consistency is None else dict(self.consistency.counts)
+
+    def restart(self, initial):
+        """The filter as constructed at ``initial`` (raw ``motion_fmt``, (6,)), before
+        the first row of a frame; the next row's slot is 0. The cue store and the
+        consistency stage keep their state."""
+        self.forecast = ForecastModel(self.params, self.coef_raw, self.row_coef_raw, initial)
+        self.prediction = None
 
     def request(self, slot, row):
         """The forecast of camera row ``row`` read in row slot ``slot`` (the dict of

@@ -243,7 +243,7 @@ def _loop(params):
                          "[docs/measurement/consistency.md](measurement/consistency.md)) "
                          "and the loop's counters. Change the settings between rows; "
                          "`restart` starts the filter again at `initial` and the row "
-                         "slots at row 0.", [
+                         "slots at row 0, at the next frame boundary.", [
         Register("alpha", forecast.gain_fmt.width, Access.RW, f"level gain α, raw "
                  f"{forecast.gain_fmt} (reset {forecast.alpha:g})",
                  reset=forecast.alpha_raw),
@@ -252,8 +252,13 @@ def _loop(params):
         Register("initial", data.ArrayLayout(motion.shape(), 6), Access.RW,
                  f"the motion Y = [T θ] the filter starts from at `restart`, raw {motion} "
                  f"(metres, radians per frame period)"),
-        Register("restart", 1, Access.WO, "write to restart the filter at `initial` and "
-                 "the row slots at row 0 (before the first row of a frame)"),
+        Register("restart", 1, Access.WO, "write to restart the filter at `initial` "
+                 "(read then) and the row slots at row 0 of slot 0, at the next frame "
+                 "boundary of the forecast: the rows already forecast finish as before "
+                 "(nothing dropped), the loop waits for their records (the engine's row "
+                 "0 waits too), then forecasts row 0 from `initial`. Written after "
+                 "reset, before the cameras run, it applies from frame 1 (the first with "
+                 "a previous frame)"),
         Register("frame_rows", DEFAULT_SLOT_BITS, Access.RW, "row periods per frame period, blanking "
                  "included: the row slots' count per frame", reset=int(stage.frame_rows)),
         Register("consistency", settings_layout(stage), Access.RW, "the consistency "

@@ -71,6 +71,9 @@ class Forecast(wiring.Component):
         Saturations counted (:func:`hdl.pose.forecast_predictor.counters_layout`).
     alpha, beta, initial, restart : In
         The filter's run-time gains and restart (see :class:`MotionFilter`).
+    idle : Out(1)
+        No request in progress and every request's record taken: a ``restart`` now
+        drops nothing (:class:`hdl.pose.tracking_loop.TrackingLoop` restarts only then).
 
     Latency: :attr:`latency` clocks from a request's transfer to its first output
     when idle; the row's last output :attr:`row_clocks` clocks after the request when
@@ -94,6 +97,7 @@ class Forecast(wiring.Component):
             "counters": self._predictor.signature.members["counters"],
             "alpha": f["alpha"], "beta": f["beta"], "initial": f["initial"],
             "restart": f["restart"],
+            "idle": Out(1),
         })
 
     @property
@@ -125,6 +129,7 @@ class Forecast(wiring.Component):
             self.motion.eq(motion.motion), self.counters.eq(predictor.counters),
             motion.alpha.eq(self.alpha), motion.beta.eq(self.beta),
             motion.initial.eq(self.initial), motion.restart.eq(self.restart),
+            self.idle.eq(predictor.idle & motion.drained),
         ]
         connect(m, flipped(self.records), motion.records)
         connect(m, predictor.o, flipped(self.o))

@@ -66,6 +66,9 @@ class MotionFilter(wiring.Component):
         model's construction). Reset does the same with ``initial`` = 0.
     busy : Out(1)
         A record's update is in progress.
+    drained : Out(1)
+        Every query's record is taken (none outstanding): a ``restart`` now drops no
+        record.
 
     Timing: a record takes :attr:`update_clocks` clocks (one multiplier, shared by the
     six axes and both gains); queries wait while an update runs.
@@ -97,6 +100,7 @@ class MotionFilter(wiring.Component):
             "restart": In(1),
             "busy": Out(1),
             "saturated": Out(1),
+            "drained": Out(1),
         })
 
     @property
@@ -141,6 +145,7 @@ class MotionFilter(wiring.Component):
                                 & (level != depth) & ((level == 0) | ~head_is_old)),
             take_query.eq(self.query.valid & self.query.ready),
             self.busy.eq(~idle),
+            self.drained.eq(level == 0),
         ]
         with m.If(take_query):
             m.d.sync += [Array(pending)[level].eq(self.query.payload), level.eq(level + 1),

@@ -22,6 +22,14 @@ the previous request was taken. The word is final then if ``height ≥ loop_dela
 2`` (checked): the previous request needed the records up to ``loop_delay_rows + 1``
 slots before it, which include the same row of the previous frame, whose measurements
 have all written by the time its record is out.
+
+**Restart.** A ``restart`` strobe is held until the next request would be row 0 (a frame
+boundary of the requests), and takes effect there once the forecast is ``drained`` (every
+row forecast has its record, so no context, measurement or forecast row of the old run
+is left in the loop or the engine): the requests go on with row 0 of slot 0, and
+``restarting`` restarts the forecast's filter in the same clock. Until then row 0 is not
+offered. The cue store is kept: it holds the previous frame's cues, all written (the
+model's :meth:`~emulator.pose.tracking_loop.TrackingLoopModel.restart`).
 """
 
 from amaranth.hdl import Module, Mux, Signal, unsigned
@@ -49,17 +57,21 @@ class RequestGenerator(wiring.Component):
     Members
     -------
     o : Out(stream.Signature(request_layout(params, slot_bits)))
-        Row 0 of slot 0 first after reset or ``restart``.
+        Row 0 of slot 0 first after reset or a restart (``valid`` drops, without a
+        transfer, while a pending restart holds row 0 back).
     write_en : In(1); write_slot, write_row, write_cue : In
         A measurement's cue for the store (``write_en`` only for a non-zero cue).
     frame_rows : In(unsigned(slot_bits)), reset ``frame_rows``
         Row periods per frame period, at least ``height``; change it with ``restart``.
     restart : In(1)
-        The next request is row 0 of slot 0, the store is cleared (the model's
-        construction).
+        Strobe: restart at the next frame boundary (see the module docstring).
+    drained : In(1)
+        The forecast has no request in progress and every request's record.
+    restarting : Out(1)
+        The restart takes effect in this clock (the forecast's ``restart``).
 
-    After reset or ``restart`` the store is cleared first, one word per clock (``height``
-    clocks); requests wait for it (block RAM contents survive a reset).
+    After reset the store is cleared first, one word per clock (``height`` clocks);
+    requests wait for it (block RAM contents survive a reset).
     """
 
     def __init__(self, params, frame_rows, *, slot_bits=DEFAULT_SLOT_BITS):
@@ -77,7 +89,7 @@ class RequestGenerator(wiring.Component):
             "write_en": In(1), "write_slot": In(s.slot_bits), "write_row": In(s.row_bits),
             "write_cue": In(s.cue_fmt.shape()),
             "frame_rows": In(unsigned(slot_bits), init=frame_rows),
-            "restart": In(1),
+            "restart": In(1), "drained": In(1), "restarting": Out(1),
         })
 
     def elaborate(self, platform):
@@ -98,18 +110,24 @@ class RequestGenerator(wiring.Component):
                          *[write.data[k].eq(self.write_cue) for k in range(s.slots)]]
 
         row, slot = Signal(range(p.height)), Signal(self.slot_bits)
+        offered = Signal()               # the request of ``row`` is read
+        pending, hold = Signal(), Signal()
         fetch = Signal()                 # read the row's cues in this clock
-        m.d.comb += [fetch.eq(~clearing & ~self.o.valid),
+        m.d.comb += [fetch.eq(~clearing & ~offered),
                      read.addr.eq(row), read.en.eq(fetch),
+                     hold.eq(pending & (row == 0)),
+                     self.restarting.eq(hold & self.drained),
+                     self.o.valid.eq(offered & ~hold),
                      self.o.payload.row.eq(row), self.o.payload.slot.eq(slot),
                      self.o.payload.cue.eq(read.data)]
         with m.If(fetch):
-            m.d.sync += self.o.valid.eq(1)
+            m.d.sync += offered.eq(1)
         with m.If(self.o.valid & self.o.ready):
             last = row == p.height - 1
-            m.d.sync += [self.o.valid.eq(0), row.eq(Mux(last, 0, row + 1)),
+            m.d.sync += [offered.eq(0), row.eq(Mux(last, 0, row + 1)),
                          slot.eq(slot + Mux(last, self.frame_rows - (p.height - 1), 1))]
+        with m.If(self.restarting):
+            m.d.sync += [slot.eq(0), pending.eq(0)]
         with m.If(self.restart):
-            m.d.sync += [row.eq(0), slot.eq(0), self.o.valid.eq(0), clearing.eq(1),
-                         clear_addr.eq(0)]
+            m.d.sync += pending.eq(1)
         return m

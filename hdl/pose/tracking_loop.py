@@ -28,7 +28,9 @@ Only wiring of blocks with their own modules and tests::
 The loop delay is ``loop_delay_rows`` (ForecastParams): a request of slot ``s`` waits for
 the record of slot ``s − 1 − loop_delay_rows``. Assumed: every row forecast gets at least
 one measurement (the engine emits every slot of every row), else its record never comes
-and the requests stop.
+and the requests stop. ``restart`` waits for a clean point, the next frame boundary of
+the requests with every forecast row's record in (:mod:`hdl.pose.loop_requests`), so no
+stale context is ever joined.
 """
 
 from amaranth.hdl import Module, Signal, signed
@@ -99,9 +101,16 @@ class TrackingLoop(wiring.Component):
         status' row counts (``judged``, ``outliers``, ``confident``, ``last``).
     coef_write : In(coef_write_signature(solver))
         The solver's coefficient store load (:class:`hdl.pose_solver.PoseSolver`).
-    alpha, beta, initial, restart : In
-        The forecast's (:class:`hdl.pose.forecast.Forecast`); ``restart`` also restarts
-        the requests at row 0, slot 0.
+    alpha, beta, initial : In
+        The forecast's gains and start (:class:`hdl.pose.forecast.Forecast`).
+    restart : In(1)
+        Strobe: restart the filter at ``initial`` (read then) and the requests at row 0,
+        slot 0, at the next frame boundary of the requests once every row forecast
+        before it has its record (:mod:`hdl.pose.loop_requests`): the rows forecast
+        before the boundary are measured, joined and solved as before, so nothing is
+        dropped and nothing mismatched; the model's
+        :meth:`~emulator.pose.tracking_loop.TrackingLoopModel.restart` before that
+        frame. Meanwhile row 0 is not forecast (in a top the engine's row set waits).
     settings : In(settings_layout(stage)), reset to the stage's parameters
     frame_rows : In(unsigned(slot_bits)), reset ``stage.frame_rows``
     counts, forecast_counters, solver_counters, counters : Out
@@ -166,9 +175,10 @@ class TrackingLoop(wiring.Component):
         # --- requests → forecast → o, each row's context kept
         connect(m, requests.o, forecast.requests)
         m.d.comb += [requests.frame_rows.eq(self.frame_rows),
-                     requests.restart.eq(self.restart),
+                     requests.restart.eq(self.restart), requests.drained.eq(forecast.idle),
                      forecast.alpha.eq(self.alpha), forecast.beta.eq(self.beta),
-                     forecast.initial.eq(self.initial), forecast.restart.eq(self.restart),
+                     forecast.initial.eq(self.initial),
+                     forecast.restart.eq(requests.restarting),
                      self.forecast_counters.eq(forecast.counters),
                      self.o.payload.eq(forecast.o.payload),
                      self.o.valid.eq(forecast.o.valid & contexts.w_rdy),

@@ -3,7 +3,9 @@ simulator, bit-exact with the loop's model: fed the measurement stream of a real
 closed-loop run (stereo20 cut to three pairs and 8 rows, three frames, loop delay 1 and
 2), every forecast transfer and every pose record equal the model's, with and without
 valid gaps and ready backpressure (SEED printed); the model's row slots are the
-generator's; the latency; the parameter checks. The longer runs are the cocotb bench's (sim_tests/pose/tracking_loop/)."""
+generator's; a ``restart`` written while rows are forecast takes effect at the next
+frame boundary, as the model's restart there (nothing mismatched); the latency; the
+parameter checks. The longer runs are the cocotb bench's (sim_tests/pose/tracking_loop/)."""
 
 import os
 import random
@@ -14,7 +16,7 @@ from amaranth.sim import Simulator
 
 from hdl.measurement.consistency import COUNTS
 from hdl.pose.tracking_loop import TrackingLoop
-from sim_tests.pose.tracking_loop.stimulus import closed_loop_case
+from sim_tests.pose.tracking_loop.stimulus import closed_loop_case, restart_after
 
 SEED = int(os.environ.get("SEED", "1"))
 OUT_FIELDS = ("camera", "row", "centre", "source_row", "centre_saturated", "row_saturated",
@@ -34,7 +36,9 @@ def record_dict(record):
 
 def run_loop(case, *, seed, gaps, limit=400000):
     """The case's inputs through the gateware; returns the forecast transfers and the
-    records (each with its clock), the clocks of the input transfers, the counters."""
+    records (each with its clock), the clocks of the input transfers, the counters.
+    With the case's ``restart`` (frame, motion) ``initial`` is set to the motion and
+    ``restart`` strobed after :func:`restart_after` forecast transfers."""
     dut = build(case)
     rng = random.Random(seed)
     prob = 0.6 if gaps else 1.0
@@ -42,6 +46,8 @@ def run_loop(case, *, seed, gaps, limit=400000):
     got = {"o": [], "records": [], "inputs": [], "lasts": [], "requests": [], "judged": [],
            "predicted": [], "verdicts": [], "counts": None}
     requests, judged, predicted = dut._requests.o, dut._stage.i, dut._shift.o
+
+    restart_at = restart_after(case)
 
     async def bench(ctx):
         ctx.set(dut.initial, [int(v) for v in case["initial"]])
@@ -51,6 +57,11 @@ def run_loop(case, *, seed, gaps, limit=400000):
         queue, cycle = list(case["inputs"]), 0
         valid = was_shown = False
         while (len(got["o"]) < want_out or len(got["records"]) < len(case["records"])):
+            strobe = len(got["o"]) == restart_at and "restart" not in got
+            if strobe:
+                got["restart"] = cycle
+                ctx.set(dut.initial, [int(v) for v in case["restart"][1]])
+            ctx.set(dut.restart, strobe)
             if not valid and queue and rng.random() < prob:
                 ctx.set(dut.i.payload, queue[0])
                 valid = True
@@ -122,13 +133,19 @@ def check(case, got):
     assert got["counters"] == {"mismatched": 0, "predicted_saturated": 0}
 
 
-@pytest.mark.parametrize("gaps, delay", [(False, 1), (True, 1), (True, 2)])
-def test_small_closed_loop_bit_exact(gaps, delay):
+@pytest.mark.parametrize("gaps, delay, restart", [(False, 1, None), (True, 1, None),
+                                                  (True, 2, None), (False, 1, 1),
+                                                  (True, 2, 2)])
+def test_small_closed_loop_bit_exact(gaps, delay, restart):
     print(f"SEED={SEED}")
-    case = closed_loop_case(rows=8, frames=3, delay=delay)
-    assert case["slots"] == list(range(len(case["slots"])))     # f·frame_rows + r
+    case = closed_loop_case(rows=8, frames=3, delay=delay, restart=restart)
+    first = 0 if restart is None else restart * case["params"].height
+    slots = list(range(first)) + list(range(len(case["slots"]) - first))
+    assert case["slots"] == slots       # f·frame_rows + r, counted again from a restart
     _, got = run_loop(case, seed=SEED, gaps=gaps)
     check(case, got)
+    if restart is not None:
+        assert 0 < got["restart"] < got["o"][first * case["params"].cameras][0]
     flags = [r["flags"] for r in case["records"]]
     print(f"{len(got['o'])} forecast transfers, {len(flags)} records "
           f"({flags.count(0)} solved) bit-exact; counts {got['counts']}")

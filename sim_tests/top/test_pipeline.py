@@ -260,3 +260,8 @@ def test_closing_the_loop_with_the_forecast_beats_the_open_loop(config, dataset,
 def test_a_closed_loop_needs_its_initial_motion(config, dataset):
     with pytest.raises(ValueError, match="initial_motion must be given with forecast"):
         run(config, dataset, frames=1, forecast=config.forecast())
+
+
+def test_a_restart_needs_the_closed_loop(config, dataset):
+    with pytest.raises(ValueError, match="restart needs forecast"):
+        run(config, dataset, frames=1, restart=(0, np.zeros(6)))

@@ -11,7 +11,8 @@ terms), ``solver_store``, ``initial`` (raw
 ``motion_fmt``), ``inputs`` (the measurement transfers, in order), ``expected`` (per row
 the forecast's per-camera transfers), ``records`` (per row the pose record), ``slots``
 and ``rows`` (the model's row slot and camera row of each row), ``counts`` (the stage's
-counters at the end).
+counters at the end), ``restart`` (None, or the frame before whose first row the loop
+restarted and the raw ``motion_fmt`` motion it restarted at).
 """
 
 from functools import lru_cache
@@ -24,7 +25,7 @@ from emulator.pose.forecast import output_transfers
 from emulator.pose.tracking_loop import TrackingLoopModel
 from sim_tests.pose.forecast.stimulus import VERSION, cached
 
-__all__ = ["closed_loop_case", "PAIRS", "CACHE"]
+__all__ = ["closed_loop_case", "restart_after", "PAIRS", "CACHE"]
 
 CACHE = Path(__file__).resolve().parents[3] / "build" / "tracking_loop_stimulus"
 #: stereo20's pairs kept: the front pair, the one beside it rolled 90°, a tilted one
@@ -43,16 +44,32 @@ def cut_rig(rows, pairs=PAIRS):
 
 
 @lru_cache(maxsize=None)
-def closed_loop_case(rows=32, frames=3, seed=1, pairs=PAIRS, delay=1):
+def closed_loop_case(rows=32, frames=3, seed=1, pairs=PAIRS, delay=1, restart=None):
     """The closed loop on ``cut_rig(rows, pairs)``, ``frames`` frames of the papers'
-    motion (seed ``seed``), loop delay ``delay`` rows, started at the true motion of the
-    first row (as the benchmark). Cached under build/."""
-    name = (f"stereo20_p{''.join(map(str, pairs))}_r{rows}_f{frames}_s{seed}_d{delay}_"
-            f"{VERSION}.pkl")
-    return cached(CACHE / name, lambda: _closed_loop(rows, frames, seed, pairs, delay))
+    motion (seed ``seed``), loop delay ``delay`` rows, started at the true motion of
+    frame 1's first row (as the benchmark); with ``restart`` (a frame) started at 0 (as
+    after reset) and restarted before that frame at the true motion of its first row.
+    Cached under build/."""
+    tail = "" if restart is None else f"_restart{restart}"
+    name = (f"stereo20_p{''.join(map(str, pairs))}_r{rows}_f{frames}_s{seed}_d{delay}"
+            f"{tail}_{VERSION}.pkl")
+    return cached(CACHE / name, lambda: _closed_loop(rows, frames, seed, pairs, delay,
+                                                     restart))
 
 
-def _closed_loop(rows, frames, seed, pairs, delay):
+def restart_after(case):
+    """The forecast transfers after which the benches strobe a restart case's
+    ``restart`` (with ``initial`` its motion): two rows into the frame before the
+    restart's (the loop is then ``loop_delay_rows + 1`` rows ahead of its records, the
+    strobe mid-frame); None without a restart."""
+    restart = case.get("restart")
+    if restart is None:
+        return None
+    params = case["params"]
+    return ((restart[0] - 1) * params.height + 2) * params.cameras
+
+
+def _closed_loop(rows, frames, seed, pairs, delay, restart):
     from emulator.e2e import true_steps
     from emulator.pipeline import run
     from golden.scene import default_scene_spec
@@ -79,11 +96,14 @@ def _closed_loop(rows, frames, seed, pairs, delay):
         inputs.extend(dict(t) for t in transfers)
         return close(self, transfers, slot, row)
 
-    initial = true_steps(dataset, [1], [0])[0]
+    if restart is None:
+        initial, restarted = true_steps(dataset, [1], [0])[0], None
+    else:
+        initial, restarted = np.zeros(6), (restart, true_steps(dataset, [restart], [0])[0])
     with mock.patch.object(TrackingLoopModel, "request", recording_request), \
             mock.patch.object(TrackingLoopModel, "close", recording_close):
         out = run(config, dataset, forecast=params, initial_motion=initial,
-                  consistency=stage, cue_fallback=True)
+                  consistency=stage, cue_fallback=True, restart=restarted)
     rec = out.records
     records = [{"row": int(rec["row"][k]), "time": int(rec["time"][k]),
                 "flags": int(rec["flags"][k]), "q": [int(v) for v in rec["q"][k]],
@@ -96,4 +116,6 @@ def _closed_loop(rows, frames, seed, pairs, delay):
             "initial": params.motion_fmt.quantize(initial), "inputs": inputs,
             "expected": expected, "records": records,
             "slots": [int(v) for v in out.loop["slot"]], "rows": [int(v) for v in out.loop["row"]],
-            "counts": out.loop["counts"]}
+            "counts": out.loop["counts"],
+            "restart": None if restart is None else
+            (restart, params.motion_fmt.quantize(restarted[1]))}

@@ -1,7 +1,8 @@
 """Runs the tracking loop's cocotb bench on a real closed loop (stereo20 cut to pairs 0, 1
 and 4): on Verilator 32 rows, three frames (96 rows, 2,304 measurements); on Icarus 8
-rows, two frames; with RUN_SLOW=1 also 64 rows, three frames at loop delay 2. The case
-is built once (a few seconds) and kept under build/."""
+rows, two frames, and 8 rows, three frames with a restart strobed in frame 0 (the model
+restarted before frame 1); with RUN_SLOW=1 also 64 rows, three frames at loop delay 2.
+The case is built once (a few seconds) and kept under build/."""
 
 import os
 import pickle
@@ -34,6 +35,10 @@ def test_tracking_loop_verilator_closed_loop():
 
 def test_tracking_loop_icarus_small():
     _run("icarus", closed_loop_case(rows=8, frames=2), "p014_r8_f2")
+
+
+def test_tracking_loop_icarus_restart():
+    _run("icarus", closed_loop_case(rows=8, frames=3, restart=1), "p014_r8_f3_restart1")
 
 
 @pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="the longer loop runs with RUN_SLOW=1")

@@ -2,7 +2,9 @@
 real closed-loop emulator run, every forecast transfer and every pose record against the
 loop's model (emulator.pose.tracking_loop.TrackingLoopModel through
 emulator.pipeline.run), bit for bit and in order, and the consistency stage's counters;
-at full rate and with random gaps and backpressure.
+at full rate and with random gaps and backpressure. A restart case strobes ``restart``
+mid-frame (:func:`sim_tests.pose.tracking_loop.stimulus.restart_after`); the model
+restarted before the next frame, and nothing is mismatched.
 
 Environment: LOOP_CASE (path of a pickled case, sim_tests/pose/tracking_loop/stimulus.py).
 """
@@ -20,10 +22,21 @@ from emulator.hdl_sim.payload import pack, unpack
 from emulator.hdl_sim.streams import StreamSink, StreamSource
 from hdl.measurement.consistency import counts_layout, settings_init, settings_layout
 from hdl.pose.forecast_predictor import output_layout
-from hdl.pose.tracking_loop import verdict_layout
+from hdl.pose.tracking_loop import loop_counters_layout, verdict_layout
 from hdl.pose_solver import measurement_layout, record_layout
 
 from sim_tests.pose.forecast.forecast_bench import _indexed
+from sim_tests.pose.tracking_loop.stimulus import restart_after
+
+
+async def _restart(dut, sink, case, motion_layout, timeout_cycles):
+    """``initial`` ← the case's restart motion and a one-clock ``restart`` strobe once
+    the sink has :func:`restart_after` forecast transfers."""
+    await sink.wait_for(restart_after(case), timeout_cycles=timeout_cycles)
+    dut.initial.value = pack(motion_layout, _indexed([int(v) for v in case["restart"][1]]))
+    dut.restart.value = 1
+    await RisingEdge(dut.clk)
+    dut.restart.value = 0
 
 
 @cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"])
@@ -38,8 +51,8 @@ async def loop_matches_model(dut, traffic):
     dut.settings.value = pack(settings_layout(stage), settings_init(stage))
     dut.alpha.value, dut.beta.value = params.alpha_raw, params.beta_raw
     dut.frame_rows.value = int(stage.frame_rows)
-    dut.initial.value = pack(data.ArrayLayout(params.motion_fmt.shape(), 6),
-                             _indexed([int(v) for v in case["initial"]]))
+    motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
+    dut.initial.value = pack(motion, _indexed([int(v) for v in case["initial"]]))
     dut.restart.value = 0
     source = StreamSource(dut, "i", measurement_layout(s), clock, rng=rng,
                           valid_prob=1.0 if busy else 0.6)
@@ -54,9 +67,12 @@ async def loop_matches_model(dut, traffic):
     await RisingEdge(dut.clk)
     dut.restart.value = 0
     cocotb.start_soon(source.send(case["inputs"]))
+    timeout = 2000 * len(case["expected"])
+    if restart_after(case) is not None:
+        cocotb.start_soon(_restart(dut, sink, case, motion, timeout))
     flat = [o for outs in case["expected"] for o in outs]
-    await sink.wait_for(len(flat), timeout_cycles=2000 * len(case["expected"]))
-    await records.wait_for(len(case["records"]), timeout_cycles=2000 * len(case["expected"]))
+    await sink.wait_for(len(flat), timeout_cycles=timeout)
+    await records.wait_for(len(case["records"]), timeout_cycles=timeout)
     await ClockCycles(dut.clk, 100)          # the last scale update is counted
     got = [payload for _, payload in sink.received]
     for n, (g, e) in enumerate(zip(got, flat)):
@@ -69,6 +85,8 @@ async def loop_matches_model(dut, traffic):
         assert g == _indexed(e), f"record {n}: hardware {g}, model {e}"
     counts = unpack(counts_layout(), dut.counts.value)
     assert counts == case["counts"], counts
+    counters = unpack(loop_counters_layout(params), dut.counters.value)
+    assert counters["mismatched"] == 0, counters
     solved = sum(r["flags"] == 0 for r in case["records"])
     dut._log.info(f"{traffic}: {len(case['inputs'])} measurements, {len(flat)} forecast "
                   f"transfers, {len(records.received)} records ({solved} solved) bit-exact, "
