@@ -163,6 +163,7 @@ def metrics(outcome):
     m["tolerance_failures"] = len(outcome.failures)
     if cosim is not None:
         hdl_rows_per_s = cosim.row_sets * job.cosim["cameras"] / cosim.wall_s
+        capacity = cosim.clk_hz / cosim.clocks_per_row_set
         flags = np.asarray(cosim.records["flags"])
         m.update({"hdl_mismatches": int(cosim.mismatches), "hdl_records": _count(cosim.records),
                   "hdl_solved_records": int(np.sum(flags == 0)),
@@ -170,9 +171,8 @@ def metrics(outcome):
                   "clocks_per_row_set": cosim.clocks_per_row_set,
                   # what the hardware could take, and what it delivers: one update
                   # per row set the cameras send, unless it cannot keep up
-                  "pose_capacity_hz": cosim.clk_hz / cosim.clocks_per_row_set,
-                  "pose_rate_hz": min(m["row_sets_needed_per_s"],
-                                      cosim.clk_hz / cosim.clocks_per_row_set),
+                  "pose_capacity_hz": capacity,
+                  "pose_rate_hz": min(m["row_sets_needed_per_s"], capacity),
                   "latency_clocks": cosim.latency_clocks,
                   "latency_us": 1e6 * cosim.latency_clocks / cosim.clk_hz,
                   "hdl_clocks": cosim.clocks, "hdl_wall_s": cosim.wall_s,

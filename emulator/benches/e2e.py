@@ -3,8 +3,8 @@
 The same run as ``make run`` (stereo20 640×480, four frames of the papers' motion, seed
 1, a co-simulated slice of the HDL top), reported as ``e2e.*``: ``hdl_mismatches``,
 ``pose_rate_hz`` (delivered: the cameras' row sets per second, or the capacity if
-lower), ``pose_capacity_hz`` and ``latency_us`` at the co-simulation's clock, ``emulator_rows_per_s``,
-``hdl_cycles_per_s``, ``hdl_rows_per_s`` and their ratio ``speed_ratio`` (camera rows per
+lower), ``pose_capacity_hz`` and ``latency_us`` at the co-simulation's clock,
+``emulator_rows_per_s``, ``hdl_cycles_per_s``, ``hdl_rows_per_s`` and their ratio ``speed_ratio`` (camera rows per
 second of the emulator over those of the HDL simulation), and the accuracy figures
 (the hardware path's closed loop and golden (b) with the same loop delay against truth,
 the default golden tracker; the emulator against float64 on its own measurements).

@@ -29,7 +29,8 @@ from emulator.e2e import SHARE_OF_MOTION
 from emulator.e2e import SOLVED_FRACTION as SOLVED
 
 #: Rigs measured: the papers' rig and the board rig (the microzed-7020 build's, issue 17;
-#: no published bound, so only the golden (b) ratio and the solved fraction judge it).
+#: no published bound, so the solved fraction, the share of the true motion and the
+#: golden (b) ratio judge it).
 RIGS = ("stereo20", "stereo8-board")
 #: Motion -> sequence seed (the tracker benchmark's).
 MOTIONS = {"paper": 11, "head": 13}
@@ -111,18 +112,16 @@ def verdicts(f, rig):
             continue
         solved = f[key + "solved_fraction"]
         out.append((f"{motion}: rows solved ≥ {SOLVED:.0%}", f"{solved:.1%}", solved >= SOLVED))
-        for unit in ("t_cm", "r_rad"):
-            for a in "xyz":
-                hw, true = f[f"{key}rms_{unit}.{a}"], f[f"{key}motion_rms_{unit}.{a}"]
-                out.append((f"{motion}: {unit[0].upper() if unit == 't_cm' else 'θ'}{a} ≤ "
-                            f"{SHARE_OF_MOTION} × the true motion (it tracks)",
-                            f"{hw / true:.3f} ×", hw <= SHARE_OF_MOTION * true))
-        for unit in ("t_cm", "r_rad"):
-            for a in "xyz":
-                hw, gold = f[f"{key}rms_{unit}.{a}"], f[f"{key}golden_b_rms_{unit}.{a}"]
-                out.append((f"{motion}: {unit[0].upper() if unit == 't_cm' else 'θ'}{a} ≤ "
-                            f"{GOLDEN_RATIO} × golden (b)", f"{hw / gold:.2f} ×",
-                            hw <= GOLDEN_RATIO * gold))
+        axes = [(unit, a, f"{'T' if unit == 't_cm' else 'θ'}{a}")
+                for unit in ("t_cm", "r_rad") for a in "xyz"]
+        for unit, a, name in axes:
+            hw, true = f[f"{key}rms_{unit}.{a}"], f[f"{key}motion_rms_{unit}.{a}"]
+            out.append((f"{motion}: {name} ≤ {SHARE_OF_MOTION} × the true motion (it tracks)",
+                        f"{hw / true:.3f} ×", hw <= SHARE_OF_MOTION * true))
+        for unit, a, name in axes:
+            hw, gold = f[f"{key}rms_{unit}.{a}"], f[f"{key}golden_b_rms_{unit}.{a}"]
+            out.append((f"{motion}: {name} ≤ {GOLDEN_RATIO} × golden (b)", f"{hw / gold:.2f} ×",
+                        hw <= GOLDEN_RATIO * gold))
         if motion == "paper" and paper is not None:
             bounds = list(paper["t_cm"]) + list(paper["r_rad"])
             values = [f[f"{key}rms_t_cm.{a}"] for a in "xyz"] + \

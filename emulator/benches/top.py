@@ -7,8 +7,8 @@ Figures (prefixed ``top.`` by the registry), per board rig ``<rig>``: ``cameras`
 ``lut_levels``, ``io_pins``, ``io_pins_left``, ``clk_hz``, ``pose_rate_hz`` (delivered),
 ``capacity_hz``, ``latency_clocks``, ``latency_us`` (co-simulated);
 ``link.clocks_per_packet`` and ``link.packets_per_s`` at the board top's baud and clock;
-``host.packets_ok``, ``host.packets_bad`` (damaged packets the host counted), ``host.packets_sent``,
-``host.packets_damaged`` (what the emulator damaged) and ``host.decoder_packets_per_s``
+``host.packets_ok``, ``host.packets_bad`` (damaged packets the host counted),
+``host.packets_sent``, ``host.packets_damaged`` (what the emulator damaged) and ``host.decoder_packets_per_s``
 (the decoder alone on the same bytes: whether the host keeps up with the link).
 """
 

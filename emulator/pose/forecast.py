@@ -136,7 +136,7 @@ class ForecastModel:
     @property
     def saturated(self):
         """Filter updates and forecasts in which a value was saturated into
-        ``motion_fmt`` (the gateware's ``loop.counters.motion_saturated``)."""
+        ``motion_fmt`` (the gateware's ``loop.forecast_counters.motion``)."""
         return self.filter.saturated + self._saturated_queries
 
     def _displacements(self, store, coef_raw, row, cue, motion):

@@ -26,13 +26,13 @@ from hdl.pose.params import solver_source
 
 __all__ = ["MotionFilter", "DEFAULT_SLOT_BITS"]
 
+#: Width of the row slot counter (wraps; slots are compared modulo ``2**slot_bits``).
+DEFAULT_SLOT_BITS = 16
+
 
 def outside(value, fmt):
     """Whether the raw ``value`` (same fraction bits as ``fmt``) is beyond ``fmt``'s range."""
     return (value < fmt.min_raw) | (value > fmt.max_raw)
-
-#: Width of the row slot counter (wraps; slots are compared modulo ``2**slot_bits``).
-DEFAULT_SLOT_BITS = 16
 
 
 class MotionFilter(wiring.Component):
