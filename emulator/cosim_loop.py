@@ -12,9 +12,10 @@ does. Forecast → lane centre and row address → measurement → solver → fo
 in the HDL; nothing of the loop is fed from the model.
 
 The loop runs from reset (the forecast filter at rest, the emulator's initial motion
-0); no ``restart`` is written. One written over the registers takes effect at the next
-frame boundary of the forecast once the rows already forecast are solved (from frame 1
-when written after reset; :class:`hdl.pose.tracking_loop.TrackingLoop`), which
+0). Given an initial motion, the bench writes it to ``loop.initial`` and strobes
+``loop.restart`` right after reset; a restart takes effect at the next frame boundary
+of the forecast once the rows already forecast are solved (from frame 1 when written
+after reset; :class:`hdl.pose.tracking_loop.TrackingLoop`), which
 :func:`emulator.pipeline.run`'s ``restart=(frame, motion)`` models.
 
 The emulator counts row slots from the dataset's time stamps, the hardware from the
@@ -30,10 +31,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from emulator.cosim import (camera_stimulus, checked_input, compare_records, latency_clocks,
-                            pin_latencies, record_arrays, row_sets_from_columns, run_bench)
+                            pin_latencies, record_arrays, row_sets_from_columns, run_bench,
+                            slice_rig)
+from hdl.descriptor.params import DEFAULT_SEGMENTS
 
-__all__ = ["SOLVER_FIELDS", "FORECAST_FIELDS", "LoopCosimResult", "cut_rig",
-           "loop_expected", "judge", "closed_loop_cosim"]
+__all__ = ["SOLVER_FIELDS", "FORECAST_FIELDS", "LoopCosimResult", "cut_rig", "cut_slice",
+           "slice_dataset", "loop_expected", "judge", "closed_loop_cosim"]
 
 #: Fields of the tracking loop's solver records compared (the solver's formats, before
 #: the status unit and the output's narrowing): the step and the integrated pose.
@@ -48,9 +51,66 @@ def cut_rig(rig, rows):
     each read out over the same time as before (``t_r`` scaled by ``height / rows``), so
     the frame period stays a whole number of row periods when it was one with the
     full-height rows (stereo8: 600 → ``rows · 600/480``)."""
-    cam = rig.cameras[0]
-    return rig.replace_cameras(height=rows, cy=(rows - 1) / 2,
-                               t_r=cam.t_r * cam.height / rows)
+    return _cut(rig, rows, (rig.cameras[0].height - rows) / 2)
+
+
+def _cut(rig, rows, first):
+    """``rig`` with rows ``first … first + rows − 1`` of every camera (the same row
+    directions: ``cy`` moves with the cut), each read out over ``height / rows`` row
+    periods."""
+    from golden.rig import Rig
+    return Rig(name=rig.name, cameras=tuple(
+        c.replace(height=rows, cy=c.cy - first, t_r=c.t_r * c.height / rows)
+        for c in rig.cameras), row_points=rig.row_points, nominal_depth=rig.nominal_depth,
+        allow_unobservable=rig.allow_unobservable)
+
+
+def cut_slice(rig, cameras, rows, segments=DEFAULT_SEGMENTS):
+    """The rig a run's closed-loop co-simulation plays: the ``cameras / 2`` stereo pairs
+    of ``rig`` that observe the motion best (:func:`emulator.cosim.slice_rig`), cut to
+    each camera's ``rows`` middle rows (:func:`_cut`). Returns ``(rig, chosen rig
+    cameras, first row)``.
+
+    Raises
+    ------
+    ValueError
+        ``cameras`` not whole stereo pairs, ``rows`` beyond the height, or a frame
+        period that is not a whole number of the cut rig's row periods (the hardware
+        counts row slots per frame).
+    """
+    from golden.checks import check_int
+    sub, chosen = slice_rig(rig, cameras, segments)
+    height = sub.cameras[0].height
+    check_int("rows", rows, 1, height)
+    frame_rows = rows / (sub.cameras[0].fps * sub.cameras[0].t_r * height)
+    if abs(frame_rows - round(frame_rows)) > 1e-6:
+        raise ValueError(f"rows {rows}: a frame of the cut rig lasts {frame_rows:g} of its "
+                         f"row periods; the hardware counts a whole number (choose rows so "
+                         f"that rows · frame period / (height · t_r) is an integer)")
+    first = (height - rows) // 2
+    return _cut(sub, rows, first), chosen, first
+
+
+def slice_dataset(dataset, cameras, rows, segments=DEFAULT_SEGMENTS):
+    """The part of a run's ``dataset`` the closed-loop top co-simulates
+    (:func:`cut_slice`'s cameras and rows), as a dataset of its own; ``(dataset, chosen
+    dataset cameras, first row)``.
+
+    The co-simulation compares the HDL with the emulator on the same input and neither
+    looks at the truth: the rows keep their pixels and are restamped to the cut rig's
+    row times (frame ``f``'s row ``r`` at its first row's time + ``r · t_r'``), so that
+    the emulator counts the row slots the hardware counts from the row order; the truth
+    arrays are the kept rows' (not at the new times, and not used)."""
+    from golden.dataset import CameraRecording, Dataset
+    cut, chosen, first = cut_slice(dataset.rig, cameras, rows, segments)
+    kept = slice(first, first + rows)
+    times = cut.cameras[0].t_r * np.arange(rows)
+    recordings = [CameraRecording(
+        rows=rec.rows[:, kept], time=rec.time[:, :1] + times,
+        **{name: getattr(rec, name)[:, kept]
+           for name in ("rotation", "position", "velocity", "angular_velocity")})
+        for rec in (dataset.cameras[k] for k in chosen)]
+    return Dataset(rig=cut, cameras=recordings, info=dict(dataset.info)), chosen, first
 
 
 @dataclass(frozen=True)
@@ -81,7 +141,8 @@ class LoopCosimResult:
     rows_match : bool
         The HDL's row sets are the dataset's rows, in order, every camera present.
     slots : ndarray
-        The emulator's row slot of every row (``frame · frame_rows + row``, checked).
+        The emulator's row slot of every row (``frame · frame_rows + row``, frames counted
+        from frame 1 after a restart there; checked).
     latency_clocks : int
         Largest clocks from a row set's last pixel at the pins to its record in the PS
         FIFO (-1 if the counts differ).
@@ -148,15 +209,16 @@ def _config(rig, records):
     return board_config(rig, pose_output=PoseOutputParams(fifo_depth=depth))
 
 
-def loop_expected(config, dataset, frames, times):
+def loop_expected(config, dataset, frames, times, initial_motion=None):
     """The emulator's closed loop on the first ``frames`` frames of ``dataset``, as the
     HDL must give it: ``(FIFO records, solver records, forecast rows, slots, packets)``
     (:data:`emulator.cosim.RECORD_FIELDS`, :data:`SOLVER_FIELDS`,
     :data:`FORECAST_FIELDS`). ``times``: the time stamp of each record (the HDL row sets',
     router rule; the emulator's own where the HDL has fewer). Started as the gateware
-    after reset: the forecast filter at rest (initial motion 0), no ``restart`` (one
-    would be ``run``'s ``restart`` before the frame it took effect at), and the flags
-    through the status unit's model with the registers' reset settings."""
+    after reset: the forecast filter at rest (initial motion 0); with ``initial_motion``
+    the loop restarted at it from frame 1 (``run``'s ``restart``: where the gateware's
+    takes effect when written after reset); the flags through the status unit's model
+    with the registers' reset settings."""
     from emulator.output import packets
     from emulator.pipeline import run
     from emulator.pose.tracking_status import StatusUnitModel, annotate
@@ -164,10 +226,14 @@ def loop_expected(config, dataset, frames, times):
     top = config.top
     result = run(config, dataset, frames, forecast=config.forecast(),
                  initial_motion=np.zeros(6),
-                 consistency=config.consistency(), cue_fallback=True)
+                 consistency=config.consistency(), cue_fallback=True,
+                 restart=None if initial_motion is None else (1, initial_motion))
     loop = result.loop
     slots = np.asarray(loop["slot"])
-    want = np.asarray(loop["frame"]) * int(config.frame_rows) + np.asarray(loop["row"])
+    frame = np.asarray(loop["frame"])
+    if initial_motion is not None:      # counted again from frame 1's row 0
+        frame = np.where(frame >= 1, frame - 1, frame)
+    want = frame * int(config.frame_rows) + np.asarray(loop["row"])
     if not np.array_equal(slots, want):
         raise ValueError(f"the emulator's row slots are not frame · {int(config.frame_rows)}"
                          f" + row as the hardware counts them (first at row "
@@ -280,8 +346,9 @@ def _forecast_leads(forecasts, forecast_taken, sets, set_offers):
     return np.array(leads, dtype=float)
 
 
-def closed_loop_cosim(dataset, *, row_period_s, frames=3, sim="verilator", waves=False,
-                      seed=None, build_dir="build/cosim_loop", progress=False):
+def closed_loop_cosim(dataset, *, row_period_s, frames=3, initial_motion=None,
+                      sim="verilator", waves=False, seed=None, build_dir="build/cosim_loop",
+                      progress=False):
     """Co-simulate the first ``frames`` frames of every camera and row of ``dataset``
     (its rig must fit the top's register map, e.g. :func:`cut_rig` of stereo8) through
     the closed-loop HDL top and compare with the emulator; a :class:`LoopCosimResult`.
@@ -289,7 +356,11 @@ def closed_loop_cosim(dataset, *, row_period_s, frames=3, sim="verilator", waves
     ``row_period_s``: how long each camera's row lasts on the pins (the loop needs its
     rows no faster than it closes; the hardware counts row slots by the row order, not
     by time, so a cut rig's stretched ``t_r`` need not be played), e.g. the uncut rig's
-    ``t_r``; see :func:`emulator.cosim.camera_stimulus`."""
+    ``t_r``; see :func:`emulator.cosim.camera_stimulus`. ``initial_motion`` (float (6,),
+    e.g. :func:`emulator.hardware_path.first_frame_motion`): the PS writes it to
+    ``loop.initial`` and strobes ``loop.restart`` right after reset, so that the loop
+    tracks frame 1 on from it (the papers' first frame given); None: the loop runs from
+    reset at rest."""
     from golden.checks import check_int
     from hdl.top import RowtrackTop
     dataset = checked_input(dataset, sim)
@@ -299,7 +370,9 @@ def closed_loop_cosim(dataset, *, row_period_s, frames=3, sim="verilator", waves
     params = config.top
     say = print if progress else (lambda *_: None)
     images = np.stack([c.rows[:frames] for c in dataset.cameras])
-    stim = {**camera_stimulus(images, params.clk_hz, row_period_s), "loop": True}
+    stim = {**camera_stimulus(images, params.clk_hz, row_period_s), "loop": True,
+            "initial": None if initial_motion is None else
+            [int(v) for v in params.forecast.motion_fmt.quantize(initial_motion)]}
     say(f"[cosim-loop] {len(images)} cameras × {frames} frames × {height} rows of {width} "
         f"pixels on {sim}, rows of {row_period_s * 1e6:.3g} µs, frame "
         f"{int(config.frame_rows)} row periods")
@@ -309,18 +382,19 @@ def closed_loop_cosim(dataset, *, row_period_s, frames=3, sim="verilator", waves
     out = run_bench(top, stim, build_dir, name="rowtrack_loop", sim=sim, waves=waves,
                     seed=seed, tag=f"{len(images)}x{width}x{height}", timings=timings,
                     progress=progress, cache_key=repr(params))
-    result = judge(config, dataset, frames, out, timings)
+    result = judge(config, dataset, frames, out, timings, initial_motion)
     say(f"[cosim-loop] {result.row_sets} row sets, {len(result.records['row'])} records, "
         f"{result.mismatches} + {result.solver_mismatches} + {result.forecast_mismatches} "
         f"mismatches; counters {result.status}")
     return result
 
 
-def judge(config, dataset, frames, out, timings=None):
+def judge(config, dataset, frames, out, timings=None, initial_motion=None):
     """The :class:`LoopCosimResult` of the bench's record ``out`` of the first ``frames``
     frames of ``dataset`` through the closed-loop top of ``config`` (a
     :class:`~hdl.pipeline_config.PipelineConfig`): the HDL's FIFO records, solver records
-    and forecast rows against :func:`loop_expected`, and the loop's timing."""
+    and forecast rows against :func:`loop_expected` (``initial_motion`` as there), and
+    the loop's timing."""
     from hdl.pose.engine import record_layout
     params = config.top
     height = dataset.cameras[0].rows.shape[1]
@@ -329,7 +403,7 @@ def judge(config, dataset, frames, out, timings=None):
     time_mask = (1 << params.solver.time_bits) - 1
     times = [s[min(s)][0]["t_first"] & time_mask for s in sets]
     expected, solver_expected, forecasts_expected, slots, uart = \
-        loop_expected(config, dataset, frames, times)
+        loop_expected(config, dataset, frames, times, initial_motion)
     records = record_arrays(params.pose_output.packet, out["fifo_records"])
     solver = _solver_arrays(record_layout(params.solver), out["loop_records"])
     forecasts, forecast_offers, forecast_taken = _forecast_rows(

@@ -44,7 +44,7 @@ class Outcome:
     hardware: object                 # emulator.e2e.HardwarePath
     comparison: dict                 # emulator.e2e.compare_closed_loop
     failures: list                   # emulator.e2e.check_closed_loop + co-simulation
-    cosim: object = None             # emulator.cosim.CosimResult, None when skipped
+    cosim: object = None             # emulator.cosim_loop.LoopCosimResult, None when skipped
     walls: dict = field(default_factory=dict)
 
     @property
@@ -121,11 +121,21 @@ def cosim_failures(cosim):
     failures = []
     if not _count(cosim.records):
         failures.append("HDL ↔ emulator: the co-simulated slice produced no pose record")
-    if cosim.mismatches:
-        failures.append(f"HDL ↔ emulator: {cosim.mismatches} mismatching record(s); first: "
-                        f"{cosim.first_mismatch}")
+    if not cosim.rows_match:
+        failures.append("HDL ↔ emulator: the HDL front end's row sets are not the slice's "
+                        "rows")
+    for what, count in (("PS FIFO record", cosim.mismatches),
+                        ("solver record", cosim.solver_mismatches),
+                        ("forecast row", cosim.forecast_mismatches)):
+        if count:
+            failures.append(f"HDL ↔ emulator: {count} mismatching {what} field(s); first "
+                            f"difference: {cosim.first_mismatch}")
     if not cosim.uart_packets_match:
         failures.append("HDL ↔ emulator: the UART packets differ from the emulator's")
+    if _count(cosim.records) and not cosim.solved:
+        failures.append("HDL ↔ emulator: no row set of the co-simulated slice was solved, "
+                        "so the solver's arithmetic was not compared (try more "
+                        "--cosim-rows, --cosim-cameras or --cosim-frames)")
     return failures
 
 
@@ -164,9 +174,14 @@ def metrics(outcome):
     if cosim is not None:
         hdl_rows_per_s = cosim.row_sets * job.cosim["cameras"] / cosim.wall_s
         capacity = cosim.clk_hz / cosim.clocks_per_row_set
-        flags = np.asarray(cosim.records["flags"])
-        m.update({"hdl_mismatches": int(cosim.mismatches), "hdl_records": _count(cosim.records),
-                  "hdl_solved_records": int(np.sum(flags == 0)),
+        m.update({"hdl_mismatches": int(cosim.mismatches + cosim.solver_mismatches
+                                        + cosim.forecast_mismatches),
+                  "hdl_fifo_mismatches": int(cosim.mismatches),
+                  "hdl_solver_mismatches": int(cosim.solver_mismatches),
+                  "hdl_forecast_mismatches": int(cosim.forecast_mismatches),
+                  "hdl_forecast_rows": _count(cosim.forecasts),
+                  "hdl_records": _count(cosim.records),
+                  "hdl_solved_records": int(cosim.solved),
                   "hdl_expected": _count(cosim.expected), "clk_hz": cosim.clk_hz,
                   "clocks_per_row_set": cosim.clocks_per_row_set,
                   # what the hardware could take, and what it delivers: one update
@@ -176,13 +191,13 @@ def metrics(outcome):
                   "latency_clocks": cosim.latency_clocks,
                   "latency_us": 1e6 * cosim.latency_clocks / cosim.clk_hz,
                   "hdl_clocks": cosim.clocks, "hdl_wall_s": cosim.wall_s,
-                  "hdl_cycles_per_s": cosim.cycles_per_s,
+                  "hdl_cycles_per_s": cosim.clocks / cosim.wall_s,
                   "hdl_rows_per_s": hdl_rows_per_s,
                   "speed_ratio": outcome.emulated.rows_per_s / hdl_rows_per_s,
                   "uart_packets_match": bool(cosim.uart_packets_match),
                   "cosim.rows": job.cosim["rows"], "cosim.cameras": job.cosim["cameras"],
-                  "cosim.first_row": cosim.first_row,
-                  "cosim.dataset_cameras": list(cosim.cameras),
+                  "cosim.first_row": job.cosim["first_row"],
+                  "cosim.dataset_cameras": list(job.cosim["dataset_cameras"]),
                   "cosim.frames": job.cosim["frames"], "cosim.sim": job.sim})
     return m
 
@@ -343,13 +358,19 @@ def hardware_section(m):
         ("slice", f"{m['cosim.cameras']} cameras (dataset cameras "
                   f"{', '.join(map(str, m['cosim.dataset_cameras']))}) × {m['cosim.frames']} "
                   f"frames × rows {m['cosim.first_row']}–"
-                  f"{m['cosim.first_row'] + m['cosim.rows'] - 1}, {m['cosim.sim']} (the rows "
-                  f"where the emulator solves most row sets of these cameras)"),
+                  f"{m['cosim.first_row'] + m['cosim.rows'] - 1}, {m['cosim.sim']}: the "
+                  f"closed-loop top from reset, these rows cut as a rig of their own "
+                  f"(restamped to its row times), against the emulator's closed loop on the "
+                  f"same rows"),
         ("pose records HDL / expected", f"{m['hdl_records']} / {m['hdl_expected']}"),
-        ("records with a solved step (a slice of fewer than three stereo20 pairs cannot "
-         "observe all six axes: its records are flagged, the solver's arithmetic untested)",
+        ("records with a solved step, every field compared (a slice of fewer than three "
+         "stereo20 pairs cannot observe all six axes: its rows are not solved)",
          m["hdl_solved_records"]),
-        ("HDL ↔ emulator mismatches (must be 0)", m["hdl_mismatches"]),
+        ("forecast rows the engine took (each camera's window centre and source row), "
+         "compared", m["hdl_forecast_rows"]),
+        ("HDL ↔ emulator mismatches: PS FIFO + solver records + forecast rows (must be 0)",
+         f"{m['hdl_mismatches']} ({m['hdl_fifo_mismatches']} + "
+         f"{m['hdl_solver_mismatches']} + {m['hdl_forecast_mismatches']})"),
         ("UART packets equal the emulator's", m["uart_packets_match"]),
         ("clocks per row set", m["clocks_per_row_set"]),
         ("pose updates delivered `e2e.pose_rate_hz` (one per row set the cameras send: "

@@ -24,7 +24,7 @@ from golden.pose_lsq import shift_coefficients
 from hdl.front_end.params import CameraParams
 from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.pose.forecast_params import ForecastParams
-from hdl.fixed import Overflow
+from hdl.fixed import Overflow, Rounding
 from hdl.pose.params import (DEFAULT_COEF_WIDTH, PoseSolverParams, coefficient_formats,
                              quantize_coefficients)
 from hdl.pose.row_polynomials import (evaluate_polynomials, fit_row_polynomials,
@@ -220,12 +220,23 @@ class PipelineConfig:
         others (e.g. ``huber_k``, ``min_cameras``)."""
         if self.top.closed_loop:
             return replace(self.top.consistency, **changes)
-        bound = fields_default(ConsistencyParams, "max_row_offset")
         derived = dict(solver=self.top.solver, segments=self.segments,
                        predicted_fmt=self.forecast().displacement_fmt,
-                       frame_rows=self.frame_rows,
-                       max_row_offset=min(bound, self.top.solver.rows - 1))
+                       frame_rows=self.frame_rows, max_row_offset=self._row_offset_bound())
         return ConsistencyParams(**{**derived, **changes})
+
+    def _row_offset_bound(self):
+        """The consistency stage's default ``max_row_offset``: its field default, at most
+        ``rows − 1``, and small enough that the reference-time factor ``P/(P − Δ)`` fits
+        its ``time_fmt`` (a rig cut to a few rows without blanking, ``P`` = rows, would
+        need a factor of ``rows``)."""
+        frame_fmt = fields_default(ConsistencyParams, "frame_rows_fmt")
+        top = fields_default(ConsistencyParams, "time_fmt").max_value
+        period = int(frame_fmt.quantize(self.frame_rows, Rounding.HALF_EVEN, Overflow.ERROR))
+        # Δ·2**f ≤ P_raw·(1 − 1/top), so that P_raw / (P_raw − Δ·2**f) ≤ top
+        held = math.floor(period * (1 - 1 / top)) >> frame_fmt.frac_bits
+        return min(fields_default(ConsistencyParams, "max_row_offset"),
+                   self.top.solver.rows - 1, held)
 
     def window(self, rows, **top_changes):
         """The top of this pipeline built for cameras of ``rows`` rows (a co-simulated

@@ -5,8 +5,10 @@ measurement loop in the bit-accurate emulator
 (:func:`emulator.hardware_path.closed_loop`, the first frame given), track the same
 rows with the golden tracker's reference (b) with the same loop delay and with its
 default parameters, judge the hardware path against truth
-and golden (b) (:func:`emulator.e2e.check_closed_loop`), co-simulate a slice of the HDL
-top, and write ``build/report/`` (report.md, PNG plots, metrics.json). Every input is
+and golden (b) (:func:`emulator.e2e.check_closed_loop`), co-simulate the closed-loop HDL
+top on a slice of the same rows against the emulator's closed loop on that slice
+(:func:`emulator.cosim_loop.closed_loop_cosim`), and write ``build/report/`` (report.md,
+PNG plots, metrics.json). Every input is
 checked before the long work starts; the exit status is 1 when the hardware path misses
 its accuracy tolerance or a comparison fails, with one line per failure saying where
 (the axis, measured against bound).
@@ -29,9 +31,10 @@ HELP = "the main job: simulate, run the hardware path's closed loop (bit-accurat
 #: (1,440 scored rows; the closed loop takes about 75 s of the run, docs/e2e.md).
 DEFAULT_FRAMES = 4
 DEFAULT_TRAJECTORY = "paper"
-#: Co-simulated slice: rows of frames 0 and 1 (frame 1 has its reference) of three
-#: stereo pairs picked for observability (the smallest stereo20 slice whose rows solve,
-#: so that the solver's arithmetic is compared too).
+#: Co-simulated slice of the closed-loop top: the middle rows of frames 0 and 1 (frame 1
+#: has its reference) of three stereo pairs picked for observability (the smallest
+#: stereo20 slice whose rows solve, so that the solver's arithmetic is compared too), cut
+#: as a rig of their own (:func:`emulator.cosim_loop.slice_dataset`).
 DEFAULT_COSIM = {"rows": 4, "cameras": 6, "frames": 2}
 
 
@@ -69,8 +72,9 @@ def add_arguments(parser):
                              "(default: %(default)s)")
     cosim = parser.add_argument_group("co-simulation of the HDL top")
     cosim.add_argument("--cosim-rows", type=_positive_int, default=DEFAULT_COSIM["rows"],
-                       help="rows per frame of the co-simulated slice; 0 skips the "
-                            "co-simulation (default: %(default)s)")
+                       help="middle rows per frame of the co-simulated slice of the "
+                            "closed-loop top; 0 skips the co-simulation (default: "
+                            "%(default)s)")
     cosim.add_argument("--cosim-cameras", type=_positive_int,
                        default=DEFAULT_COSIM["cameras"],
                        help="cameras of the slice, whole stereo pairs chosen for observability "
@@ -103,6 +107,10 @@ class Job:
     #: (:meth:`hdl.pipeline_config.PipelineConfig.forecast`); none from the command line,
     #: a test breaks the forecast with them to see the run fail.
     forecast_changes: dict = None
+    #: How long each row of the co-simulated slice lasts on the pins (default: the rig's
+    #: ``t_r``, as its cameras read rows); a test of a rig cut to a few rows, whose
+    #: stretched ``t_r`` would make the simulation long, plays them faster.
+    cosim_row_period_s: float = None
 
 
 def _cut_rows(rig, rows):
@@ -169,25 +177,38 @@ def _simulation_inputs(args, rig, frames):
 
 
 def _cosim_slice(args, rig, config, frames):
-    """The co-simulated slice, checked against the run (whole stereo pairs of the rig,
-    by :func:`emulator.cosim.slice_params`); None for --cosim-rows 0."""
+    """The co-simulated slice, checked against the run: whole stereo pairs of the rig
+    and its middle rows, cut as a rig of their own
+    (:func:`emulator.cosim_loop.cut_slice`) whose closed-loop top can be built; None for
+    --cosim-rows 0."""
     if args.cosim_rows == 0:
         return None
     router = config.router
-    checks = (("--cosim-rows", args.cosim_rows, router.temporal.height, "rows per frame"),
-              ("--cosim-cameras", args.cosim_cameras, router.cameras, "cameras"),
-              ("--cosim-frames", args.cosim_frames, frames, "frames in the run"))
-    for flag, value, limit, what in checks:
-        if not 1 <= value <= limit:
-            raise UsageError(f"{flag} must be between 1 and the {limit} {what}, not {value}")
-    from emulator.cosim import slice_params
+    checks = (("--cosim-rows", args.cosim_rows, 1, router.temporal.height, "rows per frame"),
+              ("--cosim-cameras", args.cosim_cameras, 1, router.cameras, "cameras"),
+              ("--cosim-frames", args.cosim_frames, 2, frames, "frames in the run"))
+    for flag, value, low, limit, what in checks:
+        if not low <= value <= limit:
+            raise UsageError(f"{flag} must be between {low} and the {limit} {what}, not "
+                             f"{value}")
+    from emulator.cosim_loop import cut_slice
+    from hdl.top import board_config
     try:
-        slice_params(rig, args.cosim_cameras, args.cosim_rows,
-                     args.cosim_frames * args.cosim_rows, config.segments)
+        cut, chosen, first = cut_slice(rig, args.cosim_cameras, args.cosim_rows,
+                                       config.segments)
     except (TypeError, ValueError) as exc:
-        raise UsageError(f"--cosim-cameras {args.cosim_cameras}: {exc}") from None
+        flag, value = ("--cosim-rows", args.cosim_rows) if str(exc).startswith("rows") \
+            else ("--cosim-cameras", args.cosim_cameras)
+        raise UsageError(f"{flag} {value}: {exc}") from None
+    try:
+        board_config(cut)
+    except ValueError as exc:
+        raise UsageError(f"--cosim-rows {args.cosim_rows}: no closed-loop top for "
+                         f"{args.cosim_cameras} cameras × {args.cosim_rows} rows: {exc}") \
+            from None
     return {"rows": args.cosim_rows, "cameras": args.cosim_cameras,
-            "frames": args.cosim_frames, "segments": config.segments}
+            "frames": args.cosim_frames, "segments": config.segments,
+            "dataset_cameras": tuple(chosen), "first_row": first}
 
 
 def _first_frame_given(dataset, path):
@@ -281,18 +302,26 @@ def run_job(job, progress=True):
 
 
 def cosimulate(job, dataset, progress):
-    """The co-simulated slice of a run: ``(CosimResult or None, failure lines, wall
-    seconds by phase)``; none of it for ``--cosim-rows 0``."""
+    """The co-simulated slice of a run, the closed-loop top against the emulator's closed
+    loop on the same slice, both given the slice's true motion of frame 1 as the run's
+    hardware path is given the first frame: ``(LoopCosimResult or None, failure lines,
+    wall seconds by phase)``; none of it for ``--cosim-rows 0``."""
     if job.cosim is None:
         return None, [], {}
-    from emulator.cosim import NoSolvingWindow, cosim_slice
+    from emulator.cosim_loop import closed_loop_cosim, slice_dataset
+    from emulator.hardware_path import first_frame_motion
     start = time.perf_counter()
     cosim, failures = None, []
+    part, _, _ = slice_dataset(dataset, job.cosim["cameras"], job.cosim["rows"],
+                               job.cosim["segments"])
     try:
-        cosim = cosim_slice(dataset, **job.cosim, sim=job.sim, waves=job.waves,
-                            seed=job.seed, build_dir=Path("build/cosim"), progress=progress)
-    except NoSolvingWindow as exc:
-        failures.append(f"HDL co-simulation not run: {exc}")
+        period = job.cosim_row_period_s or dataset.rig.cameras[0].t_r
+        cosim = closed_loop_cosim(part, row_period_s=period,
+                                  frames=job.cosim["frames"],
+                                  initial_motion=first_frame_motion(part),
+                                  sim=job.sim, waves=job.waves,
+                                  seed=job.seed, build_dir=Path("build/cosim_loop"),
+                                  progress=progress)
     except AssertionError as exc:      # the cocotb bench itself failed
         failures.append(f"HDL co-simulation: {exc}")
     walls = {"cosim": time.perf_counter() - start}

@@ -10,7 +10,8 @@ at the pins, and the block counters. The stimulus comes from the pickle named by
 
 A closed-loop top (:func:`emulator.cosim_loop.closed_loop_cosim`, stimulus key ``loop``)
 has its coefficients built in and runs its loop from reset (the filter at rest, the
-registers' reset ``frame_rows``); the bench also records, from reset on, the tracking
+registers' reset ``frame_rows``), or, given an ``initial`` motion (raw), writes it and
+strobes ``loop.restart`` before the cameras start; the bench also records, from reset on, the tracking
 loop's records (with their steps, in the solver's formats) and the forecast transfers
 the engine takes, and the clocks a row set or a forecast waited at the engine's input.
 """
@@ -131,6 +132,9 @@ async def cosim_slice(dut):
                                                   "pclk_timeout": 200})
     if not loop:
         await load_coefficients(regs, params.solver, stim["coef"])
+    elif stim.get("initial") is not None:   # the loop tracks from frame 1 on from it
+        await regs.write_register("loop", "initial", dict(enumerate(stim["initial"])))
+        await regs.write_register("loop", "restart", 1)
     await regs.write(regs.address(regmap.find("pose_out", "uart_divisor")), stim["divisor"])
     uart = UartMonitor(dut, params.uart, stim["divisor"], line="uart_tx")
     engine_in = engine_input(dut, clock)

@@ -42,6 +42,47 @@ def test_the_cut_rig_keeps_a_whole_number_of_row_periods_per_frame():
         assert config.top.consistency.frame_rows == int(config.frame_rows)
 
 
+def test_a_rig_cut_to_a_few_rows_compares_only_rows_its_time_format_holds():
+    """stereo20 has no blanking: cut to ``rows`` rows a frame is ``rows`` row periods,
+    and a camera compared ``Δ`` rows off would need the factor ``rows / (rows − Δ)``.
+    The default ``max_row_offset`` stays 16 where the format holds it and shrinks where
+    it does not, instead of refusing the rig."""
+    from hdl.measurement.consistency_params import ConsistencyParams
+    from hdl.pipeline_config import PipelineConfig
+    time_max = ConsistencyParams.__dataclass_fields__["time_fmt"].default.max_value
+    for rows, offset in ((480, 16), (32, 16), (8, 5), (4, 2)):
+        stage = PipelineConfig.for_rig(cut_rig(preset("stereo20"), rows), closed_loop=True,
+                                       stereo_segments=4).top.consistency
+        assert stage.frame_rows == rows
+        assert stage.max_row_offset == offset, rows
+        assert rows / (rows - offset) <= time_max < rows / (rows - offset - 1) \
+            or offset == 16
+
+
+def test_a_run_slice_is_its_middle_rows_restamped_to_the_cut_rigs_row_times():
+    """:func:`emulator.cosim_loop.slice_dataset`: whole pairs, the middle rows with their
+    pixels and truth, the cut rig's row directions (``cy`` moved with the cut) and row
+    times (one row period apart, each frame's first row where it was)."""
+    from emulator.cosim import slice_rig
+    from emulator.cosim_loop import slice_dataset
+    dataset = _dataset(32, 2)
+    part, chosen, first = slice_dataset(dataset, 4, 8)
+    assert chosen == slice_rig(dataset.rig, 4)[1] and first == 12
+    t_r = part.rig.cameras[0].t_r
+    assert t_r == pytest.approx(dataset.rig.cameras[0].t_r * 4)
+    for k, rec in zip(chosen, part.cameras):
+        whole, cam = dataset.cameras[k], part.rig.cameras[chosen.index(k)]
+        assert cam.cy == dataset.rig.cameras[k].cy - first and cam.height == 8
+        np.testing.assert_array_equal(rec.rows, whole.rows[:, 12:20])
+        np.testing.assert_array_equal(rec.position, whole.position[:, 12:20])
+        np.testing.assert_allclose(rec.time, whole.time[:, :1] + t_r * np.arange(8))
+    with pytest.raises(ValueError, match="rows 6: a frame of the cut rig lasts 7.5 of its "
+                                         "row periods"):
+        slice_dataset(dataset, 4, 6)
+    with pytest.raises(ValueError, match="cameras must be an even number"):
+        slice_dataset(dataset, 3, 8)
+
+
 def _span(values):
     values = np.asarray(values, dtype=float)
     finite = values[np.isfinite(values)]

@@ -6,9 +6,10 @@ The run judges the hardware path's closed loop against truth and golden (b)
 target on some axes (docs/e2e.md), so the tiny run fails with those lines and no other.
 A deliberately broken forecast (a motion format too coarse, through the job's
 ``forecast_changes``) fails the bound against the true motion too. The end-to-end test
-runs the command with the co-simulation of the HDL top; the report tests use a run
-without it plus a :class:`emulator.cosim.CosimResult` built here (its failure cases
-too). Every bad-input message is checked before any long work starts. SEED replays a
+runs the job with the co-simulation of the closed-loop HDL top; the report tests use a
+run without it plus a :class:`emulator.cosim_loop.LoopCosimResult` built here (its
+failure cases too). The open-loop slice's choice of rows (``emulator.cosim``, the
+open-loop top's co-simulation) is checked on the same run. Every bad-input message is checked before any long work starts. SEED replays a
 run.
 """
 
@@ -55,7 +56,8 @@ def outcome():
     return run_command.run_job(_job("--cosim-rows", "0"), progress=False)
 
 
-SLICE = {"rows": 4, "cameras": 2, "frames": 2}
+SLICE = {"rows": 4, "cameras": 2, "frames": 2, "segments": 4, "dataset_cameras": (0, 1),
+         "first_row": 14}
 
 
 def _with_cosim(outcome, **changes):
@@ -67,16 +69,24 @@ def _with_cosim(outcome, **changes):
 
 
 def _cosim_result(outcome, **changes):
-    """A co-simulation result shaped as emulator.cosim makes it: the emulator's first
+    """A co-simulation result shaped as emulator.cosim_loop makes it: the emulator's first
     records as both sides, with figures of the right kind."""
-    from emulator.cosim import CosimResult
+    from emulator.cosim_loop import LoopCosimResult
     records = {k: np.asarray(v)[:8] for k, v in outcome.emulated.records.items()}
-    fields = dict(records=records, expected=records, mismatches=0, first_mismatch=None,
-                  clocks=40_000, wall_s=2.0, row_sets=8, clocks_per_row_set=800.0,
-                  latency_clocks=300, clk_hz=100e6, uart_packets_match=True,
-                  cameras=(0, 1), first_row=3,
-                  timings={"elaborate": 1.0, "build": 2.0, "simulate": 3.0})
-    return CosimResult(**{**fields, **changes})
+    forecasts = {"row": np.arange(8), "centre": np.zeros((8, 2), dtype=int),
+                 "source_row": np.zeros((8, 2), dtype=int)}
+    none = np.zeros(0)
+    fields = dict(records=records, expected=records, solver=records, solver_expected=records,
+                  forecasts=forecasts, forecasts_expected=forecasts, forecasts_ahead=2,
+                  mismatches=0, solver_mismatches=0, forecast_mismatches=0,
+                  first_mismatch=None, solved=3, frames=2, row_sets=8, rows_match=True,
+                  slots=np.arange(8), latency_clocks=300, record_latency_clocks=none,
+                  forecast_after_record_clocks=none, forecast_lead_clocks=none,
+                  clocks_per_row_set=800.0, row_period_clocks=1700.0,
+                  engine_stall_clocks=0, status={}, clocks=40_000, wall_s=2.0,
+                  timings={"elaborate": 1.0, "build": 2.0, "simulate": 3.0}, clk_hz=100e6,
+                  uart_packets_match=True)
+    return LoopCosimResult(**{**fields, **changes})
 
 
 def _accuracy_failures(failures):
@@ -196,14 +206,26 @@ def test_bench_page_from_the_same_figures(outcome):
 
 
 def test_mismatches_and_silence_are_failures(outcome):
+    assert cosim_failures(_cosim_result(outcome)) == []
     where = "record 3 (frame 1, row 2): q[1] HDL 5 ≠ emulator 6"
     failures = cosim_failures(_cosim_result(outcome, mismatches=2, first_mismatch=where))
-    assert failures == [f"HDL ↔ emulator: 2 mismatching record(s); first: {where}"]
+    assert failures == [f"HDL ↔ emulator: 2 mismatching PS FIFO record field(s); first "
+                        f"difference: {where}"]
+    for field, what in (("solver_mismatches", "solver record"),
+                        ("forecast_mismatches", "forecast row")):
+        failures = cosim_failures(_cosim_result(outcome, **{field: 1}, first_mismatch=where))
+        assert failures == [f"HDL ↔ emulator: 1 mismatching {what} field(s); first "
+                            f"difference: {where}"]
     empty = {k: v[:0] for k, v in outcome.emulated.records.items()}
-    assert cosim_failures(_cosim_result(outcome, records=empty)) == [
+    assert cosim_failures(_cosim_result(outcome, records=empty, solved=0)) == [
         "HDL ↔ emulator: the co-simulated slice produced no pose record"]
     assert cosim_failures(_cosim_result(outcome, uart_packets_match=False)) == [
         "HDL ↔ emulator: the UART packets differ from the emulator's"]
+    assert cosim_failures(_cosim_result(outcome, rows_match=False)) == [
+        "HDL ↔ emulator: the HDL front end's row sets are not the slice's rows"]
+    unsolved, = cosim_failures(_cosim_result(outcome, solved=0))
+    assert unsolved.startswith("HDL ↔ emulator: no row set of the co-simulated slice was "
+                               "solved, so the solver's arithmetic was not compared")
 
 
 def test_a_failed_comparison_exits_non_zero_and_says_where(outcome, tmp_path, monkeypatch,
@@ -213,30 +235,36 @@ def test_a_failed_comparison_exits_non_zero_and_says_where(outcome, tmp_path, mo
     monkeypatch.setattr(run_command, "run_job", lambda job, progress: failing)
     assert main(["run", *TINY, "--cosim-rows", "0", "--out", str(tmp_path)]) == 1
     out = capsys.readouterr().out
-    assert "FAILED: HDL ↔ emulator: 1 mismatching record(s); first: record 0 (row 0)" in out
+    assert ("FAILED: HDL ↔ emulator: 1 mismatching PS FIFO record field(s); first "
+            "difference: record 0 (row 0)") in out
     assert "**FAILED**" in (tmp_path / "report.md").read_text()
 
 
-def test_end_to_end_with_the_cosimulation(tmp_path, capsys):
-    """The whole job with a 6-camera (three pairs: the smallest stereo20 slice whose rows
-    solve), 2-frame, 2-row slice of the HDL top, on Icarus (``make run`` uses Verilator):
-    bit-exact records and UART packets, one record per row set, solved rows, a latency.
-    The exit status is the hardware path's accuracy verdict (on this cut it misses the
-    golden (b) ratio on some axes): the only failure lines are accuracy lines. The same
-    slice on its own (``test_top.py::test_cosim_slice_is_bit_exact``) runs with
-    RUN_SLOW=1."""
-    code = main(["run", *TINY, "--cosim-rows", "2", "--cosim-cameras", "6", "--sim", "icarus",
-                 "--out", str(tmp_path)])
-    failed = [line.split("FAILED: ", 1)[1] for line in capsys.readouterr().out.splitlines()
-              if line.startswith("rowtrack run: FAILED: ")]
+def test_end_to_end_with_the_cosimulation(tmp_path):
+    """The whole job with its co-simulation of the closed-loop top: a 6-camera (three
+    pairs: the smallest stereo20 slice whose rows solve), 2-frame, 4-row slice on Icarus
+    (``make run`` uses Verilator), its rows played at stereo20's own row period (the
+    tiny cut stretches ``t_r`` 15-fold): bit-exact FIFO records, solver records, forecast
+    rows and UART packets, one record per row set, solved rows, a latency. The only
+    failure lines are the hardware path's accuracy lines (on this cut it misses the
+    golden (b) ratio on some axes)."""
+    from golden.rig import preset
+    job = dataclasses.replace(
+        _job("--cosim-rows", "4", "--cosim-cameras", "6", "--sim", "icarus", "--out",
+             str(tmp_path)), cosim_row_period_s=preset("stereo20").cameras[0].t_r)
+    done = run_command.run_job(job, progress=False)
+    failed = done.all_failures()
+    print("\n".join(failed))
     assert len(_accuracy_failures(failed)) == len(failed)
-    assert code == (1 if failed else 0)
+    write_report(done, tmp_path)
     figures = json.loads((tmp_path / "metrics.json").read_text())
     assert set(REQUIRED) <= set(figures)
     assert figures["e2e.hdl_mismatches"] == 0 and figures["e2e.uart_packets_match"]
-    assert figures["e2e.hdl_records"] == figures["e2e.hdl_expected"] == 2 * 2, \
-        "a record per row set of the 2-frame, 2-row slice"
+    assert figures["e2e.hdl_records"] == figures["e2e.hdl_expected"] == 2 * 4, \
+        "a record per row set of the 2-frame, 4-row slice"
+    assert figures["e2e.hdl_forecast_rows"] == 2 * 4
     assert figures["e2e.hdl_solved_records"] > 0      # the solver's arithmetic was compared
+    assert figures["e2e.cosim.dataset_cameras"] == list(job.cosim["dataset_cameras"])
     for key in ("e2e.pose_rate_hz", "e2e.latency_us", "e2e.emulator_rows_per_s",
                 "e2e.hdl_cycles_per_s"):
         assert figures[key] > 0, key
@@ -312,7 +340,7 @@ def test_a_dataset_run_names_its_file_and_reports_the_slice(outcome, tmp_path):
     assert f"dataset `{path}`" in text
     assert "Dataset(" not in text and "array(" not in text
     assert len(text) < 20_000
-    assert "(dataset cameras 0, 1) × 2 frames × rows 3–6" in text
+    assert "(dataset cameras 0, 1) × 2 frames × rows 14–17" in text
     assert "1.0 s / 2.0 s / 3.0 s" in text
 
 
@@ -338,19 +366,13 @@ def test_the_slice_plays_the_rows_the_emulator_solves_most(outcome):
     assert per_row[first:first + 4].sum() == best
 
 
-def test_no_solving_window_is_one_line_and_a_failed_run(outcome):
+def test_no_solving_window_is_one_line(outcome):
     from emulator import cosim
     _, config, chosen = cosim.slice_params(outcome.dataset.rig, 6, 4, 12)
     with pytest.raises(cosim.NoSolvingWindow, match=r"the emulator solves no row set of "
                                                     r"cameras \[.*\] in frames 0–2"):
         cosim.solving_window(config, _flat(outcome.dataset), chosen, 3, 4)
 
-    job = dataclasses.replace(outcome.job, cosim={"rows": 4, "cameras": 6, "frames": 3})
-    cosim, failures, walls = run_command.cosimulate(job, _flat(outcome.dataset), False)
-    assert cosim is None and set(walls) == {"cosim"}
-    assert len(failures) == 1
-    assert failures[0].startswith("HDL co-simulation not run: the emulator solves no row set")
-    assert "\n" not in failures[0]
 
 
 # --- bad input: a clear message, exit 2, before any long work ---------------------------
@@ -397,7 +419,13 @@ BAD_INPUTS = {
                           "--cosim-cameras 3: cameras must be an even number .*whole stereo "
                           "pairs"),
     "cosim frames": (lambda p: ["--frames", "3", "--cosim-frames", "4"],
-                     "--cosim-frames must be between 1 and the 3 frames"),
+                     "--cosim-frames must be between 2 and the 3 frames"),
+    "cosim one frame": (lambda p: ["--cosim-frames", "1"],
+                        "--cosim-frames must be between 2 and the 4 frames in the run, "
+                        "not 1"),
+    "cosim rows off the frame": (lambda p: ["--rig", "stereo8", "--cosim-rows", "6"],
+                                 "--cosim-rows 6: rows 6: a frame of the cut rig lasts 7.5 "
+                                 "of its row periods"),
     "dataset and rig": (lambda p: ["--dataset", "x.npz", "--rig", "stereo20"],
                         "--rig applies to a simulated run, not to --dataset"),
     "out is a file": (lambda p: ["--out", _bad_dataset(p)], "exists and is not a directory"),
