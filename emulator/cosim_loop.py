@@ -26,6 +26,7 @@ must be a whole number of row periods, and the emulator's slots must be
 produced (the lowest camera's ``t_first``), whose pixels must be the dataset's.
 """
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -346,6 +347,16 @@ def _forecast_leads(forecasts, forecast_taken, sets, set_offers):
     return np.array(leads, dtype=float)
 
 
+def _design_key(config):
+    """What the closed-loop top's Verilog is built from: its parameters and the contents
+    of the stores built into it (rigs of another geometry, e.g. another slice's cameras,
+    share the parameters but not the coefficients)."""
+    digest = hashlib.sha256(repr(config.top).encode())
+    for store in (config.coef_store, *config.forecast_stores):
+        digest.update(np.ascontiguousarray(store).tobytes())
+    return digest.hexdigest()
+
+
 def closed_loop_cosim(dataset, *, row_period_s, frames=3, initial_motion=None,
                       sim="verilator", waves=False, seed=None, build_dir="build/cosim_loop",
                       progress=False):
@@ -381,7 +392,7 @@ def closed_loop_cosim(dataset, *, row_period_s, frames=3, initial_motion=None,
                       forecast_stores=config.forecast_stores)
     out = run_bench(top, stim, build_dir, name="rowtrack_loop", sim=sim, waves=waves,
                     seed=seed, tag=f"{len(images)}x{width}x{height}", timings=timings,
-                    progress=progress, cache_key=repr(params))
+                    progress=progress, cache_key=_design_key(config))
     result = judge(config, dataset, frames, out, timings, initial_motion)
     say(f"[cosim-loop] {result.row_sets} row sets, {len(result.records['row'])} records, "
         f"{result.mismatches} + {result.solver_mismatches} + {result.forecast_mismatches} "

@@ -1,7 +1,7 @@
 """Benchmark of the main job: ``rowtrack run``'s default scenario, measured.
 
 The same run as ``make run`` (stereo20 640×480, four frames of the papers' motion, seed
-1, a co-simulated slice of the HDL top), reported as ``e2e.*``: ``hdl_mismatches``,
+1, a co-simulated slice of the closed-loop HDL top), reported as ``e2e.*``: ``hdl_mismatches``,
 ``pose_rate_hz`` (delivered: the cameras' row sets per second, or the capacity if
 lower), ``pose_capacity_hz`` and ``latency_us`` at the co-simulation's clock,
 ``emulator_rows_per_s``, ``hdl_cycles_per_s``, ``hdl_rows_per_s`` and their ratio ``speed_ratio`` (camera rows per
@@ -9,7 +9,8 @@ second of the emulator over those of the HDL simulation), and the accuracy figur
 (the hardware path's closed loop and golden (b) with the same loop delay against truth,
 the default golden tracker; the emulator against float64 on its own measurements).
 ``hdl_cycles_per_s`` and ``speed_ratio`` use the wall time of the
-simulation itself (:attr:`emulator.cosim.CosimResult.wall_s`, not the model build).
+simulation itself (:attr:`emulator.cosim_loop.LoopCosimResult.wall_s`, not the model
+build).
 """
 
 from emulator.report import accuracy_section, hardware_section, tolerance_section, wall_times
@@ -37,7 +38,7 @@ Rig `{f['rig']}`: {f['cameras']} cameras, {f['rows']} rows, {f['frames']} frames
 {f['wall_s.total']:.0f} s ({walls}) on this machine (2 cores shared). Comparison failures:
 {f['failures']}. Design and reading: [docs/e2e.md](../e2e.md).
 
-## Hardware (co-simulated slice of the HDL top)
+## Hardware (co-simulated slice of the closed-loop HDL top)
 
 {hardware_section(f)}
 

@@ -83,6 +83,22 @@ def test_a_run_slice_is_its_middle_rows_restamped_to_the_cut_rigs_row_times():
         slice_dataset(dataset, 3, 8)
 
 
+def test_the_verilog_cache_knows_the_built_in_coefficients():
+    """Two slices of stereo20 (other pairs chosen at another cut) build tops of equal
+    parameters but other coefficient stores; a Verilog cache keyed by the parameters
+    alone once co-simulated one with the other's stores (72 mismatching fields)."""
+    from emulator.commands.run import _cut_rows
+    from emulator.cosim_loop import _design_key, cut_slice
+    from hdl.top import board_config
+    configs = [board_config(cut_slice(rig, 6, 4)[0])
+               for rig in (preset("stereo20"), _cut_rows(preset("stereo20"), 32))]
+    assert repr(configs[0].top) == repr(configs[1].top)
+    assert not np.array_equal(configs[0].coef_store, configs[1].coef_store)
+    assert _design_key(configs[0]) != _design_key(configs[1])
+    assert _design_key(configs[0]) == _design_key(board_config(
+        cut_slice(preset("stereo20"), 6, 4)[0]))
+
+
 def _span(values):
     values = np.asarray(values, dtype=float)
     finite = values[np.isfinite(values)]
