@@ -358,10 +358,11 @@ def hardware_section(m):
         ("slice", f"{m['cosim.cameras']} cameras (dataset cameras "
                   f"{', '.join(map(str, m['cosim.dataset_cameras']))}) × {m['cosim.frames']} "
                   f"frames × rows {m['cosim.first_row']}–"
-                  f"{m['cosim.first_row'] + m['cosim.rows'] - 1}, {m['cosim.sim']}: the "
-                  f"closed-loop top from reset, these rows cut as a rig of their own "
-                  f"(restamped to its row times), against the emulator's closed loop on the "
-                  f"same rows"),
+                  f"{m['cosim.first_row'] + m['cosim.rows'] - 1}, {m['cosim.sim']}: these "
+                  f"rows cut as a rig of their own (restamped to its row times) through the "
+                  f"closed-loop top, given the slice's true frame-1 motion after reset "
+                  f"(`loop.initial`, `loop.restart`), against the emulator's closed loop "
+                  f"on the same rows"),
         ("pose records HDL / expected", f"{m['hdl_records']} / {m['hdl_expected']}"),
         ("records with a solved step, every field compared (a slice of fewer than three "
          "stereo20 pairs cannot observe all six axes: its rows are not solved)",
