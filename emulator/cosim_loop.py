@@ -97,11 +97,12 @@ def slice_dataset(dataset, cameras, rows, segments=DEFAULT_SEGMENTS):
     (:func:`cut_slice`'s cameras and rows), as a dataset of its own; ``(dataset, chosen
     dataset cameras, first row)``.
 
-    The co-simulation compares the HDL with the emulator on the same input and neither
-    looks at the truth: the rows keep their pixels and are restamped to the cut rig's
-    row times (frame ``f``'s row ``r`` at its first row's time + ``r · t_r'``), so that
-    the emulator counts the row slots the hardware counts from the row order; the truth
-    arrays are the kept rows' (not at the new times, and not used)."""
+    The co-simulation compares the HDL with the emulator on the same input: the rows
+    keep their pixels and are restamped to the cut rig's row times (frame ``f``'s row
+    ``r`` at its first row's time + ``r · t_r'``), so that the emulator counts the row
+    slots the hardware counts from the row order. The truth arrays are the kept rows'
+    poses, at their own (not the new) times: what the first frame's motion is read from
+    (:func:`emulator.hardware_path.first_frame_motion`)."""
     from golden.dataset import CameraRecording, Dataset
     cut, chosen, first = cut_slice(dataset.rig, cameras, rows, segments)
     kept = slice(first, first + rows)
