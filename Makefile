@@ -29,6 +29,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/rowtrack bench --write-docs docs/results
+	$(VENV)/bin/rowtrack synth-report --write-docs docs/results
 
 clean:
 	rm -rf build
