@@ -4,13 +4,11 @@ Between the camera front end (:class:`hdl.front_end.camera_sync.CameraFrontEnd`,
 delivers row ``y`` of every camera as one stream) and the pose solver
 (:class:`hdl.pose_solver.PoseSolver`) sit
 
-* :class:`hdl.register_slice.RegisterSlice` on ``rows``: the fork's ``ready`` is
-  combinational from every lane's, so without a register the lanes' ready logic would
-  run on into the row aligner and the camera inputs (14 LUT levels in the top, issue 17),
-  and one on each stereo lane input, whose ``ready`` comes through two framers and the
-  join's key comparison;
 * :class:`hdl.measurement.row_set_fork.RowSetFork`: each camera's beats to its lanes, one ticket per
-  row set;
+  row set; it registers ``rows`` (its ``ready`` is the AND of every lane's, which would
+  otherwise run on into the row aligner and the camera inputs, issue 17);
+* :class:`hdl.register_slice.RegisterSlice` on each stereo lane input, whose ``ready``
+  comes through two framers and the join's key comparison;
 * one temporal lane per camera (:class:`hdl.row_descriptor.RowDescriptor`: the row
   against the same row of the previous frame, K segment measurements);
 * one stereo lane per rectified pair (:class:`hdl.row_descriptor.StereoRowDescriptor`:
@@ -113,7 +111,6 @@ class MeasurementEngine(wiring.Component):
         if not isinstance(params, EngineParams):
             raise TypeError(f"params must be an EngineParams, not {params!r}")
         self.params = params
-        self.rows_slice = RegisterSlice(params.aligned_layout())
         self.fork = RowSetFork(params)
         self.temporal_lanes = [RowDescriptor(params.temporal, params.follow)
                                for _ in range(params.cameras)]
@@ -137,7 +134,7 @@ class MeasurementEngine(wiring.Component):
     @property
     def latency(self):
         """Clocks from a row set's last column to its row's first solver transfer when
-        nothing stalls: the register slice on ``rows``, the later of the lanes' last
+        nothing stalls: the fork's input register, the later of the lanes' last
         measurements (temporal segment K − 1; stereo segment K_s − 1 after the stereo
         lanes' input slices), then the router, whose count from a ticket includes the
         clock a measurement takes into its lane FIFO and the K_s clocks that take the
@@ -147,15 +144,13 @@ class MeasurementEngine(wiring.Component):
         lanes = max(self.temporal_lanes[0].latency + t.segments - 1,
                     self.stereo_slices[0][0].latency + self.stereo_lanes[0].latency
                     + s.segments - 1)
-        return self.rows_slice.latency + lanes + self.router.latency - s.segments
+        return self.fork.latency + lanes + self.router.latency - s.segments
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.rows_slice = rows_slice = self.rows_slice
         m.submodules.fork = fork = self.fork
         m.submodules.router = router = self.router
-        wiring.connect(m, wiring.flipped(self.rows), rows_slice.i)
-        wiring.connect(m, rows_slice.o, fork.i)
+        wiring.connect(m, wiring.flipped(self.rows), fork.i)
         m.d.comb += fork.enable.eq(self.cfg.enable)
         for k, lane in enumerate(self.temporal_lanes):
             m.submodules[f"temporal{k}"] = lane
