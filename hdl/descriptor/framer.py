@@ -82,7 +82,8 @@ class RowFramer(wiring.Component):
         pad_mode = Signal()                           # padding a short row
         meta = Signal.like(self.o.payload.meta)
 
-        pad_now = pad_mode | (self.i.valid & beat.first & incomplete)
+        cuts_short = beat.first & incomplete          # the beat would open a row early
+        pad_now = pad_mode | (self.i.valid & cuts_short)
         take = ~pad_now & self.i.valid & (beat.first | incomplete)
         opens = take & beat.first
         pos = Mux(opens, 0, col)
@@ -111,7 +112,9 @@ class RowFramer(wiring.Component):
 
         # output register; beats outside a row are taken and dropped
         advance = ~self.o.valid | self.o.ready
-        m.d.comb += self.i.ready.eq(advance & ~pad_now)
+        # ``ready`` without ``i.valid`` (it only matters with a beat): the producer's
+        # valid logic stays off this ready path (issue 17)
+        m.d.comb += self.i.ready.eq(advance & ~pad_mode & ~cuts_short)
         with m.If(advance):
             m.d.sync += [self.o.valid.eq(pad_now | take), self.o.payload.eq(item)]
             with m.If(pad_now | take):
