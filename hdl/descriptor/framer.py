@@ -141,7 +141,8 @@ class StereoJoin(wiring.Component):
     a, b : In(stream.Signature(framed_layout(params, 1)))
     o : Out(stream.Signature(framed_layout(params, 2)))
 
-    Latency 1 (output register); one column pair per clock.
+    Latency 1 (output register); one column pair per clock; two different head rows
+    wait one clock before the older starts to drop.
     """
 
     latency = 1
@@ -164,11 +165,17 @@ class StereoJoin(wiring.Component):
         same = same_frame & (a.meta.row == b.meta.row)
         frame_gap = (a.meta.frame - b.meta.frame)[:p.frame_bits]
         # same_frame, not frame_gap == 0: the same test without the subtraction's carry
-        # in front of it (issue 17, LUT levels on the lanes' ready path)
-        a_older = frame_gap[-1] | (same_frame & (a.meta.row < b.meta.row))
+        # in front of it; and which row is older is registered, off the ready path
+        # (issue 17): two different heads wait a clock (neither moves), then the older
+        # is dropped
+        a_older = Signal()              # of the heads of the clock before
+        settled = Signal()              # the heads differed a clock ago: a_older is theirs
+        m.d.sync += a_older.eq(frame_gap[-1] | (same_frame & (a.meta.row < b.meta.row)))
+        differ = (mode == 0) & both & ~same
+        m.d.sync += settled.eq(differ & ~settled)
         pairing = (mode == 1) | ((mode == 0) & same)
-        drop_a = (mode == 2) | ((mode == 0) & both & ~same & a_older)
-        drop_b = (mode == 3) | ((mode == 0) & both & ~same & ~a_older)
+        drop_a = (mode == 2) | (differ & settled & a_older)
+        drop_b = (mode == 3) | (differ & settled & ~a_older)
         advance = ~self.o.valid | self.o.ready
         paired = both & pairing & advance
         m.d.comb += [
