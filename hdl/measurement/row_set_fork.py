@@ -154,19 +154,24 @@ class RowSetFork(wiring.Component):
         complete = Cat(live[a] & live[b] for a, b in p.pairs)
         pairs = Mux(opens, complete, set_pairs)
 
+        # An output wants the column when the set is enabled and it is addressed; the AND
+        # of every output's ``done`` is taken over the addressed ones alone, from
+        # registers, and ``enabled`` (the join's verdict) joins it last
         taken, done = [], []
         for port, camera, pair in self._outputs():
             if camera is None:
-                want = enabled & opens
+                addressed = opens
             elif pair is None:
-                want = enabled & live[camera]
+                addressed = live[camera]
             else:
-                want = enabled & live[camera] & pairs[pair]
+                addressed = live[camera] & pairs[pair]
             flag = Signal(name=f"taken{len(taken)}")
-            m.d.comb += port.valid.eq(head.valid & want & ~flag)
+            m.d.comb += port.valid.eq(head.valid & enabled & addressed & ~flag)
             taken.append(flag)
-            done.append(~want | flag | port.ready)
-        m.d.comb += head.ready.eq(Cat(done).all() & ~(opens & join["wait"]))
+            done.append(~addressed | flag | port.ready)
+        all_done = Signal()
+        m.d.comb += [all_done.eq(Cat(done).all()),
+                     head.ready.eq((~enabled | all_done) & ~(opens & join["wait"]))]
         transfer = head.valid & head.ready
 
         for port, camera, pair in self._outputs():
