@@ -82,7 +82,8 @@ class RowFramer(wiring.Component):
         pad_mode = Signal()                           # padding a short row
         meta = Signal.like(self.o.payload.meta)
 
-        pad_now = pad_mode | (self.i.valid & beat.first & incomplete)
+        cuts_short = beat.first & incomplete          # the beat would open a row early
+        pad_now = pad_mode | (self.i.valid & cuts_short)
         take = ~pad_now & self.i.valid & (beat.first | incomplete)
         opens = take & beat.first
         pos = Mux(opens, 0, col)
@@ -111,7 +112,9 @@ class RowFramer(wiring.Component):
 
         # output register; beats outside a row are taken and dropped
         advance = ~self.o.valid | self.o.ready
-        m.d.comb += self.i.ready.eq(advance & ~pad_now)
+        # ``ready`` without ``i.valid`` (it only matters with a beat): the producer's
+        # valid logic stays off this ready path (issue 17)
+        m.d.comb += self.i.ready.eq(advance & ~pad_mode & ~cuts_short)
         with m.If(advance):
             m.d.sync += [self.o.valid.eq(pad_now | take), self.o.payload.eq(item)]
             with m.If(pad_now | take):
@@ -138,7 +141,8 @@ class StereoJoin(wiring.Component):
     a, b : In(stream.Signature(framed_layout(params, 1)))
     o : Out(stream.Signature(framed_layout(params, 2)))
 
-    Latency 1 (output register); one column pair per clock.
+    Latency 1 (output register); one column pair per clock; two different head rows
+    wait one clock before the older starts to drop.
     """
 
     latency = 1
@@ -161,11 +165,17 @@ class StereoJoin(wiring.Component):
         same = same_frame & (a.meta.row == b.meta.row)
         frame_gap = (a.meta.frame - b.meta.frame)[:p.frame_bits]
         # same_frame, not frame_gap == 0: the same test without the subtraction's carry
-        # in front of it (issue 17, LUT levels on the lanes' ready path)
-        a_older = frame_gap[-1] | (same_frame & (a.meta.row < b.meta.row))
+        # in front of it; and which row is older is registered, off the ready path
+        # (issue 17): two different heads wait a clock (neither moves), then the older
+        # is dropped
+        a_older = Signal()              # of the heads of the clock before
+        settled = Signal()              # the heads differed a clock ago: a_older is theirs
+        m.d.sync += a_older.eq(frame_gap[-1] | (same_frame & (a.meta.row < b.meta.row)))
+        differ = (mode == 0) & both & ~same
+        m.d.sync += settled.eq(differ & ~settled)
         pairing = (mode == 1) | ((mode == 0) & same)
-        drop_a = (mode == 2) | ((mode == 0) & both & ~same & a_older)
-        drop_b = (mode == 3) | ((mode == 0) & both & ~same & ~a_older)
+        drop_a = (mode == 2) | (differ & settled & a_older)
+        drop_b = (mode == 3) | (differ & settled & ~a_older)
         advance = ~self.o.valid | self.o.ready
         paired = both & pairing & advance
         m.d.comb += [

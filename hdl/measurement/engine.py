@@ -4,13 +4,12 @@ Between the camera front end (:class:`hdl.front_end.camera_sync.CameraFrontEnd`,
 delivers row ``y`` of every camera as one stream) and the pose solver
 (:class:`hdl.pose_solver.PoseSolver`) sit
 
-* :class:`hdl.register_slice.RegisterSlice` on ``rows``: the fork's ``ready`` is
-  combinational from every lane's, so without a register the lanes' ready logic would
-  run on into the row aligner and the camera inputs (14 LUT levels in the top, issue 17),
-  and one on each stereo lane input, whose ``ready`` comes through two framers and the
-  join's key comparison;
 * :class:`hdl.measurement.row_set_fork.RowSetFork`: each camera's beats to its lanes, one ticket per
-  row set;
+  row set; it registers ``rows`` (its ``ready`` is the AND of every lane's, which would
+  otherwise run on into the row aligner and the camera inputs, issue 17);
+* :class:`hdl.register_slice.RegisterSlice` on every lane input: the fork's ``valid``
+  follows its forecast join, and a stereo lane's ``ready`` comes through two framers
+  and the join's key comparison; registered, neither runs on into the other's logic;
 * one temporal lane per camera (:class:`hdl.row_descriptor.RowDescriptor`: the row
   against the same row of the previous frame, K segment measurements);
 * one stereo lane per rectified pair (:class:`hdl.row_descriptor.StereoRowDescriptor`:
@@ -113,16 +112,15 @@ class MeasurementEngine(wiring.Component):
         if not isinstance(params, EngineParams):
             raise TypeError(f"params must be an EngineParams, not {params!r}")
         self.params = params
-        self.rows_slice = RegisterSlice(params.aligned_layout())
         self.fork = RowSetFork(params)
         self.temporal_lanes = [RowDescriptor(params.temporal, params.follow)
                                for _ in range(params.cameras)]
+        self.temporal_slices = [RegisterSlice(params.temporal.input_layout(params.follow))
+                                for _ in range(params.cameras)]
         self.forecast_rows = ForecastRows(params) if params.follow else None
         follow = {"forecast": In(stream.Signature(params.forecast_layout()))} \
             if params.follow else {}
         self.stereo_lanes = [StereoRowDescriptor(params.stereo) for _ in params.pairs]
-        # A stereo lane's ``ready`` runs through both framers and the join (which
-        # compares the two rows' keys); registered here so it stops at the lane.
         beat = params.pixel_layout()
         self.stereo_slices = [(RegisterSlice(beat), RegisterSlice(beat)) for _ in params.pairs]
         self.router = MeasurementRouter(params.router)
@@ -137,29 +135,30 @@ class MeasurementEngine(wiring.Component):
     @property
     def latency(self):
         """Clocks from a row set's last column to its row's first solver transfer when
-        nothing stalls: the register slice on ``rows``, the later of the lanes' last
-        measurements (temporal segment K − 1; stereo segment K_s − 1 after the stereo
-        lanes' input slices), then the router, whose count from a ticket includes the
+        nothing stalls: the fork's input register, the later of the lanes' last
+        measurements (temporal segment K − 1, stereo segment K_s − 1, each after its
+        lane's input slice), then the router, whose count from a ticket includes the
         clock a measurement takes into its lane FIFO and the K_s clocks that take the
         stereo measurements, all but the last overlapping their arrival (66 clocks with
         K_s = 1, 67 with K_s = 2 on 256-pixel rows, measured in the cocotb benches)."""
         t, s = self.params.temporal, self.params.stereo
-        lanes = max(self.temporal_lanes[0].latency + t.segments - 1,
+        lanes = max(self.temporal_slices[0].latency + self.temporal_lanes[0].latency
+                    + t.segments - 1,
                     self.stereo_slices[0][0].latency + self.stereo_lanes[0].latency
                     + s.segments - 1)
-        return self.rows_slice.latency + lanes + self.router.latency - s.segments
+        return self.fork.latency + lanes + self.router.latency - s.segments
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.rows_slice = rows_slice = self.rows_slice
         m.submodules.fork = fork = self.fork
         m.submodules.router = router = self.router
-        wiring.connect(m, wiring.flipped(self.rows), rows_slice.i)
-        wiring.connect(m, rows_slice.o, fork.i)
+        wiring.connect(m, wiring.flipped(self.rows), fork.i)
         m.d.comb += fork.enable.eq(self.cfg.enable)
         for k, lane in enumerate(self.temporal_lanes):
             m.submodules[f"temporal{k}"] = lane
-            wiring.connect(m, fork.temporal[k], lane.i)
+            m.submodules[f"temporal{k}_slice"] = lane_slice = self.temporal_slices[k]
+            wiring.connect(m, fork.temporal[k], lane_slice.i)
+            wiring.connect(m, lane_slice.o, lane.i)
             wiring.connect(m, lane.o, router.temporal[k])
             m.d.comb += lane.half_width.eq(self.cfg.half_width)
             if self.params.follow:

@@ -21,14 +21,23 @@ row is ``≥ H`` has no forecast and is dropped (``unforecast``). A set with ``e
 0 is dropped as in the open loop without taking a forecast row. So a lost, extra or
 mislabelled forecast row costs at most the sets up to the next matching key, counted,
 and never lets a set run with another row's forecast under a wrong key.
+
+The fork's ``ready`` is the AND of every lane's, and its outputs' ``valid`` follow the
+join, so its logic must start from flip-flops to stay within the LUT-level target
+(issue 17): a :class:`hdl.register_slice.RegisterSlice` takes each column with its set's
+key (the lowest live lane's ``frame`` and ``row``, a priority multiplexer over the
+lanes), ``enable`` and whether the row can have a forecast, and the join's ahead/behind
+verdict on a key mismatch is registered (the set waits one clock more on a lost or extra
+forecast row; a matching key costs no clock).
 """
 
 from amaranth.hdl import Cat, Module, Mux, Signal
-from amaranth.lib import stream, wiring
+from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from hdl.measurement.engine_params import EngineParams, fork_status_layout
 from hdl.measurement.router import ticket_layout
+from hdl.register_slice import RegisterSlice
 
 __all__ = ["RowSetFork"]
 
@@ -69,13 +78,13 @@ class RowSetFork(wiring.Component):
         Wrapping counters of row sets received, dropped, and skipped per stereo pair
         (with ``follow`` also ``forecast_skipped`` and ``unforecast``).
 
-    Latency 0 (outputs are combinational from ``i``; ``valid`` never depends on the
+    Latency :attr:`latency` clock (the input register; ``valid`` never depends on the
     same port's ``ready``). Throughput one column per clock when no addressed output
-    stalls. Backpressure: ``i.ready`` waits for the slowest addressed output. Reset:
-    the next column opens a set.
+    stalls. Backpressure: ``i.ready`` is registered and falls the clock after the
+    slowest addressed output stalled. Reset: the next column opens a set.
     """
 
-    latency = 0
+    latency = RegisterSlice.latency
 
     def __init__(self, params):
         if not isinstance(params, EngineParams):
@@ -97,6 +106,16 @@ class RowSetFork(wiring.Component):
             "status": Out(fork_status_layout(params)),
         })
 
+    def _staged_layout(self):
+        """A column in the input register, with what the fork reads of it first: its
+        set's key, ``enable``, and (``follow``) whether the row can have a forecast."""
+        p = self.params
+        pixel = self.i.payload.lanes[0]
+        joinable = {"joinable": 1} if p.follow else {}
+        return data.StructLayout({"column": p.aligned_layout(), "enable": 1,
+                                  "frame": len(pixel.frame), "row": len(pixel.row),
+                                  **joinable})
+
     def _outputs(self):
         """Every output port with the camera whose beats it carries (None: tickets) and
         the stereo pair it serves (None: a temporal lane or the tickets)."""
@@ -109,37 +128,51 @@ class RowSetFork(wiring.Component):
     def elaborate(self, platform):
         p = self.params
         m = Module()
-        col = self.i.payload
+        m.submodules.slice = staged = RegisterSlice(self._staged_layout())
+        arriving = self.i.payload
+        frame, row = arriving.lanes[p.cameras - 1].frame, arriving.lanes[p.cameras - 1].row
+        for k in reversed(range(p.cameras - 1)):        # the key of the lowest live lane
+            frame = Mux(arriving.lane_valid[k], arriving.lanes[k].frame, frame)
+            row = Mux(arriving.lane_valid[k], arriving.lanes[k].row, row)
+        m.d.comb += [staged.i.valid.eq(self.i.valid), self.i.ready.eq(staged.i.ready),
+                     staged.i.payload.column.eq(arriving), staged.i.payload.enable.eq(self.enable),
+                     staged.i.payload.frame.eq(frame), staged.i.payload.row.eq(row)]
+        if p.follow:
+            m.d.comb += staged.i.payload.joinable.eq(row < p.temporal.height)
+
+        head = staged.o
+        col = head.payload.column
         live = col.lane_valid
         lasts = Cat(lane.last for lane in col.lanes)
-
         in_set = Signal()                       # the next column continues a set
         set_enable = Signal()
         set_pairs = Signal(len(p.pairs))
         opens = ~in_set
-        frame, row = col.lanes[p.cameras - 1].frame, col.lanes[p.cameras - 1].row
-        for k in reversed(range(p.cameras - 1)):        # the key of the lowest live lane
-            frame = Mux(live[k], col.lanes[k].frame, frame)
-            row = Mux(live[k], col.lanes[k].row, row)
-        join = self._join(m, row, opens) if p.follow else {"accept": self.enable, "wait": 0}
+        enable = head.payload.enable
+        join = self._join(m, head, opens) if p.follow else {"accept": enable, "wait": 0}
         enabled = Mux(opens, join["accept"], set_enable)
         complete = Cat(live[a] & live[b] for a, b in p.pairs)
         pairs = Mux(opens, complete, set_pairs)
 
+        # An output wants the column when the set is enabled and it is addressed; the AND
+        # of every output's ``done`` is taken over the addressed ones alone, from
+        # registers, and ``enabled`` (the join's verdict) joins it last
         taken, done = [], []
         for port, camera, pair in self._outputs():
             if camera is None:
-                want = enabled & opens
+                addressed = opens
             elif pair is None:
-                want = enabled & live[camera]
+                addressed = live[camera]
             else:
-                want = enabled & live[camera] & pairs[pair]
+                addressed = live[camera] & pairs[pair]
             flag = Signal(name=f"taken{len(taken)}")
-            m.d.comb += port.valid.eq(self.i.valid & want & ~flag)
+            m.d.comb += port.valid.eq(head.valid & enabled & addressed & ~flag)
             taken.append(flag)
-            done.append(~want | flag | port.ready)
-        m.d.comb += self.i.ready.eq(Cat(done).all() & ~(opens & join["wait"]))
-        transfer = self.i.valid & self.i.ready
+            done.append(~addressed | flag | port.ready)
+        all_done = Signal()
+        m.d.comb += [all_done.eq(Cat(done).all()),
+                     head.ready.eq((~enabled | all_done) & ~(opens & join["wait"]))]
+        transfer = head.valid & head.ready
 
         for port, camera, pair in self._outputs():
             if camera is None:
@@ -158,8 +191,8 @@ class RowSetFork(wiring.Component):
                 m.d.comb += self.forecast.ready.eq(1)
         m.d.comb += [self.tickets.payload.cameras.eq(live),
                      self.tickets.payload.pairs.eq(complete),
-                     self.tickets.payload.frame.eq(frame),
-                     self.tickets.payload.row.eq(row)]
+                     self.tickets.payload.frame.eq(head.payload.frame),
+                     self.tickets.payload.row.eq(head.payload.row)]
 
         with m.If(transfer):
             m.d.sync += [flag.eq(0) for flag in taken]
@@ -174,7 +207,7 @@ class RowSetFork(wiring.Component):
         status = self.status
         with m.If(transfer & opens):
             m.d.sync += status.row_sets.eq(status.row_sets + 1)
-            with m.If(~self.enable):
+            with m.If(~enable):
                 m.d.sync += status.dropped.eq(status.dropped + 1)
             with m.Elif(join["accept"]):
                 for j in range(len(p.pairs)):
@@ -188,24 +221,29 @@ class RowSetFork(wiring.Component):
                 m.d.sync += status.forecast_skipped.eq(status.forecast_skipped + 1)
         return m
 
-    def _join(self, m, row, opens):
-        """The key comparison of an opening set's ``row`` with the forecast row waiting
-        (module docstring): ``accept`` the set with it, ``wait`` (the set is held this
-        clock), and ``skip`` (the forecast row is discarded this clock)."""
+    def _join(self, m, head, opens):
+        """The key comparison of an opening set (at ``head``) with the forecast row
+        waiting (module docstring): ``accept`` the set with it, ``wait`` (the set is held
+        this clock), and ``skip`` (the forecast row is discarded this clock). On a
+        mismatch the set first waits a clock for the registered ``ahead`` verdict."""
         p = self.params
         height = p.temporal.height
         forecast = self.forecast
-        key = forecast.payload.row
-        joinable = row < height
+        key, row = forecast.payload.row, head.payload.row
         diff = Signal(range(-(1 << len(key)), 1 << len(key)))
         m.d.comb += diff.eq(key - row)
         gap = Mux(diff < 0, diff + height, diff)
-        ahead = (key < height) & (gap != 0) & (2 * gap < height)
+        ahead = Signal()                # the verdict on the keys of the clock before
+        settled = Signal()              # a mismatch has waited a clock: ``ahead`` is its
+        m.d.sync += ahead.eq((key < height) & (gap != 0) & (2 * gap < height))
         match = forecast.valid & (key == row)
-        asks = self.enable & joinable            # an enabled set that needs a forecast
+        asks = head.payload.enable & head.payload.joinable   # needs a forecast
+        mismatch = head.valid & opens & asks & forecast.valid & ~match
+        # neither stream moves while a mismatch waits, so the keys stay the same
+        m.d.sync += settled.eq(mismatch & ~settled)
         skip = Signal()
-        m.d.comb += skip.eq(self.i.valid & opens & asks & forecast.valid & ~match & ~ahead)
+        m.d.comb += skip.eq(mismatch & settled & ~ahead)
         with m.If(skip):
             m.d.comb += forecast.ready.eq(1)
-        return {"accept": asks & match, "wait": asks & ~match & ~(forecast.valid & ahead),
-                "skip": skip}
+        return {"accept": asks & match,
+                "wait": asks & ~match & ~(forecast.valid & settled & ahead), "skip": skip}

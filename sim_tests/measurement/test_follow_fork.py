@@ -89,6 +89,15 @@ def simulate(params, sets, configs, forecast, rng, busy):
             if taken:
                 pending.pop(0)
 
+    def take_outputs(ctx):
+        for name, n, port in ports:
+            ready = busy or rng.random() < 0.5
+            ctx.set(port.ready, ready)
+            if ready and ctx.get(port.valid):
+                layout = port.payload.shape()
+                out[name].setdefault(n, []).append(
+                    unpack(layout, ctx.get(port.payload.as_value())))
+
     async def bench(ctx):
         i, cycle, offering = 0, 0, False
         while i < len(columns):
@@ -98,18 +107,20 @@ def simulate(params, sets, configs, forecast, rng, busy):
             ctx.set(fork.i.valid, offering)
             ctx.set(fork.i.payload, column)
             ctx.set(fork.enable, enable)
-            for name, n, port in ports:
-                ready = busy or rng.random() < 0.5
-                ctx.set(port.ready, ready)
-                if ready and ctx.get(port.valid):
-                    layout = port.payload.shape()
-                    out[name].setdefault(n, []).append(
-                        unpack(layout, ctx.get(port.payload.as_value())))
+            take_outputs(ctx)
             taken = offering and ctx.get(fork.i.ready)
             await ctx.tick()
             cycle += 1
             if taken:
                 i, offering = i + 1, False
+        ctx.set(fork.i.valid, 0)
+        # the fork's input register drains: every set opened, no column left for an output
+        while ctx.get(fork.status.row_sets) < len(sets) or \
+                any(ctx.get(port.valid) for _, _, port in ports):
+            assert cycle < 40 * len(columns) + 1000, "the fork stopped handing columns on"
+            take_outputs(ctx)
+            await ctx.tick()
+            cycle += 1
         status = ctx.get(fork.status)
         record["status"] = {name: int(getattr(status, name)) for name in
                             ("row_sets", "dropped", "forecast_skipped", "unforecast")}

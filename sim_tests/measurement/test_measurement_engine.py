@@ -172,6 +172,18 @@ def simulate_fork(params, sets, configs, rng, busy):
              for n, port in enumerate(getattr(dut, name))] + [("tickets", 0, dut.tickets)]
     record = {"taken": []}
 
+    def take_outputs(ctx):
+        for name, n, port in ports:
+                ctx.set(port.ready, 0)
+                valid_unready = ctx.get(port.valid)
+                ctx.set(port.ready, 1)
+                assert ctx.get(port.valid) == valid_unready, f"{name}[{n}].valid follows ready"
+                ready = busy or rng.random() < 0.5
+                ctx.set(port.ready, ready)
+                if ready and ctx.get(port.valid):
+                    layout = port.payload.shape()
+                    outputs[name][n].append(unpack(layout, ctx.get(port.payload.as_value())))
+
     async def bench(ctx):
         offering, i, cycle = False, 0, 0
         while i < len(columns):
@@ -182,16 +194,7 @@ def simulate_fork(params, sets, configs, rng, busy):
             ctx.set(dut.i.payload, column)
             # enable counts only with a set's first column
             ctx.set(dut.enable, enable if first else rng.randrange(2))
-            for name, n, port in ports:
-                ctx.set(port.ready, 0)
-                valid_unready = ctx.get(port.valid)
-                ctx.set(port.ready, 1)
-                assert ctx.get(port.valid) == valid_unready, f"{name}[{n}].valid follows ready"
-                ready = busy or rng.random() < 0.5
-                ctx.set(port.ready, ready)
-                if ready and ctx.get(port.valid):
-                    layout = port.payload.shape()
-                    outputs[name][n].append(unpack(layout, ctx.get(port.payload.as_value())))
+            take_outputs(ctx)
             taken = offering and ctx.get(dut.i.ready)
             if taken:
                 record["taken"].append(cycle)
@@ -199,6 +202,14 @@ def simulate_fork(params, sets, configs, rng, busy):
             cycle += 1
             if taken:
                 i, offering = i + 1, False
+        ctx.set(dut.i.valid, 0)
+        # the fork's input register drains: every set opened, no column left for an output
+        while ctx.get(dut.status.row_sets) < len(sets) or \
+                any(ctx.get(port.valid) for _, _, port in ports):
+            assert cycle < 20 * len(columns), "the fork stopped handing columns on"
+            take_outputs(ctx)
+            await ctx.tick()
+            cycle += 1
         status = ctx.get(dut.status)
         record["status"] = {"row_sets": int(status.row_sets), "dropped": int(status.dropped),
                             "stereo_skipped": [int(v) for v in status.stereo_skipped]}
