@@ -49,10 +49,15 @@ class MotionFilter:
 
     def __init__(self, params, level):
         self.params = params
-        self.level = params.motion_fmt.raw(np.asarray(level, dtype=np.int64))
-        self.trend = np.zeros_like(self.level)
         #: Updates in which some value was saturated into ``motion_fmt``.
         self.saturated = 0
+        self.restart(level)
+
+    def restart(self, level):
+        """Level ``level`` (raw ``motion_fmt``), trend 0; :attr:`saturated` goes on
+        counting (the gateware's counter clears only on reset)."""
+        self.level = self.params.motion_fmt.raw(np.asarray(level, dtype=np.int64))
+        self.trend = np.zeros_like(self.level)
 
     def _gained(self, gain_raw, raw):
         """``gain · raw`` (``raw`` a difference of two ``motion_fmt`` values, |raw| < 2)
@@ -119,6 +124,13 @@ class ForecastModel:
         self.filter = MotionFilter(params, initial)
         self.loop = DelayedForecast(self.filter, params.loop_delay_rows)
         self._saturated_queries = 0
+
+    def restart(self, initial):
+        """The filter and the loop delay's states as constructed at ``initial`` (raw
+        ``motion_fmt``, (6,)); :attr:`saturated` goes on counting, as the gateware's
+        ``loop.forecast_counters.motion``, which only a reset clears."""
+        self.filter.restart(initial)
+        self.loop = DelayedForecast(self.filter, self.params.loop_delay_rows)
 
     def take(self, slot, step=None):
         """The solver's step of row slot ``slot`` (raw ``step_fmt``; ``None`` if the row

@@ -68,9 +68,9 @@ class TrackingLoopModel:
 
     def restart(self, initial):
         """The filter as constructed at ``initial`` (raw ``motion_fmt``, (6,)), before
-        the first row of a frame; the next row's slot is 0. The cue store and the
-        consistency stage keep their state."""
-        self.forecast = ForecastModel(self.params, self.coef_raw, self.row_coef_raw, initial)
+        the first row of a frame; the next row's slot is 0. The cue store, the
+        consistency stage and the forecast's saturation count keep their state."""
+        self.forecast.restart(initial)
         self.prediction = None
 
     def request(self, slot, row):

@@ -272,5 +272,7 @@ def _loop(params):
                  "updates and forecasts saturated into the motion format, a diverging "
                  "loop)"),
         Register("counters", loop_counters_layout(forecast), Access.RO, "measurements of "
-                 "another row than the forecast's, predicted shifts saturated"),
+                 "another row than the forecast's, predicted shifts saturated (wrap); "
+                 "`restart_pending`: a `restart` was written and has not taken effect "
+                 "(set from the write until the frame boundary it applies at; live)"),
     ])

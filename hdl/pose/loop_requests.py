@@ -69,6 +69,9 @@ class RequestGenerator(wiring.Component):
         The forecast has no request in progress and every request's record.
     restarting : Out(1)
         The restart takes effect in this clock (the forecast's ``restart``).
+    restart_pending : Out(1)
+        A ``restart`` was strobed and has not taken effect: set the clock after the
+        strobe, clear the clock after ``restarting``.
 
     After reset the store is cleared first, one word per clock (``height`` clocks);
     requests wait for it (block RAM contents survive a reset).
@@ -90,6 +93,7 @@ class RequestGenerator(wiring.Component):
             "write_cue": In(s.cue_fmt.shape()),
             "frame_rows": In(unsigned(slot_bits), init=frame_rows),
             "restart": In(1), "drained": In(1), "restarting": Out(1),
+            "restart_pending": Out(1),
         })
 
     def elaborate(self, platform):
@@ -111,7 +115,7 @@ class RequestGenerator(wiring.Component):
 
         row, slot = Signal(range(p.height)), Signal(self.slot_bits)
         offered = Signal()               # the request of ``row`` is read
-        pending, hold = Signal(), Signal()
+        pending, hold = self.restart_pending, Signal()
         fetch = Signal()                 # read the row's cues in this clock
         m.d.comb += [fetch.eq(~clearing & ~offered),
                      read.addr.eq(row), read.en.eq(fetch),

@@ -62,9 +62,11 @@ def verdict_layout():
 
 def loop_counters_layout(params):
     """The loop's own counters (wrapping, ``solver.counter_bits``): measurements whose row
-    was not the forecast row's, predicted shifts saturated."""
+    was not the forecast row's, predicted shifts saturated; and its status bit
+    ``restart_pending``: a ``restart`` waits for its frame boundary."""
     bits = params.solver.counter_bits
-    return data.StructLayout({"mismatched": bits, "predicted_saturated": bits})
+    return data.StructLayout({"mismatched": bits, "predicted_saturated": bits,
+                              "restart_pending": 1})
 
 
 class TrackingLoop(wiring.Component):
@@ -110,7 +112,8 @@ class TrackingLoop(wiring.Component):
         before the boundary are measured, joined and solved as before, so nothing is
         dropped and nothing mismatched; the model's
         :meth:`~emulator.pose.tracking_loop.TrackingLoopModel.restart` before that
-        frame. Meanwhile row 0 is not forecast (in a top the engine's row set waits).
+        frame. Meanwhile row 0 is not forecast (in a top the engine's row set waits)
+        and ``counters.restart_pending`` is set.
     settings : In(settings_layout(stage)), reset to the stage's parameters
     frame_rows : In(unsigned(slot_bits)), reset ``stage.frame_rows``
     counts, forecast_counters, solver_counters, counters : Out
@@ -179,6 +182,7 @@ class TrackingLoop(wiring.Component):
                      forecast.alpha.eq(self.alpha), forecast.beta.eq(self.beta),
                      forecast.initial.eq(self.initial),
                      forecast.restart.eq(requests.restarting),
+                     self.counters.restart_pending.eq(requests.restart_pending),
                      self.forecast_counters.eq(forecast.counters),
                      self.o.payload.eq(forecast.o.payload),
                      self.o.valid.eq(forecast.o.valid & contexts.w_rdy),

@@ -30,7 +30,9 @@ SEED = int(os.environ.get("SEED", "5"))
 def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_wait=0):
     """Requests and records from two independent drivers (random idle clocks with
     ``gaps``, and ready backpressure on ``o``; the records start ``record_wait`` clocks
-    late); ``setup(ctx)`` runs with the restart. Returns the outputs per request (payload
+    late); ``setup(ctx)`` runs with the restart. With the case's ``restart`` (request
+    index, raw motion) ``restart`` is strobed again before that request, once the block
+    is ``idle``, with ``initial`` the motion. Returns the outputs per request (payload
     dicts), the Ŷ seen at each request's first output, the cycles of the request and
     record transfers and of the outputs, and the saturation counters at the end."""
     rng = random.Random(seed)
@@ -56,11 +58,25 @@ def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_
         counters.update({name: ctx.get(getattr(dut.counters, name))
                          for name in ("centre", "row", "segment", "motion")})
 
-    def driver(port, items, cycles, wait=0):
+    async def restart(ctx, motion):
+        """The strobe once the block is idle; returns the clocks it took."""
+        clocks = 1
+        while not ctx.get(dut.idle):
+            await ctx.tick()
+            clocks += 1
+        ctx.set(dut.initial, [int(v) for v in motion])
+        ctx.set(dut.restart, 1)
+        await ctx.tick()
+        ctx.set(dut.restart, 0)
+        return clocks
+
+    def driver(port, items, cycles, wait=0, restart_at=None):
         async def run(ctx):
             await ctx.tick().repeat(1 + wait)  # after the restart
             cycle = 1 + wait
-            for item in items:
+            for n, item in enumerate(items):
+                if restart_at is not None and n == restart_at[0]:
+                    cycle += await restart(ctx, restart_at[1])
                 while gaps and rng.random() < 0.4:
                     await ctx.tick()
                     cycle += 1
@@ -88,7 +104,8 @@ def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_
     sim.add_clock(1e-8)
     sim.add_testbench(start)
     sim.add_testbench(sink)
-    sim.add_testbench(driver(dut.requests, case["requests"], starts))
+    sim.add_testbench(driver(dut.requests, case["requests"], starts,
+                             restart_at=case.get("restart")))
     taken = []
     sim.add_testbench(driver(dut.records, case["records"], taken, record_wait))
     sim.run()
@@ -229,22 +246,32 @@ def test_saturation_at_the_extremes_is_flagged(sign):
     assert any(o["shift_saturated"] for o in flat) and any(o["across_saturated"] for o in flat)
 
 
-@pytest.mark.parametrize("sign", [1, -1])
-def test_a_diverging_loop_saturates_the_motion_and_counts_it(sign):
+@pytest.mark.parametrize("sign, restarted", [(1, False), (-1, False), (1, True)])
+def test_a_diverging_loop_saturates_the_motion_and_counts_it(sign, restarted):
     """Steps at the end of the range from the other end: the level and the trend run
     into motion_fmt's bound; the filter saturates (never wraps to the other sign) as the
-    model does, bit for bit, and counts every update and forecast that saturated."""
-    case = random_case(SEED)
+    model does, bit for bit, and counts every update and forecast that saturated.
+    ``restarted``: after 40 rows the loop restarts at its start and diverges again; the
+    count goes on over the restart (a register counter clears only on reset) in both."""
+    run = 40
+    case = random_case(SEED, rows=2 * run if restarted else run)
     params = case["params"]
     fmt, step_fmt = params.motion_fmt, params.solver.step_fmt
     initial = np.full(6, -sign * fmt.max_raw)
     step = step_fmt.quantize(np.full(6, sign * 0.99))
     records = [record(params, step) for _ in case["records"]]
+    restart = (run, initial) if restarted else None
     expected, motion, model = run_model(params, case["coef_raw"], case["row_coef_raw"],
-                                        initial, case["requests"], records)
+                                        initial, case["requests"], records, restart)
     assert model.saturated > 0, "the stimulus did not drive the filter to its bound"
-    assert all(np.sign(m[0]) == sign for m in motion[len(motion) // 2:])   # no wrap
-    case = dict(case, initial=initial, records=records, expected=expected, motion=motion)
+    for start in range(0, len(motion), run):                               # no wrap
+        assert all(np.sign(m[0]) == sign for m in motion[start + run // 2:start + run])
+    if restarted:
+        fresh = run_model(params, case["coef_raw"], case["row_coef_raw"], initial,
+                          case["requests"][run:], records[run:])[2]
+        assert model.saturated > fresh.saturated > 0, "the count did not go on"
+    case = dict(case, initial=initial, records=records, expected=expected, motion=motion,
+                restart=restart)
     got, motions, *_, counters = simulate(_build(case), case, gaps=True, seed=SEED)
     _check(case, got, motions)
     assert counters == saturations([o for outs in expected for o in outs], model.saturated)

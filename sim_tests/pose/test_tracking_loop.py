@@ -4,8 +4,9 @@ closed-loop run (stereo20 cut to three pairs and 8 rows, three frames, loop dela
 2), every forecast transfer and every pose record equal the model's, with and without
 valid gaps and ready backpressure (SEED printed); the model's row slots are the
 generator's; a ``restart`` written while rows are forecast takes effect at the next
-frame boundary, as the model's restart there (nothing mismatched); the latency; the
-parameter checks. The longer runs are the cocotb bench's (sim_tests/pose/tracking_loop/)."""
+frame boundary, as the model's restart there (nothing mismatched), with
+``counters.restart_pending`` set from the write until then; the latency; the parameter
+checks. The longer runs are the cocotb bench's (sim_tests/pose/tracking_loop/)."""
 
 import os
 import random
@@ -36,7 +37,8 @@ def record_dict(record):
 
 def run_loop(case, *, seed, gaps, limit=400000):
     """The case's inputs through the gateware; returns the forecast transfers and the
-    records (each with its clock), the clocks of the input transfers, the counters.
+    records (each with its clock), the clocks of the input transfers, the counters, the
+    clocks ``counters.restart_pending`` was set and those a restart took effect in.
     With the case's ``restart`` (frame, motion) ``initial`` is set to the motion and
     ``restart`` strobed after :func:`restart_after` forecast transfers."""
     dut = build(case)
@@ -44,7 +46,8 @@ def run_loop(case, *, seed, gaps, limit=400000):
     prob = 0.6 if gaps else 1.0
     want_out = sum(len(e) for e in case["expected"])
     got = {"o": [], "records": [], "inputs": [], "lasts": [], "requests": [], "judged": [],
-           "predicted": [], "verdicts": [], "counts": None}
+           "predicted": [], "verdicts": [], "counts": None, "pending": [],
+           "restarting": []}
     requests, judged, predicted = dut._requests.o, dut._stage.i, dut._shift.o
 
     restart_at = restart_after(case)
@@ -62,6 +65,10 @@ def run_loop(case, *, seed, gaps, limit=400000):
                 got["restart"] = cycle
                 ctx.set(dut.initial, [int(v) for v in case["restart"][1]])
             ctx.set(dut.restart, strobe)
+            if ctx.get(dut.counters.restart_pending):
+                got["pending"].append(cycle)
+            if ctx.get(dut._requests.restarting):
+                got["restarting"].append(cycle)
             if not valid and queue and rng.random() < prob:
                 ctx.set(dut.i.payload, queue[0])
                 valid = True
@@ -101,7 +108,7 @@ def run_loop(case, *, seed, gaps, limit=400000):
         await ctx.tick().repeat(100)           # the last scale update counted
         got["counts"] = {n: ctx.get(getattr(dut.counts, n)) for n in COUNTS}
         got["counters"] = {n: ctx.get(getattr(dut.counters, n))
-                           for n in ("mismatched", "predicted_saturated")}
+                           for n in ("mismatched", "predicted_saturated", "restart_pending")}
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
@@ -130,7 +137,8 @@ def check(case, got):
     assert verdicts[:, 1].sum() == case["counts"]["outliers"]
     assert verdicts[:, 3].tolist() == [t["last"] for t in case["inputs"]]
     assert np.all(verdicts[:, 2] <= verdicts[:, 0])          # confident only if judged
-    assert got["counters"] == {"mismatched": 0, "predicted_saturated": 0}
+    assert got["counters"] == {"mismatched": 0, "predicted_saturated": 0,
+                               "restart_pending": 0}
 
 
 @pytest.mark.parametrize("gaps, delay, restart", [(False, 1, None), (True, 1, None),
@@ -144,8 +152,20 @@ def test_small_closed_loop_bit_exact(gaps, delay, restart):
     assert case["slots"] == slots       # f·frame_rows + r, counted again from a restart
     _, got = run_loop(case, seed=SEED, gaps=gaps)
     check(case, got)
-    if restart is not None:
-        assert 0 < got["restart"] < got["o"][first * case["params"].cameras][0]
+    start = got["o"][0][0]
+    assert got["restarting"][0] < start        # the reset's restart, before any forecast
+    late = [c for c in got["pending"] if c > start]
+    if restart is None:
+        assert late == []
+    else:
+        cams = case["params"].cameras
+        strobe = got["restart"]
+        assert 0 < strobe < got["o"][first * cams][0]
+        took = min(c for c in got["restarting"] if c > strobe)
+        assert got["o"][first * cams - 1][0] < took < got["o"][first * cams][0]
+        assert took > strobe + 1, "the restart did not wait for its boundary"
+        # restart_pending from the clock after the write until the one it took effect in
+        assert late == list(range(strobe + 1, took + 1))
     flags = [r["flags"] for r in case["records"]]
     print(f"{len(got['o'])} forecast transfers, {len(flags)} records "
           f"({flags.count(0)} solved) bit-exact; counts {got['counts']}")

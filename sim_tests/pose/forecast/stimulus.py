@@ -41,12 +41,16 @@ def record(params, step=None, row=0, time=0, flags=0):
             "p": [0, 0, 0], "step": [int(v) for v in step]}
 
 
-def run_model(params, coefficients, row_coefficients, initial, requests, records):
+def run_model(params, coefficients, row_coefficients, initial, requests, records,
+              restart=None):
     """The model in the gateware's order (predict the row, then take its record): per
-    request the per-camera outputs and Ŷ, and the model at the end."""
+    request the per-camera outputs and Ŷ, and the model at the end. With ``restart``
+    (request index, raw motion) the model restarts at the motion before that request."""
     model = ForecastModel(params, coefficients, row_coefficients, initial)
     outputs, motions = [], []
-    for request, rec in zip(requests, records):
+    for n, (request, rec) in enumerate(zip(requests, records)):
+        if restart is not None and n == restart[0]:
+            model.restart(restart[1])
         out = model.predict(request["slot"], request["row"], np.array(request["cue"]))
         outputs.append(output_transfers(params, out, request["row"]))
         motions.append([int(v) for v in out["motion"]])

@@ -4,7 +4,8 @@ loop's model (emulator.pose.tracking_loop.TrackingLoopModel through
 emulator.pipeline.run), bit for bit and in order, and the consistency stage's counters;
 at full rate and with random gaps and backpressure. A restart case strobes ``restart``
 mid-frame (:func:`sim_tests.pose.tracking_loop.stimulus.restart_after`); the model
-restarted before the next frame, and nothing is mismatched.
+restarted before the next frame, nothing is mismatched, and ``counters.restart_pending``
+is set from the write until that frame boundary.
 
 Environment: LOOP_CASE (path of a pickled case, sim_tests/pose/tracking_loop/stimulus.py).
 """
@@ -31,12 +32,22 @@ from sim_tests.pose.tracking_loop.stimulus import restart_after
 
 async def _restart(dut, sink, case, motion_layout, timeout_cycles):
     """``initial`` ← the case's restart motion and a one-clock ``restart`` strobe once
-    the sink has :func:`restart_after` forecast transfers."""
+    the sink has :func:`restart_after` forecast transfers; ``counters.restart_pending``
+    then holds until the frame boundary: it clears with every forecast transfer before
+    the restarted frame out and none of it."""
     await sink.wait_for(restart_after(case), timeout_cycles=timeout_cycles)
     dut.initial.value = pack(motion_layout, _indexed([int(v) for v in case["restart"][1]]))
     dut.restart.value = 1
     await RisingEdge(dut.clk)
     dut.restart.value = 0
+    layout = loop_counters_layout(case["params"])
+    for cycle in range(timeout_cycles):
+        await RisingEdge(dut.clk)
+        if not unpack(layout, dut.counters.value)["restart_pending"]:
+            break
+    assert cycle > 0, "restart_pending was not set after the write"
+    boundary = case["restart"][0] * case["params"].height * case["params"].cameras
+    assert len(sink.received) == boundary, (len(sink.received), boundary)
 
 
 @cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"])
@@ -68,11 +79,14 @@ async def loop_matches_model(dut, traffic):
     dut.restart.value = 0
     cocotb.start_soon(source.send(case["inputs"]))
     timeout = 2000 * len(case["expected"])
+    restart = None
     if restart_after(case) is not None:
-        cocotb.start_soon(_restart(dut, sink, case, motion, timeout))
+        restart = cocotb.start_soon(_restart(dut, sink, case, motion, timeout))
     flat = [o for outs in case["expected"] for o in outs]
     await sink.wait_for(len(flat), timeout_cycles=timeout)
     await records.wait_for(len(case["records"]), timeout_cycles=timeout)
+    if restart is not None:
+        await restart                        # its checks of restart_pending
     await ClockCycles(dut.clk, 100)          # the last scale update is counted
     got = [payload for _, payload in sink.received]
     for n, (g, e) in enumerate(zip(got, flat)):
