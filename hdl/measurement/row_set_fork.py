@@ -108,13 +108,14 @@ class RowSetFork(wiring.Component):
 
     def _staged_layout(self):
         """A column in the input register, with what the fork reads of it first: its
-        set's key, ``enable``, and (``follow``) whether the row can have a forecast."""
+        set's key, ``enable``, the pairs with both cameras in it, and (``follow``)
+        whether the row can have a forecast."""
         p = self.params
         pixel = self.i.payload.lanes[0]
         joinable = {"joinable": 1} if p.follow else {}
         return data.StructLayout({"column": p.aligned_layout(), "enable": 1,
                                   "frame": len(pixel.frame), "row": len(pixel.row),
-                                  **joinable})
+                                  "complete": len(p.pairs), **joinable})
 
     def _outputs(self):
         """Every output port with the camera whose beats it carries (None: tickets) and
@@ -136,7 +137,10 @@ class RowSetFork(wiring.Component):
             row = Mux(arriving.lane_valid[k], arriving.lanes[k].row, row)
         m.d.comb += [staged.i.valid.eq(self.i.valid), self.i.ready.eq(staged.i.ready),
                      staged.i.payload.column.eq(arriving), staged.i.payload.enable.eq(self.enable),
-                     staged.i.payload.frame.eq(frame), staged.i.payload.row.eq(row)]
+                     staged.i.payload.frame.eq(frame), staged.i.payload.row.eq(row),
+                     staged.i.payload.complete.eq(
+                         Cat(arriving.lane_valid[a] & arriving.lane_valid[b]
+                             for a, b in p.pairs))]
         if p.follow:
             m.d.comb += staged.i.payload.joinable.eq(row < p.temporal.height)
 
@@ -151,7 +155,7 @@ class RowSetFork(wiring.Component):
         enable = head.payload.enable
         join = self._join(m, head, opens) if p.follow else {"accept": enable, "wait": 0}
         enabled = Mux(opens, join["accept"], set_enable)
-        complete = Cat(live[a] & live[b] for a, b in p.pairs)
+        complete = head.payload.complete
         pairs = Mux(opens, complete, set_pairs)
 
         # An output wants the column when the set is enabled and it is addressed; the AND
