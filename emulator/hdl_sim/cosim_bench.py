@@ -11,9 +11,10 @@ at the pins, and the block counters. The stimulus comes from the pickle named by
 A closed-loop top (:func:`emulator.cosim_loop.closed_loop_cosim`, stimulus key ``loop``)
 has its coefficients built in and runs its loop from reset (the filter at rest, the
 registers' reset ``frame_rows``), or, given an ``initial`` motion (raw), writes it and
-strobes ``loop.restart`` before the cameras start; the bench also records, from reset on, the tracking
-loop's records (with their steps, in the solver's formats) and the forecast transfers
-the engine takes, and the clocks a row set or a forecast waited at the engine's input.
+strobes ``loop.restart`` before the cameras start; the bench also records, from reset
+on, the tracking loop's records (with their steps, in the solver's formats) and the
+forecast transfers the engine takes, and the clocks a row set or a forecast waited at
+the engine's input.
 """
 
 import os
