@@ -207,16 +207,17 @@ def flags_from_checks(overrun, empty, ill, saturated):
                       int(PoseFlag.SATURATED)], 0).astype(np.int64)
 
 
-def _solve(params, scaled, rhs, scales):
+def _solve(params, scaled, rhs, scales, pivot_log2=None):
     """The solve part of the engine's program (Cholesky with the forward substitution,
-    back substitution, ``Y = S x``) on every row at once. Returns (values: (bank, name)
-    -> Value of the inputs and every result, the program, ILL mask, saturated mask)."""
+    back substitution, ``Y = S x``) on every row at once, the pivots checked against
+    the run-time ``pivot_log2`` (:func:`execute`). Returns (values: (bank, name) ->
+    Value of the inputs and every result, the program, ILL mask, saturated mask)."""
     program = build_row_program(params)
     values = {("input", f"N{i}{j}"): v for (i, j), v in zip(UPPER, scaled)}
     values.update({("input", f"b{i}"): v for i, v in enumerate(rhs)})
     values.update({("input", f"s{i}"): v for i, v in enumerate(scales)})
     _, ill, saturated = execute(params, program, batches(split_program(program)[0]),
-                                 values, len(np.asarray(scales[0].raw)))
+                                 values, len(np.asarray(scales[0].raw)), pivot_log2)
     return values, program, ill, saturated
 
 
@@ -234,11 +235,13 @@ def solve_trace(params, coef_raw, rows):
     return trace
 
 
-def solve_rows(params, coef_raw, rows):
-    """Steps and flags of every row (no integration): a :class:`StepResult`."""
+def solve_rows(params, coef_raw, rows, pivot_log2=None):
+    """Steps and flags of every row (no integration): a :class:`StepResult`.
+    ``pivot_log2``: the solver's run-time register when each row was solved (int or
+    (n,); None: the build's value, its reset)."""
     normal, rhs = accumulate(params, coef_raw, rows)
     scaled, scaled_rhs, scales, empty, sat_scale = scale_system(params, normal, rhs)
-    values, program, ill, sat_solve = _solve(params, scaled, scaled_rhs, scales)
+    values, program, ill, sat_solve = _solve(params, scaled, scaled_rhs, scales, pivot_log2)
     flags = flags_from_checks(rows.counts > params.slots, empty, ill, sat_scale | sat_solve)
     raw = np.stack([np.asarray(values[operand_key(v)].raw, dtype=object) for v in program.step],
                    axis=1)
@@ -310,11 +313,12 @@ def integrate_rows(params, result, row, pose=None):
     return poses[:, :4], poses[:, 4:]
 
 
-def pose_solver_model(params, coef_raw, rows, pose=None):
+def pose_solver_model(params, coef_raw, rows, pose=None, pivot_log2=None):
     """Pose records of every row, as the hardware emits them: dict of raw arrays
     ``row``, ``time``, ``flags``, ``q`` (n, 4), ``p`` (n, 3), ``step`` (n, 6). ``pose``:
-    the ring before the first row (:func:`initial_poses`; the reset state by default)."""
-    result = solve_rows(params, coef_raw, rows)
+    the ring before the first row (:func:`initial_poses`; the reset state by default);
+    ``pivot_log2``: :func:`solve_rows`'."""
+    result = solve_rows(params, coef_raw, rows, pivot_log2)
     quats, positions = integrate_rows(params, result, rows.row, pose)
     return {"row": np.asarray(rows.row), "time": np.asarray(rows.time), "flags": result.flags,
             "q": quats, "p": positions, "step": result.step}

@@ -57,6 +57,11 @@ class PoseSolver(wiring.Component):
         Rewrites one stored coefficient.
     counters : Out(counters_layout(params))
         Rows solved and rows flagged per reason (wrapping).
+    pivot_log2 : In(unsigned(params.pivot_log2_bits)), reset ``params.pivot_log2``
+        The conditioning gate: a pivot below ``2**-pivot_log2`` flags ILL (change it
+        between rows). Out of range (below ``MIN_PIVOT_LOG2`` or above the build's
+        ``pivot_log2``, which sets the formats): the build's, with ``pivot_log2_error``.
+    pivot_log2_error : Out(1)
 
     Latency: :attr:`latency` clocks from the transfer of a row's last measurement to
     ``o.valid``, when the solver is idle and ``o`` is not stalled. Throughput: one
@@ -88,6 +93,8 @@ class PoseSolver(wiring.Component):
             "o": Out(stream.Signature(record_layout(params))),
             "coef_write": In(coef_write_signature(params)),
             "counters": Out(counters_layout(params)),
+            "pivot_log2": self._engine.signature.members["pivot_log2"],
+            "pivot_log2_error": self._engine.signature.members["pivot_log2_error"],
         })
 
     @property
@@ -128,5 +135,7 @@ class PoseSolver(wiring.Component):
                      acc.read_index.eq(engine.read_index), engine.read_data.eq(acc.read_data),
                      engine.exponents.eq(acc.exponents), engine.empty.eq(acc.empty),
                      engine.overrun.eq(acc.overrun), engine.row.eq(acc.row),
-                     engine.time.eq(acc.time), self.counters.eq(engine.counters)]
+                     engine.time.eq(acc.time), self.counters.eq(engine.counters),
+                     engine.pivot_log2.eq(self.pivot_log2),
+                     self.pivot_log2_error.eq(engine.pivot_log2_error)]
         return m

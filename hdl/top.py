@@ -157,17 +157,21 @@ class RowtrackTop(wiring.Component):
         return m
 
     @staticmethod
-    def _wire_coefficient_load(m, regs, coef_write):
-        coef = regs.solver.coef
-        m.d.comb += [coef_write.addr.eq(coef.data.addr), coef_write.index.eq(coef.data.index),
-                     coef_write.data.eq(coef.data.data), coef_write.en.eq(coef.stb)]
+    def _wire_solver_registers(m, regs, solver):
+        """The solver's coefficient load and conditioning gate (a PoseSolver, or the
+        tracking loop holding one)."""
+        coef, write, group = regs.solver.coef, solver.coef_write, regs.solver
+        m.d.comb += [write.addr.eq(coef.data.addr), write.index.eq(coef.data.index),
+                     write.data.eq(coef.data.data), write.en.eq(coef.stb),
+                     solver.pivot_log2.eq(group.pivot_log2),
+                     group.status.pivot_log2_error.eq(solver.pivot_log2_error)]
 
     def _wire_solver(self, m, regs, engine, link):
         """Open loop: the engine's measurements straight into the solver."""
         m.submodules.solver = solver = PoseSolver(self.params.solver, self.coefficients)
         wiring.connect(m, engine.o, solver.i)
         wiring.connect(m, solver.o, link.pose)
-        self._wire_coefficient_load(m, regs, solver.coef_write)
+        self._wire_solver_registers(m, regs, solver)
         m.d.comb += regs.solver.counters.eq(solver.counters)
 
     def _wire_loop(self, m, regs, engine, link):
@@ -192,7 +196,7 @@ class RowtrackTop(wiring.Component):
                      fed.payload.source_row.eq(ahead.payload.source_row),
                      fed.payload.row.eq(ahead.payload.row),
                      fed.payload.last.eq(ahead.payload.last)]
-        self._wire_coefficient_load(m, regs, loop.coef_write)
+        self._wire_solver_registers(m, regs, loop)
         settings, state = regs.loop, regs.status
         m.d.comb += [
             loop.alpha.eq(settings.alpha), loop.beta.eq(settings.beta),

@@ -152,17 +152,19 @@ def _stack(values, operands):
                  operands[0].fmt)
 
 
-def execute(params, program, batches, values, n):
+def execute(params, program, batches, values, n, pivot_log2=None):
     """Run the :func:`batches` of ops of ``program`` on ``values`` ((bank, name) ->
     Value over ``n`` rows, updated in place with every result) as the engine does: a
     multiply-accumulate op is one rounding of its exact sum (:func:`dot`), a seed op is
-    :func:`rsqrt_seed` of its source with the pivot check. Commit ops do not overwrite
+    :func:`rsqrt_seed` of its source with the pivot check against the solver's run-time
+    ``pivot_log2`` (int or (n,): :meth:`PoseSolverParams.pivot_thresholds`; None: the
+    build's). Commit ops do not overwrite
     the state they replace: the engine's reads of the state see the row's starting pose,
     so their results are returned apart. Returns (committed: state name -> Value, ILL
     mask, saturated mask)."""
     values.update({("work", name): constant(value, operand.fmt, n)
                    for name, (operand, value) in program.constants.items()})
-    threshold = int(params.unit_fmt.quantize(2.0 ** -params.pivot_log2))
+    threshold = np.broadcast_to(params.pivot_thresholds(pivot_log2)[0], (n,)).astype(object)
     ill, saturated = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
     committed = {}
     for batch in batches:

@@ -15,6 +15,7 @@ from amaranth.lib import data
 from hdl.front_end.camera_sync import sync_config_layout, sync_status_layout
 from hdl.measurement.consistency import counts_layout, settings_init, settings_layout
 from hdl.measurement.engine_params import engine_config_layout, engine_status_layout
+from hdl.pose.params import MIN_PIVOT_LOG2
 from hdl.pose.status_params import FRACTION_FMT, MEASUREMENTS_FMT, top_status_params
 from hdl.pose_solver import counters_layout
 from hdl.bus.register_map import Access, Register, RegisterGroup, RegisterMap
@@ -135,7 +136,8 @@ def _camera(params):
 def _solver(params):
     solver = params.solver
     return RegisterGroup("solver", GROUP_OFFSETS["solver"], "Pose solver "
-                         "(`hdl/pose_solver.py`): coefficient load and row counters.", [
+                         "(`hdl/pose_solver.py`): coefficient load, row counters and the "
+                         "conditioning gate.", [
         Register("geometry", data.StructLayout({"slots": 16, "rows": 16}), Access.CONST,
                  "coefficient store size: measurement slots and rows per frame",
                  value=solver.slots | solver.rows << 16),
@@ -148,6 +150,15 @@ def _solver(params):
                  "coefficient 0–8 (a_T x y z, a_C x y z, a_R x y z), raw value"),
         Register("coef_terms", 4, Access.CONST, "polynomial terms per coefficient in "
                  "the row (0: the store holds every row)", value=solver.coef_terms),
+        Register("pivot_log2", solver.pivot_log2_bits, Access.RW, "the conditioning "
+                 "gate: a pivot of the scaled Cholesky factorization below "
+                 "2^-`pivot_log2` flags the row ILL; from "
+                 f"{MIN_PIVOT_LOG2} (strictest) to the build's {solver.pivot_log2} (the "
+                 "loosest its formats hold, the reset); any other value: the build's, and "
+                 "`status.pivot_log2_error` is set. Change it between rows",
+                 reset=solver.pivot_log2),
+        Register("status", data.StructLayout({"pivot_log2_error": 1}), Access.RO,
+                 "`pivot_log2_error`: `pivot_log2` is out of range (live)"),
     ])
 
 

@@ -8,7 +8,8 @@ word per clock from a ROM — on
   then writes the six scales ``2**-e``;
 * one pipelined multiply-accumulate unit (exact sums, one rounding per op);
 * a seed unit for inverse square roots (normalize by an even shift, interpolated
-  table, denormalize) that also checks every pivot against ``2**-pivot_log2``;
+  table, denormalize) that also checks every pivot against ``2**-pivot_log2``, the
+  run-time register (:meth:`PoseSolverParams.pivot_thresholds`);
 * the ``work`` register bank (LUT RAM, transparent reads) and the pose state registers;
 * the pose ring: one pose per row slot (block RAM). A row's step is the rig's motion
   since the same row one frame earlier, so the program reads the old pose from the
@@ -21,15 +22,15 @@ When the program ends it offers the pose record; the next row starts once the re
 is taken.
 """
 
-from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal, signed
+from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from hdl.fixed import SQ, UQ, Overflow, Rounding, hdl_add, hdl_mul, hdl_resize, mul_format
 from hdl.pose.accumulator import PAIRS, exponent_bits, leading_one
-from hdl.pose.params import (DELTA_BITS, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag, PoseSolverParams,
-                             solver_source)
+from hdl.pose.params import (DELTA_BITS, MIN_PIVOT_LOG2, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag,
+                             PoseSolverParams, solver_source)
 from hdl.pose.program import MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, STATE_NAMES
 from hdl.pose.rom import BANKS, ProgramRom, seed_table_contents
 
@@ -68,6 +69,11 @@ class PoseEngine(wiring.Component):
     o : Out(stream.Signature(record_layout(params)))
         Pose records. The next row starts only once the record was taken.
     counters : Out(counters_layout(params))
+    pivot_log2 : In(unsigned(pivot_log2_bits)), reset ``params.pivot_log2``
+        The pivot check: a pivot below ``2**-pivot_log2`` flags ILL. Used from the
+        next clock; change it between rows. Out of range (below ``MIN_PIVOT_LOG2`` or
+        above the build's): the build's, and ``pivot_log2_error`` is set.
+    pivot_log2_error : Out(1)
 
     Latency: :attr:`length` + 1 clocks from a ``row_done`` that finds the engine idle
     to ``o.valid``. Reset: every row slot's pose (1, 0, 0, 0), position 0 (the ring is
@@ -92,6 +98,8 @@ class PoseEngine(wiring.Component):
             "time": In(params.time_bits),
             "o": Out(stream.Signature(record_layout(params))),
             "counters": Out(counters_layout(params)),
+            "pivot_log2": In(unsigned(params.pivot_log2_bits), init=params.pivot_log2),
+            "pivot_log2_error": Out(1),
         })
 
     @property
@@ -278,9 +286,15 @@ class PoseEngine(wiring.Component):
         # address; t+4: table data, slope·delta; t+5: interpolate; t+6: denormalize;
         # t+7: write. As emulator.pose_solver.rsqrt_seed.
         unit = p.unit_fmt
+        built = int(p.pivot_thresholds()[0])
+        one = Const(1 << unit.frac_bits)
+        threshold = Signal(len(one), init=built)               # raw 2**-pivot_log2
+        error = (self.pivot_log2 < MIN_PIVOT_LOG2) | (self.pivot_log2 > p.pivot_log2)
+        m.d.comb += self.pivot_log2_error.eq(error)
+        m.d.sync += threshold.eq(Mux(error, built, one >> self.pivot_log2))
         pivot1, seed1 = Signal(raw), Signal()
         m.d.sync += [pivot1.eq(op_a), seed1.eq(stages[1].issue & stages[1].seed)]
-        with m.If(seed1 & (pivot1 < int(unit.quantize(2.0 ** -p.pivot_log2)))):
+        with m.If(seed1 & (pivot1 < threshold)):
             m.d.sync += ill.eq(1)
         # a pivot at or below zero counts as the smallest positive one (the row is ILL);
         # the test runs beside the bit-length tree, not before it

@@ -19,12 +19,14 @@ from hdl.output.params import PoseSource
 
 __all__ = ["PoseFlag", "PoseSolverParams", "solver_source", "coefficient_formats",
            "quantize_coefficients", "COEF_GROUPS", "DEFAULT_COEF_WIDTH", "SEED_TABLE_FMT",
-           "SLOPE_FMT", "DELTA_BITS", "seed_tables"]
+           "SLOPE_FMT", "DELTA_BITS", "seed_tables", "MIN_PIVOT_LOG2"]
 
 #: The three coefficient groups of a table row (see golden.pose_lsq): a_T, a_C, a_R.
 COEF_GROUPS = ("t", "c", "r")
 #: Coefficient store width picked for a rig's table (one 18-bit DSP48 operand).
 DEFAULT_COEF_WIDTH = 18
+#: The strictest pivot check (``pivot_log2``, built or run-time): pivots below 1/4 ILL.
+MIN_PIVOT_LOG2 = 2
 
 
 class PoseFlag(enum.IntFlag):
@@ -74,7 +76,10 @@ class PoseSolverParams:
     engine_width : int
         Raw width of every value in the solver's register file.
     pivot_log2 : int
-        A pivot below ``2**-pivot_log2`` flags :attr:`PoseFlag.ILL`.
+        A pivot below ``2**-pivot_log2`` flags :attr:`PoseFlag.ILL`: the reset value
+        of the solver's run-time ``pivot_log2`` and the loosest check it accepts (it
+        sets ``lower_fmt``, which holds ``D^-1/2`` only for pivots it passes; see
+        :meth:`pivot_thresholds`).
     min_diagonal : float
         A diagonal entry of the normal matrix below this flags :attr:`PoseFlag.EMPTY`
         (units: pixel² per unknown² times confidence).
@@ -130,7 +135,7 @@ class PoseSolverParams:
         self._check_poly_fmts()
         check_int("engine_width", self.engine_width, 32, 64)
         # the seed register keeps the table's fraction bits and one more
-        check_int("pivot_log2", self.pivot_log2, 2,
+        check_int("pivot_log2", self.pivot_log2, MIN_PIVOT_LOG2,
                    2 * (self.engine_width - SEED_TABLE_FMT.frac_bits - 3))
         check_number("min_diagonal", self.min_diagonal, 0, low_open=True)
         check_int("seed_bits", self.seed_bits, 3, 12)
@@ -249,6 +254,27 @@ class PoseSolverParams:
         """Smallest and largest exponent of a diagonal entry that is not EMPTY."""
         return (self.exponent(self.min_diagonal_raw.bit_length()),
                 self.exponent(self.normal_fmt.width - 1))
+
+    @property
+    def pivot_log2_bits(self):
+        """Width of the run-time ``pivot_log2`` (holds the build's value)."""
+        return self.pivot_log2.bit_length()
+
+    def pivot_thresholds(self, pivot_log2=None):
+        """The pivot check's raw ``unit_fmt`` thresholds ``2**-v`` for run-time values
+        ``pivot_log2`` (int or array of them, as written to the ``pivot_log2_bits``-wide
+        register; None: the build's), and whether each was out of range. A value from
+        ``MIN_PIVOT_LOG2`` to the build's ``pivot_log2`` is used; any other the field
+        holds is replaced by the build's (a looser check would let ``D^-1/2`` wrap in
+        ``lower_fmt``) and flagged; one the field cannot hold is a ``ValueError``."""
+        value = np.asarray(self.pivot_log2 if pivot_log2 is None else pivot_log2)
+        if value.dtype.kind not in "iu" or np.any((value < 0)
+                                                   | (value >= 1 << self.pivot_log2_bits)):
+            raise ValueError(f"pivot_log2 must be integers from 0 to "
+                             f"{(1 << self.pivot_log2_bits) - 1}, not {pivot_log2!r}")
+        error = (value < MIN_PIVOT_LOG2) | (value > self.pivot_log2)
+        used = np.where(error, self.pivot_log2, value).astype(np.int64)
+        return np.left_shift(1, self.unit_fmt.frac_bits - used), error
 
     # --- engine formats ----------------------------------------------------------------
 

@@ -103,6 +103,8 @@ class TrackingLoop(wiring.Component):
         status' row counts (``judged``, ``outliers``, ``confident``, ``last``).
     coef_write : In(coef_write_signature(solver))
         The solver's coefficient store load (:class:`hdl.pose_solver.PoseSolver`).
+    pivot_log2 : In, pivot_log2_error : Out
+        The solver's conditioning gate (:class:`hdl.pose_solver.PoseSolver`).
     alpha, beta, initial : In
         The forecast's gains and start (:class:`hdl.pose.forecast.Forecast`).
     restart : In(1)
@@ -146,6 +148,8 @@ class TrackingLoop(wiring.Component):
             "records": Out(stream.Signature(record_layout(s))),
             "verdicts": Out(stream.Signature(verdict_layout())),
             "coef_write": self._solver.signature.members["coef_write"],
+            "pivot_log2": self._solver.signature.members["pivot_log2"],
+            "pivot_log2_error": self._solver.signature.members["pivot_log2_error"],
             "alpha": f["alpha"], "beta": f["beta"], "initial": f["initial"],
             "restart": f["restart"],
             "settings": In(settings_layout(stage), init=settings_init(stage)),
@@ -247,6 +251,8 @@ class TrackingLoop(wiring.Component):
         connect(m, record_fork.o[0], forecast.records)
         connect(m, record_fork.o[1], flipped(self.records))
         m.d.comb += [solver.gated.eq(stage.gated), stage.settings.eq(self.settings),
-                     self.counts.eq(stage.counts), self.solver_counters.eq(solver.counters)]
+                     self.counts.eq(stage.counts), self.solver_counters.eq(solver.counters),
+                     solver.pivot_log2.eq(self.pivot_log2),
+                     self.pivot_log2_error.eq(solver.pivot_log2_error)]
         connect(m, flipped(self.coef_write), solver.coef_write)
         return m

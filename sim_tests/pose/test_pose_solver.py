@@ -156,16 +156,26 @@ def test_integration_sets_no_flag():
 # --- the block against the model ------------------------------------------------------------
 
 def _simulate(dut, transfers, count, ready=lambda cycle: True, limit=20000, probe=None,
-              start=0, gated=None):
+              start=0, gated=None, pivot_log2=None):
     """Drive ``transfers`` at full rate from cycle ``start`` on (``gated``: per transfer
-    the solver's ``gated`` input with it); returns [(cycle, record)], the cycles of the
-    ``last`` transfers, and what ``probe(ctx)`` returned at the first record."""
+    the solver's ``gated`` input with it; ``pivot_log2``: per row the register, set
+    before the row starts, at reset and as the previous row's record is taken, its
+    ``pivot_log2_error`` checked against the model's); returns [(cycle, record)], the
+    cycles of the ``last`` transfers, and what ``probe(ctx)`` returned at the first
+    record."""
     out, ends, probed = [], [], []
+
+    def set_gate(ctx, row):
+        if pivot_log2 is not None and row < len(pivot_log2):
+            ctx.set(dut.pivot_log2, int(pivot_log2[row]))
+            error = dut.params.pivot_thresholds(pivot_log2[row])[1]
+            assert ctx.get(dut.pivot_log2_error) == error, (row, pivot_log2[row])
 
     async def bench(ctx):
         queue = list(transfers)
         verdicts = list(gated or [0] * len(queue))
         cycle = 0
+        set_gate(ctx, 0)
         while len(out) < count and cycle < limit:
             ctx.set(dut.i.valid, int(bool(queue) and cycle >= start))
             if queue:
@@ -175,6 +185,7 @@ def _simulate(dut, transfers, count, ready=lambda cycle: True, limit=20000, prob
             taken = ctx.get(dut.i.valid) and ctx.get(dut.i.ready)
             if ctx.get(dut.o.valid) and ctx.get(dut.o.ready):
                 out.append((cycle, ctx.get(dut.o.payload)))
+                set_gate(ctx, len(out))
                 if probe is not None and not probed:
                     probed.append(probe(ctx))
             await ctx.tick()
@@ -246,6 +257,31 @@ def test_gated_rows_are_flagged_empty():
     dut = PoseSolver(params, coefficients)
     out, _, _ = _simulate(dut, transfers, len(rows), limit=200000, gated=verdicts)
     _assert_records(out, model)
+
+
+def test_the_conditioning_gate_is_a_run_time_register():
+    """``pivot_log2`` changed between rows (random values over its field, those out of
+    range included, SEED printed): every record as the model's with the same value per
+    row; rows solved at the build's value flip to ILL at a stricter one, others stay
+    solved; an out-of-range value is the build's, with ``pivot_log2_error``."""
+    print(f"SEED={SEED}")
+    params, coefficients, _ = build_case("random")
+    rng = np.random.default_rng(SEED)
+    rows = random_rows(params, rng, params.rows, framed=True)[0]
+    values = rng.integers(0, 1 << params.pivot_log2_bits, size=len(rows))
+    model = E.pose_solver_model(params, coefficients, rows, pivot_log2=values)
+    built = E.pose_solver_model(params, coefficients, rows)["flags"]
+    strict = params.pivot_thresholds(values)[0] > params.pivot_thresholds()[0]
+    ill = int(E.PoseFlag.ILL)
+    assert np.sum((built == 0) & (model["flags"] == ill)) >= 5, "no row flipped to ILL"
+    assert np.sum(strict & (model["flags"] == 0)) >= 5, "a stricter gate solved nothing"
+    assert np.any(params.pivot_thresholds(values)[1]), "no value out of range"
+    dut = PoseSolver(params, coefficients)
+    assert dut.pivot_log2.init == params.pivot_log2
+    out, _, _ = _simulate(dut, rows.transfers(), len(rows), limit=200000, pivot_log2=values)
+    _assert_records(out, model)
+    with pytest.raises(ValueError, match="pivot_log2 must be integers from 0 to 31, not 32"):
+        params.pivot_thresholds(32)
 
 
 def test_row_slots_carry_poses_across_frames():

@@ -89,7 +89,7 @@ def logic_in(source):
     return found
 
 
-WIRING_METHODS = ("elaborate", "_wire_coefficient_load", "_wire_solver", "_wire_loop")
+WIRING_METHODS = ("elaborate", "_wire_solver_registers", "_wire_solver", "_wire_loop")
 
 
 @pytest.mark.parametrize("name", WIRING_METHODS)

@@ -65,7 +65,7 @@ async def pose_records_match_model(dut, traffic):
                           valid_prob=1.0 if busy else 0.7)
     sink = StreamSink(dut, "o", record_layout(params), clock, rng=rng,
                       ready_prob=1.0 if busy else 0.3)
-    _drive_side_inputs(dut)
+    _drive_side_inputs(dut, params)
     await reset(dut)
     if busy:
         await ClockCycles(dut.clk, solver.clear_clocks)
@@ -102,9 +102,10 @@ def _check_timing(dut, source, sink, sidecar, interval):
                   f"{gaps.min()}..{gaps.max()} clocks (bound {interval})")
 
 
-def _drive_side_inputs(dut):
-    """No coefficient write and no row gated: every input driven (Icarus leaves an
-    undriven one X, which reaches the records)."""
+def _drive_side_inputs(dut, params):
+    """No coefficient write, no row gated, the conditioning gate at its reset value:
+    every input driven (Icarus leaves an undriven one X, which reaches the records)."""
+    dut.pivot_log2.value = params.pivot_log2
     dut.coef_write__en.value = 0
     dut.coef_write__addr.value = 0
     dut.coef_write__index.value = 0
@@ -123,7 +124,7 @@ async def coefficients_rewritten_at_run_time(dut):
     clock = start_clock(dut)
     source = StreamSource(dut, "i", measurement_layout(params), clock)
     sink = StreamSink(dut, "o", record_layout(params), clock)
-    _drive_side_inputs(dut)
+    _drive_side_inputs(dut, params)
     await reset(dut)
     rng = np.random.default_rng(cocotb.RANDOM_SEED)
     fmts = [params.coef_t_fmt] * 3 + [params.coef_c_fmt] * 3 + [params.coef_r_fmt] * 3

@@ -61,6 +61,7 @@ async def loop_matches_model(dut, traffic):
     clock = start_clock(dut)
     dut.settings.value = pack(settings_layout(stage), settings_init(stage))
     dut.alpha.value, dut.beta.value = params.alpha_raw, params.beta_raw
+    dut.pivot_log2.value = s.pivot_log2
     dut.frame_rows.value = int(stage.frame_rows)
     motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
     dut.initial.value = pack(motion, _indexed([int(v) for v in case["initial"]]))
