@@ -99,6 +99,14 @@ def _order(params, entry, ticket):
     return same, older
 
 
+def _or_tree(values):
+    """Bitwise OR of equally wide values as a balanced tree."""
+    if len(values) == 1:
+        return values[0]
+    half = len(values) // 2
+    return _or_tree(values[:half]) | _or_tree(values[half:])
+
+
 def _lowest(bits):
     """``(any, index)`` of the lowest set bit of a list of 1-bit values, as a balanced
     tree (log depth)."""
@@ -358,15 +366,28 @@ class MeasurementRouter(wiring.Component):
         for c, fifo in enumerate(fifos):           # one-hot: no multiplexer on this path
             m.d.comb += fifo.r_en.eq(emitting & advance & selected[c] & fifo.r_rdy)
 
-        same, _ = _order(p, head, ticket)
         lane_of = {c: j for j, pair in enumerate(p.pairs) for c in pair}
         # cue of (camera, segment): pair lane of the camera, stereo segment k · K_s // K
         cue_of = Array(Array(pairs["cue"][lane_of[c]][k * ks // k_seg] for k in range(k_seg))
                        for c in range(p.cameras))[camera][segment]
+        # every camera's head is judged beside the others and the one-hot ``selected``
+        # picks a verdict: the same-row test and the weight no longer wait for the camera
+        # multiplexer (issue 17: 14 LUT levels to ``weighted`` in the board top)
+        same_c, weight_c = [], []
+        for c, fifo in enumerate(fifos):
+            entry = data.View(layout, fifo.r_data)
+            same_one, _ = _order(p, entry, ticket)
+            usable = Array(pairs["usable"][lane_of[c]][k * ks // k_seg]
+                           for k in range(k_seg))[segment]
+            same_c.append(selected[c] & same_one)
+            weight_c.append(Mux(selected[c] & same_one & ~entry.edge_hit & usable,
+                                entry.conf, 0))
+        same = Cat(same_c).any()
+        weight = Signal.like(head.conf)
+        m.d.comb += weight.eq(_or_tree(weight_c))
         usable_of = Array(Array(pairs["usable"][lane_of[c]][k * ks // k_seg]
                                 for k in range(k_seg))
                           for c in range(p.cameras))[camera][segment]
-        weight = Mux(same & ~head.edge_hit & usable_of, head.conf, 0)
         closing = (segment == k_seg - 1) & ~pending.any()
         row_time = Mux(opening, head.t_first, time)
 
@@ -379,7 +400,7 @@ class MeasurementRouter(wiring.Component):
                 out.time.eq(row_time), out.shift.eq(head.shift),
                 out.cue.eq(Mux(usable_of, cue_of, 0)), out.conf.eq(weight),
                 out.last.eq(closing),
-                time.eq(row_time), opening.eq(0), weighted.eq(weighted | (weight != 0)),
+                time.eq(row_time), opening.eq(0),
                 segment.eq(Mux(segment == k_seg - 1, 0, segment + 1)),
             ]
             with m.If(segment == k_seg - 1):
@@ -387,8 +408,15 @@ class MeasurementRouter(wiring.Component):
                              pending.eq(_clear_lowest(pending))]
             with m.If(closing):
                 m.d.sync += emitting.eq(0)
+        # ``weighted`` follows the registered weights, a clock behind: the row's empty
+        # verdict is taken the clock after its closing transfer (no new transfer can
+        # come before: ``emitting`` is off), the weight test off the emitter's path
+        fired_open, closed = Signal(), Signal()
+        m.d.sync += [fired_open.eq(fire & ~closing), closed.eq(fire & closing)]
+        with m.If(fired_open):
+            m.d.sync += weighted.eq(weighted | (out.conf != 0))
         row_done = fire & closing
-        return {"row": row_done, "empty": row_done & ~weighted & (weight == 0),
+        return {"row": row_done, "empty": closed & ~weighted & (out.conf == 0),
                 "misaligned": fire & ~same}
 
 

@@ -101,6 +101,35 @@ def test_random_streams_bit_exact(gaps):
     assert any(t["conf"] == 0 for t in want) and any(t["conf"] for t in want)
 
 
+@pytest.mark.parametrize("position", ["first", "last"])
+def test_a_row_weighted_by_one_transfer_is_not_empty(position):
+    """The empty-row counter follows the registered weights a clock behind; a row whose
+    only confident transfer is its first or its last still counts as weighted (the
+    random streams rarely build either case)."""
+    rng = np.random.default_rng(SEED)
+    tickets, temporal, stereo = synthetic(PARAMS, rng, 120)
+    for stream in temporal:
+        for item in stream:
+            item["confidence"], item["edge_hit"] = 0, 0
+    for ticket in tickets:
+        marked = [c for c in range(PARAMS.cameras) if ticket["cameras"] >> c & 1]
+        if not marked:
+            continue
+        camera = marked[0] if position == "first" else marked[-1]
+        segment = 0 if position == "first" else PARAMS.temporal.segments - 1
+        for item in temporal[camera]:
+            if (item["frame"], item["row"], item["segment"]) == \
+                    (ticket["frame"], ticket["row"], segment):
+                item["confidence"] = PARAMS.temporal.confidence_fmt.max_raw
+    want, want_status = expected(PARAMS, tickets, temporal, stereo)
+    weighted_rows = len({(t["row"], t["time"]) for t in want if t["conf"]})
+    assert weighted_rows >= 5
+    assert want_status["empty"] < want_status["rows"]
+    got = simulate(PARAMS, tickets, temporal, stereo, seed=SEED, gaps=False)
+    assert got["transfers"] == want
+    assert got["status"] == want_status
+
+
 @pytest.mark.parametrize("gaps", [False, True])
 def test_cue_fallback_bit_exact(gaps):
     """With the cue store: failed stereo segments take the row's last usable cue; the
