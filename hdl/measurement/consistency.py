@@ -34,7 +34,7 @@ from hdl.measurement.serial_units import SerialDivider, SerialSqrt
 from hdl.pose.accumulator import measurement_layout
 
 __all__ = ["ConsistencyStage", "judge_layout", "settings_layout", "counts_layout",
-           "COUNTS", "settings_init"]
+           "COUNTS", "settings_init", "default_consistency_stage"]
 
 #: The counters, as :attr:`ConsistencyModel.counts` names them (16-bit, wrapping).
 COUNTS = ("far_rows", "time_saturated", "innovation_saturated", "scale_saturated",
@@ -362,3 +362,12 @@ class ConsistencyStage(wiring.Component):
                         counts.scale_saturated + (root > top))]
                     m.next = "IDLE"
         return m
+
+
+def default_consistency_stage():
+    """The stage of the board's closed-loop top (:func:`hdl.top.closed_loop_top`, the
+    ``stereo8-board`` rig) as its tracking loop builds it: the catalog's build, for
+    Verilog and synthesis."""
+    from golden.rig import preset
+    from hdl.top import board_config
+    return ConsistencyStage(board_config(preset("stereo8-board")).top.consistency)
