@@ -323,12 +323,19 @@ class ConsistencyStage(wiring.Component):
         square = _net(m, hdl_mul(u_sigma, p.scale_fmt, u_sigma, p.scale_fmt)[0], "square")
         n = _net(m, hdl_resize(*hdl_mul(square, self.square_fmt, u_factor, gf), self.wide_fmt,
                                HE, ERR), "n")
-        root = _net(m, sqrt.root + (sqrt.remainder > sqrt.root), "root")
+        root = Signal(sqrt.bits + 1)
         top = cfg.scale_ceiling
         capped = _net(m, Mux(root > top, top, root), "capped")
         raised = _net(m, Mux(cfg.scale_initial > cfg.scale_floor, cfg.scale_initial,
                              cfg.scale_floor), "raised")
         initial = _net(m, Mux(raised > top, top, raised), "initial")
+
+        def take_handoff():
+            with m.If(handoff):
+                m.d.sync += [u_busy.eq(1), u_slot.eq(meas.slot), u_sigma.eq(sigma),
+                             u_t.eq(t)]
+                m.next = "V"
+
         with m.FSM(name="updater"):
             with m.State("CLEAR"):
                 m.d.comb += [write.en.eq(1), write.addr.eq(clear_addr), write.data.eq(initial)]
@@ -337,10 +344,7 @@ class ConsistencyStage(wiring.Component):
                     m.d.sync += clearing.eq(0)
                     m.next = "IDLE"
             with m.State("IDLE"):
-                with m.If(handoff):
-                    m.d.sync += [u_busy.eq(1), u_slot.eq(meas.slot), u_sigma.eq(sigma),
-                                 u_t.eq(t)]
-                    m.next = "V"
+                take_handoff()
             with m.State("V"):
                 m.d.sync += u_v.eq(one - ratio(u_t, u_t))
                 m.next = "V2"
@@ -354,13 +358,19 @@ class ConsistencyStage(wiring.Component):
                 m.d.comb += [sqrt.start.eq(1), sqrt.n.eq(n)]
                 m.next = "ROOT"
             with m.State("ROOT"):
+                # the rounded root registered; the channel is free: the judge reads σ
+                # the clock after it takes a measurement, when WRITE has written it
                 with m.If(~sqrt.busy):
-                    m.d.comb += [write.en.eq(1), write.addr.eq(u_slot),
-                                 write.data.eq(Mux(capped < cfg.scale_floor,
-                                                   cfg.scale_floor, capped))]
-                    m.d.sync += [u_busy.eq(0), counts.scale_saturated.eq(
-                        counts.scale_saturated + (root > top))]
-                    m.next = "IDLE"
+                    m.d.sync += [u_busy.eq(0),
+                                 root.eq(sqrt.root + (sqrt.remainder > sqrt.root))]
+                    m.next = "WRITE"
+            with m.State("WRITE"):
+                m.d.comb += [write.en.eq(1), write.addr.eq(u_slot),
+                             write.data.eq(Mux(capped < cfg.scale_floor, cfg.scale_floor,
+                                               capped))]
+                m.d.sync += counts.scale_saturated.eq(counts.scale_saturated + (root > top))
+                m.next = "IDLE"
+                take_handoff()
         return m
 
 
