@@ -6,8 +6,10 @@ docstring lists every step and rounding; formats in
 
 * a *judge* that takes one measurement at a time: the camera's reference-time factor
   ``P/(P − Δ)`` (one division, only at the first measurement of each camera in a row),
-  the innovation, ``kσ``, the outlier test and the ratio division, then the output
-  register. The two divisions share one :class:`SerialDivider`;
+  the products (in the DSPs' registers), the scaled shift, the innovation, the outlier
+  test with ``kσ`` (a register after each, for the 8 LUT levels of ``docs/timing.md``)
+  and the ratio division, then the output register. The two divisions share one
+  :class:`SerialDivider`;
 * an *updater* that runs the scale recursion (four product stages, a
   :class:`SerialSqrt`, rounding, ceiling, floor) of the previous measurement while the judge works
   on the next one; the judge waits only if the next measurement's channel is the one
@@ -79,11 +81,18 @@ def counts_layout():
     return data.StructLayout({name: COUNTER_BITS for name in COUNTS})
 
 
+def _narrowed(m, value, src, dst, name):
+    """(saturated, wrapped) half-even narrowings, as nets: they differ when it saturated
+    (the model's count), a comparison the judge's pipeline makes a clock later."""
+    value = _net(m, value, f"{name}_exact")
+    return (_net(m, hdl_resize(value, src, dst, HE, SAT), name),
+            _net(m, hdl_resize(value, src, dst, HE, WRAP), f"{name}_wrapped"))
+
+
 def _saturated(m, value, src, dst, name):
     """(saturated narrowing, whether it saturated) of a half-even narrowing, as nets."""
-    value = _net(m, value, f"{name}_exact")
-    out = _net(m, hdl_resize(value, src, dst, HE, SAT), name)
-    return out, _net(m, out != hdl_resize(value, src, dst, HE, WRAP), f"{name}_saturated")
+    out, wrapped = _narrowed(m, value, src, dst, name)
+    return out, _net(m, out != wrapped, f"{name}_saturated")
 
 
 def _net(m, value, name):
@@ -172,8 +181,11 @@ class ConsistencyStage(wiring.Component):
         self.square_fmt = square
         self.wide_fmt = QFormat(False, square.int_bits + p.gain_fmt.int_bits, square.frac_bits)
         self.sqrt = SerialSqrt(self.wide_fmt.width, self.bits_per_clock)
-        self.time_clocks = self.divider.steps + 1
-        self.latency = self.divider.steps + 4
+        # clocks: TAKE, CAMERA (the products), SCALE, INNOVATION, JUDGE (starts the
+        # divider), its steps, the verdict; a camera's first measurement goes CAMERA (starts
+        # the division P/(P − Δ)), its steps, the factor, then CAMERA again
+        self.time_clocks = self.divider.steps + 2
+        self.latency = self.divider.steps + 6
         self.update_clocks = self.sqrt.steps + 6
 
     def elaborate(self, platform):
@@ -196,7 +208,6 @@ class ConsistencyStage(wiring.Component):
         far_seen, conf_cams = Signal(p.cameras), Signal(p.cameras)
         max_conf = Signal(s.conf_fmt.width)
         sigma = Signal(p.scale_fmt.width)
-        scaled = Signal(s.shift_fmt.shape())
         conf = Signal(s.conf_fmt.width)
         outlier = Signal()
         counts = self.counts
@@ -209,23 +220,42 @@ class ConsistencyStage(wiring.Component):
         time_den = _net(m, (cfg.frame_rows - offset)[:self.den_width], "time_den")
         time_num = cfg.frame_rows << p.time_fmt.frac_bits
         q_time, r_time = div.quotient, div.remainder
-        up = _net(m, (r_time << 1 > time_den) | ((r_time << 1 == time_den) & q_time[0]), "up")
+        held_den = Signal(self.den_width)        # time_den, for the rounding at the end
+        m.d.sync += held_den.eq(time_den)
+        up = _net(m, (r_time << 1 > held_den) | ((r_time << 1 == held_den) & q_time[0]), "up")
         time_factor = _net(m, (q_time + up)[:p.time_fmt.width], "time_factor")
 
-        # the innovation, kσ and the outlier test of the latched measurement
-        predicted = _net(m, meas.predicted, "predicted")
+        # the innovation, kσ and the outlier test of the latched measurement, a register
+        # after each step (free-running: each holds while the measurement and its factor
+        # do). 1: the products, in the DSPs' output registers
         product, product_fmt = hdl_mul(meas.shift, s.shift_fmt, factor, p.time_fmt)
-        scaled_now, time_sat = _saturated(m, product, product_fmt, s.shift_fmt, "scaled")
+        product_r = Signal(product.shape())
+        ks = Signal(self.ks_fmt.width)
+        m.d.sync += [product_r.eq(product),
+                     ks.eq(hdl_mul(cfg.huber_k, p.k_fmt, read.data, p.scale_fmt)[0])]
+        # 2: the shift at the reference time, saturated and wrapped
+        scaled_now, scaled_wrapped_now = _narrowed(m, product_r, product_fmt, s.shift_fmt,
+                                                   "scaled")
+        scaled, scaled_wrapped = Signal(s.shift_fmt.shape()), Signal(s.shift_fmt.shape())
+        m.d.sync += [scaled.eq(scaled_now), scaled_wrapped.eq(scaled_wrapped_now)]
+        # 3: the innovation, saturated and wrapped; whether the shift saturated
+        predicted = _net(m, meas.predicted, "predicted")
         negated = SQ(p.predicted_fmt.int_bits + 1, p.predicted_fmt.frac_bits)
-        exact, exact_fmt = hdl_add(scaled_now, s.shift_fmt, -predicted, negated)
-        r, innovation_sat = _saturated(m, exact, exact_fmt, p.innovation_fmt, "r")
+        exact, exact_fmt = hdl_add(scaled, s.shift_fmt, -predicted, negated)
         inn = p.innovation_fmt
+        r_now, r_wrapped_now = _narrowed(m, exact, exact_fmt, inn, "r")
+        r, r_wrapped, time_sat = Signal(inn.shape()), Signal(inn.shape()), Signal()
+        m.d.sync += [r.eq(r_now), r_wrapped.eq(r_wrapped_now),
+                     time_sat.eq(scaled != scaled_wrapped)]
+        innovation_sat = _net(m, r != r_wrapped, "innovation_sat")
+        # 4: the outlier test a = |r|·2^e > b, without |r| in front of the comparison,
+        # and the division's operands (max(a, b) is 0 only when r and kσ are)
         abs_r = _net(m, Mux(r < 0, -r, r).as_unsigned()[:inn.width], "abs_r")
-        ks = _net(m, hdl_mul(cfg.huber_k, p.k_fmt, read.data, p.scale_fmt)[0], "ks")
         a = _net(m, abs_r << (self.frac - inn.frac_bits), "a")
         b = _net(m, ks << (self.frac - self.ks_fmt.frac_bits), "b")
-        is_outlier = _net(m, a > b, "is_outlier")
-        biggest = _net(m, Mux(is_outlier, a, b), "biggest")
+        r_aligned = r << (self.frac - inn.frac_bits)
+        is_outlier = _net(m, Mux(r < 0, r_aligned + b < 0, r_aligned > b), "is_outlier")
+        ratio_den = _net(m, Mux((r == 0) & (ks == 0), 1, Mux(is_outlier, a, b)), "ratio_den")
 
         # the verdict of the division
         q = _net(m, div.quotient[:p.ratio_fmt.width], "q")
@@ -268,7 +298,7 @@ class ConsistencyStage(wiring.Component):
                     m.next = "CAMERA"
             with m.State("CAMERA"):
                 with m.If(cached & (cached_camera == camera)):
-                    m.next = "JUDGE"
+                    m.next = "SCALE"
                 with m.Else():
                     m.d.comb += [div.start.eq(1), div.num.eq(time_num), div.den.eq(time_den)]
                     with m.If(far & ~far_seen.bit_select(camera, 1)):
@@ -278,13 +308,17 @@ class ConsistencyStage(wiring.Component):
                 with m.If(~div.busy):
                     m.d.sync += [factor.eq(time_factor), cached.eq(1),
                                  cached_camera.eq(camera)]
-                    m.next = "JUDGE"
+                    m.next = "CAMERA"           # now cached: the products of the factor
+            with m.State("SCALE"):
+                m.next = "INNOVATION"
+            with m.State("INNOVATION"):
+                m.next = "JUDGE"
             with m.State("JUDGE"):
                 m.d.comb += [div.start.eq(1), div.num.eq(Mux(is_outlier, b, a)
                                                          << p.ratio_fmt.frac_bits),
-                             div.den.eq(Mux(biggest == 0, 1, biggest))]
-                m.d.sync += [scaled.eq(scaled_now), outlier.eq(is_outlier),
-                             sigma.eq(read.data), conf.eq(Mux(far, 0, meas.conf)),
+                             div.den.eq(ratio_den)]
+                m.d.sync += [outlier.eq(is_outlier), sigma.eq(read.data),
+                             conf.eq(Mux(far, 0, meas.conf)),
                              counts.time_saturated.eq(counts.time_saturated + time_sat),
                              counts.innovation_saturated.eq(
                                  counts.innovation_saturated + innovation_sat)]
