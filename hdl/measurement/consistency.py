@@ -36,7 +36,7 @@ from hdl.measurement.serial_units import SerialDivider, SerialSqrt
 from hdl.pose.accumulator import measurement_layout
 
 __all__ = ["ConsistencyStage", "judge_layout", "settings_layout", "counts_layout",
-           "COUNTS", "settings_init", "default_consistency_stage"]
+           "COUNTS", "settings_init", "default_consistency_stage", "confidence_floor"]
 
 #: The counters, as :attr:`ConsistencyModel.counts` names them (16-bit, wrapping).
 COUNTS = ("far_rows", "time_saturated", "innovation_saturated", "scale_saturated",
@@ -93,6 +93,15 @@ def _saturated(m, value, src, dst, name):
     """(saturated narrowing, whether it saturated) of a half-even narrowing, as nets."""
     out, wrapped = _narrowed(m, value, src, dst, name)
     return out, _net(m, out != wrapped, f"{name}_saturated")
+
+
+def confidence_floor(least, shift):
+    """The least ``x`` whose half-even rounding by ``shift`` bits is at least ``least``
+    (an unsigned value): ``least·2^shift − half``, one more for an odd ``least`` (its tie
+    rounds down to the even ``least − 1``), 0 for 0. The row gates compare the
+    confidence product with it instead of rounding first; for ``least`` = 1 it is
+    ``half + 1``."""
+    return Mux(least == 0, 0, (least << shift) - (1 << (shift - 1)) + least[0])
 
 
 def _net(m, value, name):
@@ -263,16 +272,32 @@ class ConsistencyStage(wiring.Component):
         t = _net(m, Mux(outlier, one, q), "t")
         ok = _net(m, conf != 0, "ok")
         judged, judged_fmt = hdl_mul(conf, s.conf_fmt, weight, p.ratio_fmt)
+        judged = _net(m, judged, "judged")
         conf_out = _net(m, Mux(ok, hdl_resize(judged, judged_fmt, s.conf_fmt, HE, ERR), 0),
                         "conf_out")
         replacement, replacement_sat = _saturated(m, predicted, p.predicted_fmt, s.shift_fmt,
                                                   "replacement")
         replaced = ok & outlier
         this_camera = (Const(1, p.cameras) << camera)[:p.cameras]
-        cams_after = _net(m, conf_cams | Mux(conf_out != 0, this_camera, 0), "cams_after")
-        max_after = _net(m, Mux(conf_out > max_conf, conf_out, max_conf), "max_after")
-        gated_now = _net(m, (max_after < cfg.min_confidence)
-                         | (_popcount(cams_after) < cfg.min_cameras), "gated_now")
+        # The row gates, max(conf_out, max_conf) < min_confidence and
+        # popcount(conf_cams | camera if conf_out ≠ 0) < min_cameras, split so that only
+        # two comparisons of the product ``judged`` wait for the division: the rest are
+        # registers of the row so far (free-running; the row's state changes the clock
+        # after a verdict, ``post``). conf_out is ``judged`` rounded (0 when not ok: conf
+        # is 0 then): conf_out < m when judged < confidence_floor(m), ≠ 0 when > half.
+        shift = judged_fmt.frac_bits - s.conf_fmt.frac_bits
+        below, fresh, short, short_more = Signal(), Signal(), Signal(), Signal()
+        low = Signal(judged_fmt.width + 1)
+        cams = _net(m, _popcount(conf_cams), "cams")
+        m.d.sync += [below.eq(max_conf < cfg.min_confidence),
+                     low.eq(confidence_floor(cfg.min_confidence, shift)),
+                     fresh.eq(~conf_cams.bit_select(camera, 1)),
+                     short.eq(cams < cfg.min_cameras), short_more.eq(cams + 1 < cfg.min_cameras)]
+        gated_now = _net(m, (below & (judged < low))
+                         | Mux((judged > (1 << (shift - 1))) & fresh, short_more, short),
+                         "gated_now")
+        post = Signal()
+        out_conf = self.o.payload.conf
 
         # --- updater state -------------------------------------------------------------
         u_busy, u_slot = Signal(), Signal(range(p.channels))
@@ -326,24 +351,32 @@ class ConsistencyStage(wiring.Component):
             with m.State("DIVIDE"):
                 with m.If(~div.busy & o_free & ~(ok & u_busy)):
                     m.d.comb += handoff.eq(ok)
-                    m.d.sync += [self.o.valid.eq(1),
+                    m.d.sync += [self.o.valid.eq(1), post.eq(1),
                                  *[getattr(self.o.payload, n).eq(getattr(meas, n))
                                    for n in self.o.payload.shape().members],
                                  self.o.payload.shift.eq(Mux(replaced, replacement, scaled)),
-                                 self.o.payload.conf.eq(conf_out),
+                                 out_conf.eq(conf_out),
                                  self.gated.eq(meas.last & gated_now),
                                  self.judged.eq(ok), self.outlier.eq(replaced),
                                  counts.outliers.eq(counts.outliers + replaced),
                                  counts.shift_saturated.eq(counts.shift_saturated
-                                                           + (replaced & replacement_sat)),
-                                 conf_cams.eq(cams_after), max_conf.eq(max_after)]
+                                                           + (replaced & replacement_sat))]
                     with m.If(meas.last):
-                        m.d.sync += [conf_cams.eq(0), max_conf.eq(0), far_seen.eq(0),
-                                     cached.eq(0),
-                                     counts.gated_rows.eq(counts.gated_rows + gated_now),
+                        m.d.sync += [far_seen.eq(0), cached.eq(0),
                                      counts.far_rows.eq(counts.far_rows
                                                         + _popcount(far_seen))]
                     m.next = "TAKE"
+
+        # the row so far, from the verdict just registered (``camera`` is the verdict's
+        # until the next transfer's clock ends)
+        with m.If(post):
+            m.d.sync += post.eq(0)
+            with m.If(self.o.payload.last):
+                m.d.sync += [conf_cams.eq(0), max_conf.eq(0),
+                             counts.gated_rows.eq(counts.gated_rows + self.gated)]
+            with m.Else():
+                m.d.sync += [conf_cams.eq(conf_cams | Mux(out_conf != 0, this_camera, 0)),
+                             max_conf.eq(Mux(out_conf > max_conf, out_conf, max_conf))]
 
         # --- updater: σ' = max(min(round(√(σ² f)), ceiling), floor) -------------------------
         rf, gf = p.ratio_fmt, p.gain_fmt
