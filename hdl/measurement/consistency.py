@@ -147,7 +147,8 @@ class ConsistencyStage(wiring.Component):
     settings : In(settings_layout(params)), reset to the parameters'
         Change them between rows.
     counts : Out(counts_layout())
-        The model's counters, modulo 2**16.
+        The model's counters, modulo 2**16 (``gated_rows`` counts a row the clock after
+        its last ``o.valid`` rises).
 
     Timing: :attr:`latency` clocks from a measurement's transfer to its ``o.valid`` when
     its camera's time factor is known (an earlier measurement of the row had that
