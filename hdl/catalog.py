@@ -31,6 +31,7 @@ BLOCKS = {
     "measurement_engine": "hdl.measurement.engine:MeasurementEngine",
     "follow_engine": "hdl.measurement.engine:default_follow_engine",
     "measurement_router": "hdl.measurement.router:default_router",
+    "consistency_stage": "hdl.measurement.consistency:default_consistency_stage",
 }
 
 

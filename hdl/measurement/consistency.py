@@ -6,8 +6,10 @@ docstring lists every step and rounding; formats in
 
 * a *judge* that takes one measurement at a time: the camera's reference-time factor
   ``P/(P − Δ)`` (one division, only at the first measurement of each camera in a row),
-  the innovation, ``kσ``, the outlier test and the ratio division, then the output
-  register. The two divisions share one :class:`SerialDivider`;
+  the products (in the DSPs' registers), the scaled shift, the innovation, the outlier
+  test with ``kσ`` (a register after each, for the 8 LUT levels of ``docs/timing.md``)
+  and the ratio division, then the output register. The two divisions share one
+  :class:`SerialDivider`;
 * an *updater* that runs the scale recursion (four product stages, a
   :class:`SerialSqrt`, rounding, ceiling, floor) of the previous measurement while the judge works
   on the next one; the judge waits only if the next measurement's channel is the one
@@ -34,7 +36,7 @@ from hdl.measurement.serial_units import SerialDivider, SerialSqrt
 from hdl.pose.accumulator import measurement_layout
 
 __all__ = ["ConsistencyStage", "judge_layout", "settings_layout", "counts_layout",
-           "COUNTS", "settings_init"]
+           "COUNTS", "settings_init", "default_consistency_stage", "confidence_floor"]
 
 #: The counters, as :attr:`ConsistencyModel.counts` names them (16-bit, wrapping).
 COUNTS = ("far_rows", "time_saturated", "innovation_saturated", "scale_saturated",
@@ -79,11 +81,27 @@ def counts_layout():
     return data.StructLayout({name: COUNTER_BITS for name in COUNTS})
 
 
+def _narrowed(m, value, src, dst, name):
+    """(saturated, wrapped) half-even narrowings, as nets: they differ when it saturated
+    (the model's count), a comparison the judge's pipeline makes a clock later."""
+    value = _net(m, value, f"{name}_exact")
+    return (_net(m, hdl_resize(value, src, dst, HE, SAT), name),
+            _net(m, hdl_resize(value, src, dst, HE, WRAP), f"{name}_wrapped"))
+
+
 def _saturated(m, value, src, dst, name):
     """(saturated narrowing, whether it saturated) of a half-even narrowing, as nets."""
-    value = _net(m, value, f"{name}_exact")
-    out = _net(m, hdl_resize(value, src, dst, HE, SAT), name)
-    return out, _net(m, out != hdl_resize(value, src, dst, HE, WRAP), f"{name}_saturated")
+    out, wrapped = _narrowed(m, value, src, dst, name)
+    return out, _net(m, out != wrapped, f"{name}_saturated")
+
+
+def confidence_floor(least, shift):
+    """The least ``x`` whose half-even rounding by ``shift`` bits is at least ``least``
+    (an unsigned value): ``least·2^shift − half``, one more for an odd ``least`` (its tie
+    rounds down to the even ``least − 1``), 0 for 0. The row gates compare the
+    confidence product with it instead of rounding first; for ``least`` = 1 it is
+    ``half + 1``."""
+    return Mux(least == 0, 0, (least << shift) - (1 << (shift - 1)) + least[0])
 
 
 def _net(m, value, name):
@@ -129,7 +147,8 @@ class ConsistencyStage(wiring.Component):
     settings : In(settings_layout(params)), reset to the parameters'
         Change them between rows.
     counts : Out(counts_layout())
-        The model's counters, modulo 2**16.
+        The model's counters, modulo 2**16 (``gated_rows`` counts a row the clock after
+        its last ``o.valid`` rises).
 
     Timing: :attr:`latency` clocks from a measurement's transfer to its ``o.valid`` when
     its camera's time factor is known (an earlier measurement of the row had that
@@ -172,8 +191,11 @@ class ConsistencyStage(wiring.Component):
         self.square_fmt = square
         self.wide_fmt = QFormat(False, square.int_bits + p.gain_fmt.int_bits, square.frac_bits)
         self.sqrt = SerialSqrt(self.wide_fmt.width, self.bits_per_clock)
-        self.time_clocks = self.divider.steps + 1
-        self.latency = self.divider.steps + 4
+        # clocks: TAKE, CAMERA (the products), SCALE, INNOVATION, JUDGE (starts the
+        # divider), its steps, the verdict; a camera's first measurement goes CAMERA (starts
+        # the division P/(P − Δ)), its steps, the factor, then CAMERA again
+        self.time_clocks = self.divider.steps + 2
+        self.latency = self.divider.steps + 6
         self.update_clocks = self.sqrt.steps + 6
 
     def elaborate(self, platform):
@@ -196,7 +218,6 @@ class ConsistencyStage(wiring.Component):
         far_seen, conf_cams = Signal(p.cameras), Signal(p.cameras)
         max_conf = Signal(s.conf_fmt.width)
         sigma = Signal(p.scale_fmt.width)
-        scaled = Signal(s.shift_fmt.shape())
         conf = Signal(s.conf_fmt.width)
         outlier = Signal()
         counts = self.counts
@@ -209,23 +230,42 @@ class ConsistencyStage(wiring.Component):
         time_den = _net(m, (cfg.frame_rows - offset)[:self.den_width], "time_den")
         time_num = cfg.frame_rows << p.time_fmt.frac_bits
         q_time, r_time = div.quotient, div.remainder
-        up = _net(m, (r_time << 1 > time_den) | ((r_time << 1 == time_den) & q_time[0]), "up")
+        held_den = Signal(self.den_width)        # time_den, for the rounding at the end
+        m.d.sync += held_den.eq(time_den)
+        up = _net(m, (r_time << 1 > held_den) | ((r_time << 1 == held_den) & q_time[0]), "up")
         time_factor = _net(m, (q_time + up)[:p.time_fmt.width], "time_factor")
 
-        # the innovation, kσ and the outlier test of the latched measurement
-        predicted = _net(m, meas.predicted, "predicted")
+        # the innovation, kσ and the outlier test of the latched measurement, a register
+        # after each step (free-running: each holds while the measurement and its factor
+        # do). 1: the products, in the DSPs' output registers
         product, product_fmt = hdl_mul(meas.shift, s.shift_fmt, factor, p.time_fmt)
-        scaled_now, time_sat = _saturated(m, product, product_fmt, s.shift_fmt, "scaled")
+        product_r = Signal(product.shape())
+        ks = Signal(self.ks_fmt.width)
+        m.d.sync += [product_r.eq(product),
+                     ks.eq(hdl_mul(cfg.huber_k, p.k_fmt, read.data, p.scale_fmt)[0])]
+        # 2: the shift at the reference time, saturated and wrapped
+        scaled_now, scaled_wrapped_now = _narrowed(m, product_r, product_fmt, s.shift_fmt,
+                                                   "scaled")
+        scaled, scaled_wrapped = Signal(s.shift_fmt.shape()), Signal(s.shift_fmt.shape())
+        m.d.sync += [scaled.eq(scaled_now), scaled_wrapped.eq(scaled_wrapped_now)]
+        # 3: the innovation, saturated and wrapped; whether the shift saturated
+        predicted = _net(m, meas.predicted, "predicted")
         negated = SQ(p.predicted_fmt.int_bits + 1, p.predicted_fmt.frac_bits)
-        exact, exact_fmt = hdl_add(scaled_now, s.shift_fmt, -predicted, negated)
-        r, innovation_sat = _saturated(m, exact, exact_fmt, p.innovation_fmt, "r")
+        exact, exact_fmt = hdl_add(scaled, s.shift_fmt, -predicted, negated)
         inn = p.innovation_fmt
+        r_now, r_wrapped_now = _narrowed(m, exact, exact_fmt, inn, "r")
+        r, r_wrapped, time_sat = Signal(inn.shape()), Signal(inn.shape()), Signal()
+        m.d.sync += [r.eq(r_now), r_wrapped.eq(r_wrapped_now),
+                     time_sat.eq(scaled != scaled_wrapped)]
+        innovation_sat = _net(m, r != r_wrapped, "innovation_sat")
+        # 4: the outlier test a = |r|·2^e > b, without |r| in front of the comparison,
+        # and the division's operands (max(a, b) is 0 only when r and kσ are)
         abs_r = _net(m, Mux(r < 0, -r, r).as_unsigned()[:inn.width], "abs_r")
-        ks = _net(m, hdl_mul(cfg.huber_k, p.k_fmt, read.data, p.scale_fmt)[0], "ks")
         a = _net(m, abs_r << (self.frac - inn.frac_bits), "a")
         b = _net(m, ks << (self.frac - self.ks_fmt.frac_bits), "b")
-        is_outlier = _net(m, a > b, "is_outlier")
-        biggest = _net(m, Mux(is_outlier, a, b), "biggest")
+        r_aligned = r << (self.frac - inn.frac_bits)
+        is_outlier = _net(m, Mux(r < 0, r_aligned + b < 0, r_aligned > b), "is_outlier")
+        ratio_den = _net(m, Mux((r == 0) & (ks == 0), 1, Mux(is_outlier, a, b)), "ratio_den")
 
         # the verdict of the division
         q = _net(m, div.quotient[:p.ratio_fmt.width], "q")
@@ -233,16 +273,32 @@ class ConsistencyStage(wiring.Component):
         t = _net(m, Mux(outlier, one, q), "t")
         ok = _net(m, conf != 0, "ok")
         judged, judged_fmt = hdl_mul(conf, s.conf_fmt, weight, p.ratio_fmt)
+        judged = _net(m, judged, "judged")
         conf_out = _net(m, Mux(ok, hdl_resize(judged, judged_fmt, s.conf_fmt, HE, ERR), 0),
                         "conf_out")
         replacement, replacement_sat = _saturated(m, predicted, p.predicted_fmt, s.shift_fmt,
                                                   "replacement")
         replaced = ok & outlier
         this_camera = (Const(1, p.cameras) << camera)[:p.cameras]
-        cams_after = _net(m, conf_cams | Mux(conf_out != 0, this_camera, 0), "cams_after")
-        max_after = _net(m, Mux(conf_out > max_conf, conf_out, max_conf), "max_after")
-        gated_now = _net(m, (max_after < cfg.min_confidence)
-                         | (_popcount(cams_after) < cfg.min_cameras), "gated_now")
+        # The row gates, max(conf_out, max_conf) < min_confidence and
+        # popcount(conf_cams | camera if conf_out ≠ 0) < min_cameras, split so that only
+        # two comparisons of the product ``judged`` wait for the division: the rest are
+        # registers of the row so far (free-running; the row's state changes the clock
+        # after a verdict, ``post``). conf_out is ``judged`` rounded (0 when not ok: conf
+        # is 0 then): conf_out < m when judged < confidence_floor(m), ≠ 0 when > half.
+        shift = judged_fmt.frac_bits - s.conf_fmt.frac_bits
+        below, fresh, short, short_more = Signal(), Signal(), Signal(), Signal()
+        low = Signal(judged_fmt.width + 1)
+        cams = _net(m, _popcount(conf_cams), "cams")
+        m.d.sync += [below.eq(max_conf < cfg.min_confidence),
+                     low.eq(confidence_floor(cfg.min_confidence, shift)),
+                     fresh.eq(~conf_cams.bit_select(camera, 1)),
+                     short.eq(cams < cfg.min_cameras), short_more.eq(cams + 1 < cfg.min_cameras)]
+        gated_now = _net(m, (below & (judged < low))
+                         | Mux((judged > (1 << (shift - 1))) & fresh, short_more, short),
+                         "gated_now")
+        post = Signal()
+        out_conf = self.o.payload.conf
 
         # --- updater state -------------------------------------------------------------
         u_busy, u_slot = Signal(), Signal(range(p.channels))
@@ -268,7 +324,7 @@ class ConsistencyStage(wiring.Component):
                     m.next = "CAMERA"
             with m.State("CAMERA"):
                 with m.If(cached & (cached_camera == camera)):
-                    m.next = "JUDGE"
+                    m.next = "SCALE"
                 with m.Else():
                     m.d.comb += [div.start.eq(1), div.num.eq(time_num), div.den.eq(time_den)]
                     with m.If(far & ~far_seen.bit_select(camera, 1)):
@@ -278,13 +334,17 @@ class ConsistencyStage(wiring.Component):
                 with m.If(~div.busy):
                     m.d.sync += [factor.eq(time_factor), cached.eq(1),
                                  cached_camera.eq(camera)]
-                    m.next = "JUDGE"
+                    m.next = "CAMERA"           # now cached: the products of the factor
+            with m.State("SCALE"):
+                m.next = "INNOVATION"
+            with m.State("INNOVATION"):
+                m.next = "JUDGE"
             with m.State("JUDGE"):
                 m.d.comb += [div.start.eq(1), div.num.eq(Mux(is_outlier, b, a)
                                                          << p.ratio_fmt.frac_bits),
-                             div.den.eq(Mux(biggest == 0, 1, biggest))]
-                m.d.sync += [scaled.eq(scaled_now), outlier.eq(is_outlier),
-                             sigma.eq(read.data), conf.eq(Mux(far, 0, meas.conf)),
+                             div.den.eq(ratio_den)]
+                m.d.sync += [outlier.eq(is_outlier), sigma.eq(read.data),
+                             conf.eq(Mux(far, 0, meas.conf)),
                              counts.time_saturated.eq(counts.time_saturated + time_sat),
                              counts.innovation_saturated.eq(
                                  counts.innovation_saturated + innovation_sat)]
@@ -292,24 +352,32 @@ class ConsistencyStage(wiring.Component):
             with m.State("DIVIDE"):
                 with m.If(~div.busy & o_free & ~(ok & u_busy)):
                     m.d.comb += handoff.eq(ok)
-                    m.d.sync += [self.o.valid.eq(1),
+                    m.d.sync += [self.o.valid.eq(1), post.eq(1),
                                  *[getattr(self.o.payload, n).eq(getattr(meas, n))
                                    for n in self.o.payload.shape().members],
                                  self.o.payload.shift.eq(Mux(replaced, replacement, scaled)),
-                                 self.o.payload.conf.eq(conf_out),
+                                 out_conf.eq(conf_out),
                                  self.gated.eq(meas.last & gated_now),
                                  self.judged.eq(ok), self.outlier.eq(replaced),
                                  counts.outliers.eq(counts.outliers + replaced),
                                  counts.shift_saturated.eq(counts.shift_saturated
-                                                           + (replaced & replacement_sat)),
-                                 conf_cams.eq(cams_after), max_conf.eq(max_after)]
+                                                           + (replaced & replacement_sat))]
                     with m.If(meas.last):
-                        m.d.sync += [conf_cams.eq(0), max_conf.eq(0), far_seen.eq(0),
-                                     cached.eq(0),
-                                     counts.gated_rows.eq(counts.gated_rows + gated_now),
+                        m.d.sync += [far_seen.eq(0), cached.eq(0),
                                      counts.far_rows.eq(counts.far_rows
                                                         + _popcount(far_seen))]
                     m.next = "TAKE"
+
+        # the row so far, from the verdict just registered (``camera`` is the verdict's
+        # until the next transfer's clock ends)
+        with m.If(post):
+            m.d.sync += post.eq(0)
+            with m.If(self.o.payload.last):
+                m.d.sync += [conf_cams.eq(0), max_conf.eq(0),
+                             counts.gated_rows.eq(counts.gated_rows + self.gated)]
+            with m.Else():
+                m.d.sync += [conf_cams.eq(conf_cams | Mux(out_conf != 0, this_camera, 0)),
+                             max_conf.eq(Mux(out_conf > max_conf, out_conf, max_conf))]
 
         # --- updater: σ' = max(min(round(√(σ² f)), ceiling), floor) -------------------------
         rf, gf = p.ratio_fmt, p.gain_fmt
@@ -323,12 +391,19 @@ class ConsistencyStage(wiring.Component):
         square = _net(m, hdl_mul(u_sigma, p.scale_fmt, u_sigma, p.scale_fmt)[0], "square")
         n = _net(m, hdl_resize(*hdl_mul(square, self.square_fmt, u_factor, gf), self.wide_fmt,
                                HE, ERR), "n")
-        root = _net(m, sqrt.root + (sqrt.remainder > sqrt.root), "root")
+        root = Signal(sqrt.bits + 1)
         top = cfg.scale_ceiling
         capped = _net(m, Mux(root > top, top, root), "capped")
         raised = _net(m, Mux(cfg.scale_initial > cfg.scale_floor, cfg.scale_initial,
                              cfg.scale_floor), "raised")
         initial = _net(m, Mux(raised > top, top, raised), "initial")
+
+        def take_handoff():
+            with m.If(handoff):
+                m.d.sync += [u_busy.eq(1), u_slot.eq(meas.slot), u_sigma.eq(sigma),
+                             u_t.eq(t)]
+                m.next = "V"
+
         with m.FSM(name="updater"):
             with m.State("CLEAR"):
                 m.d.comb += [write.en.eq(1), write.addr.eq(clear_addr), write.data.eq(initial)]
@@ -337,10 +412,7 @@ class ConsistencyStage(wiring.Component):
                     m.d.sync += clearing.eq(0)
                     m.next = "IDLE"
             with m.State("IDLE"):
-                with m.If(handoff):
-                    m.d.sync += [u_busy.eq(1), u_slot.eq(meas.slot), u_sigma.eq(sigma),
-                                 u_t.eq(t)]
-                    m.next = "V"
+                take_handoff()
             with m.State("V"):
                 m.d.sync += u_v.eq(one - ratio(u_t, u_t))
                 m.next = "V2"
@@ -354,11 +426,26 @@ class ConsistencyStage(wiring.Component):
                 m.d.comb += [sqrt.start.eq(1), sqrt.n.eq(n)]
                 m.next = "ROOT"
             with m.State("ROOT"):
+                # the rounded root registered; the channel is free: the judge reads σ
+                # the clock after it takes a measurement, when WRITE has written it
                 with m.If(~sqrt.busy):
-                    m.d.comb += [write.en.eq(1), write.addr.eq(u_slot),
-                                 write.data.eq(Mux(capped < cfg.scale_floor,
-                                                   cfg.scale_floor, capped))]
-                    m.d.sync += [u_busy.eq(0), counts.scale_saturated.eq(
-                        counts.scale_saturated + (root > top))]
-                    m.next = "IDLE"
+                    m.d.sync += [u_busy.eq(0),
+                                 root.eq(sqrt.root + (sqrt.remainder > sqrt.root))]
+                    m.next = "WRITE"
+            with m.State("WRITE"):
+                m.d.comb += [write.en.eq(1), write.addr.eq(u_slot),
+                             write.data.eq(Mux(capped < cfg.scale_floor, cfg.scale_floor,
+                                               capped))]
+                m.d.sync += counts.scale_saturated.eq(counts.scale_saturated + (root > top))
+                m.next = "IDLE"
+                take_handoff()
         return m
+
+
+def default_consistency_stage():
+    """The stage of the board's closed-loop top (:func:`hdl.top.closed_loop_top`, the
+    ``stereo8-board`` rig) as its tracking loop builds it: the catalog's build, for
+    Verilog and synthesis."""
+    from golden.rig import preset
+    from hdl.top import board_config
+    return ConsistencyStage(board_config(preset("stereo8-board")).top.consistency)

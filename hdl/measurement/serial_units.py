@@ -15,6 +15,15 @@ from golden.checks import check_int
 __all__ = ["SerialDivider", "SerialSqrt"]
 
 
+def _restoring_step(rem, sub, width=None):
+    """``(rem >= sub, rem − sub if so else rem)``, the remainder ``width`` bits (default
+    ``rem``'s): one subtraction whose borrow is the comparison, so a step is one carry
+    chain and a multiplexer, not a comparison's chain in front of the subtraction's."""
+    diff = rem - sub
+    ge = ~diff[-1]
+    return ge, Mux(ge, diff, rem)[:len(rem) if width is None else width]
+
+
 class SerialDivider(wiring.Component):
     """``num // den`` and ``num % den`` of unsigned integers whose quotient is below
     ``2**quotient_bits`` (the caller guarantees it; ``den > 0``).
@@ -42,8 +51,7 @@ class SerialDivider(wiring.Component):
         count = Signal(range(self.steps + 1))
         rem, q, dd = self.remainder, self.quotient, d
         for _ in range(self.per_clock):            # one restoring step per result bit
-            ge = rem >= dd
-            rem = Mux(ge, rem - dd, rem)[:len(self.remainder)]
+            ge, rem = _restoring_step(rem, dd)
             q = Cat(ge, q)[:len(self.quotient)]
             dd = dd >> 1
         m.d.comb += self.busy.eq(count != 0)
@@ -82,8 +90,7 @@ class SerialSqrt(wiring.Component):
             rem = Cat(nn[-2:], rem)                    # bring down the next two bits
             nn = (nn << 2)[:len(n)]
             trial = Cat(Const(1, 2), root)             # 4·root + 1
-            ge = rem >= trial
-            rem = Mux(ge, rem - trial, rem)[:len(self.remainder)]
+            ge, rem = _restoring_step(rem, trial, len(self.remainder))
             root = Cat(ge, root)[:len(self.root)]
         m.d.comb += self.busy.eq(count != 0)
         with m.If(self.start):

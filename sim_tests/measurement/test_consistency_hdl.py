@@ -13,7 +13,7 @@ import random
 
 import numpy as np
 import pytest
-from amaranth.hdl import Signal
+from amaranth.hdl import Module, Signal
 from amaranth.sim import Simulator
 
 import emulator.pipeline as pipeline
@@ -24,7 +24,9 @@ from golden.rig import preset
 from golden.scene import default_scene_spec
 from golden.simulator import simulate
 from golden.trajectory import make_trajectory
-from hdl.measurement.consistency import COUNTS, ConsistencyStage, judge_layout
+from hdl.fixed import Overflow, Rounding, mul, resize
+from hdl.measurement.consistency import (COUNTS, ConsistencyStage, confidence_floor,
+                                         judge_layout)
 from hdl.pipeline_config import PipelineConfig
 from sim_tests.measurement.consistency.stimulus import (LARGE, SMALL, check_against_model,
                                                        judge_inputs, random_rows)
@@ -191,6 +193,38 @@ def test_latency():
     print("latency", dut.latency, "time", dut.time_clocks, "update", dut.update_clocks,
           "measured", took)
     assert took == [dut.latency + dut.time_clocks, dut.latency] * SMALL.cameras
+
+
+def test_the_gates_compare_the_product_with_the_rounding_floor():
+    """The row gates compare the confidence product (before its half-even rounding)
+    with ``confidence_floor``: for every ``min_confidence`` the product at the floor
+    rounds to at least it and the one below to less (rounding is monotonic, so these
+    two decide for every product), and products up to ``half`` round to 0."""
+    conf_fmt = LARGE.solver.conf_fmt
+    fmt = mul(np.zeros(1, dtype=np.int64), conf_fmt, np.zeros(1, dtype=np.int64),
+              LARGE.ratio_fmt)[1]
+    shift = fmt.frac_bits - conf_fmt.frac_bits
+    least, floor = Signal(conf_fmt.width), Signal(fmt.width + 1)
+    m = Module()
+    m.d.comb += floor.eq(confidence_floor(least, shift))
+    floors = []
+
+    async def bench(ctx):
+        for value in range(1 << conf_fmt.width):
+            ctx.set(least, value)
+            floors.append(ctx.get(floor))
+
+    sim = Simulator(m)
+    sim.add_testbench(bench)
+    sim.run()
+    values, floors = np.arange(1 << conf_fmt.width), np.array(floors, dtype=np.int64)
+
+    def rounded(x):
+        return resize(x, fmt, conf_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+
+    assert np.all(rounded(floors) >= values)
+    assert np.all(rounded(floors[1:] - 1) < values[1:])
+    assert floors[0] == 0 and floors[1] == (1 << (shift - 1)) + 1
 
 
 @pytest.mark.parametrize("args, error, message", [
