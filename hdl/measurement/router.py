@@ -373,21 +373,19 @@ class MeasurementRouter(wiring.Component):
         # every camera's head is judged beside the others and the one-hot ``selected``
         # picks a verdict: the same-row test and the weight no longer wait for the camera
         # multiplexer (issue 17: 14 LUT levels to ``weighted`` in the board top)
+        usable_c = [Array(pairs["usable"][lane_of[c]][k * ks // k_seg]
+                          for k in range(k_seg))[segment] for c in range(p.cameras)]
         same_c, weight_c = [], []
         for c, fifo in enumerate(fifos):
             entry = data.View(layout, fifo.r_data)
             same_one, _ = _order(p, entry, ticket)
-            usable = Array(pairs["usable"][lane_of[c]][k * ks // k_seg]
-                           for k in range(k_seg))[segment]
             same_c.append(selected[c] & same_one)
-            weight_c.append(Mux(selected[c] & same_one & ~entry.edge_hit & usable,
+            weight_c.append(Mux(selected[c] & same_one & ~entry.edge_hit & usable_c[c],
                                 entry.conf, 0))
         same = Cat(same_c).any()
         weight = Signal.like(head.conf)
         m.d.comb += weight.eq(_or_tree(weight_c))
-        usable_of = Array(Array(pairs["usable"][lane_of[c]][k * ks // k_seg]
-                                for k in range(k_seg))
-                          for c in range(p.cameras))[camera][segment]
+        usable_of = Array(usable_c)[camera]
         closing = (segment == k_seg - 1) & ~pending.any()
         row_time = Mux(opening, head.t_first, time)
 
