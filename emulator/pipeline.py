@@ -64,8 +64,8 @@ class PipelineResult:
         saturation flags, and ``level`` (n, 6) the filter's level after the row's step
         (raw ``motion_fmt``); with a consistency stage also ``counts``, its counters
         (:class:`emulator.measurement.consistency.ConsistencyModel`), and ``row_counts``
-        (records, 3): each record's row's ``(judged, outliers, confident)``, the
-        tracking-status unit's per-row input.
+        (records, 4): each record's row's ``(judged, outliers, confident,
+        determinable)``, the tracking-status unit's per-row input.
     """
     temporal: list
     stereo: list
@@ -231,5 +231,5 @@ class _Loop:
                for k, name in enumerate(names)}
         if self.model.consistency is not None:
             out["counts"] = self.model.counts
-            out["row_counts"] = np.array(self.row_counts, dtype=np.int64).reshape(-1, 3)
+            out["row_counts"] = np.array(self.row_counts, dtype=np.int64).reshape(-1, 4)
         return out

@@ -294,7 +294,8 @@ class Tracker:
             "refined_step": np.full((size, 6), np.nan),
             "status": np.zeros(size, dtype=np.uint8), "drifted": np.zeros(size, dtype=bool),
             "judged": np.zeros(size, dtype=int), "outliers": np.zeros(size, dtype=int),
-            "dropped_group": np.full(size, -1), "partial": np.zeros(size, dtype=bool)}
+            "dropped_group": np.full(size, -1), "partial": np.zeros(size, dtype=bool),
+            "determinable": np.zeros(size, dtype=bool)}
         starts = range(slots.first_tracked, size, p.block_rows)
         if progress:
             from tqdm import tqdm
@@ -414,6 +415,7 @@ class Tracker:
         out["status"][s], out["drifted"][s] = status, self.drifted
         out["judged"][s], out["outliers"][s] = solved.judged, solved.outliers
         out["partial"][s], out["dropped_group"][s] = solved.partial, solved.dropped
+        out["determinable"][s] = solved.determinable
         out["camera_confidence"][s] = solved.camera_confidence
         if measured is not None:
             out["measured"][s] = measured

@@ -262,6 +262,8 @@ class TrackResult:
     judged, outliers : (S,) innovations judged and those beyond the Huber threshold
     dropped_group : (S,) camera group the consistency test dropped (-1: none)
     partial : (S,) bool, the slot stepped only in its determined directions
+    determinable : (S,) bool, the slot could have stepped had every usable segment
+        matched (the status' update fraction counts only these)
     period : frame period (s) over which Y is defined
     params : dict of the TrackerParams used, plus ``depth_source``
     """
@@ -284,5 +286,6 @@ class TrackResult:
     outliers: np.ndarray
     dropped_group: np.ndarray
     partial: np.ndarray
+    determinable: np.ndarray
     period: float
     params: dict

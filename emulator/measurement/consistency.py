@@ -30,7 +30,10 @@ a camera with ``|Δ| > max_row_offset`` gets zero confidence (counted):
 Per row, the golden's gates: unless some confidence reaches ``min_confidence`` and at
 least ``min_cameras`` cameras have a confidence, every confidence of the row is set to 0
 (the solver then flags the row EMPTY and the forecast stands). The scales are updated
-either way, as the golden's are.
+either way, as the golden's are. The row is *determinable* when at least
+``min_cameras`` of its cameras are near (``|Δ| ≤ max_row_offset``), matched or not: the
+tracking status counts its update fraction over those rows only (a readout gap, where
+the cameras' rows are too far apart in time, is no evidence of a loss).
 """
 
 import math
@@ -160,8 +163,11 @@ class ConsistencyModel:
         with the forecast's predicted shift of every slot (raw ``predicted_fmt``,
         (slots,)) and each camera's row offset ``delta = source − row`` (cameras,): the
         transfers the solver gets (copies) and the verdict of :meth:`judge` plus
-        ``gated`` (the row failed the gates) and ``conf_in`` (the confidences the judge
-        took: a channel whose source row was too far enters with 0)."""
+        ``gated`` (the row failed the gates), ``conf_in`` (the confidences the judge
+        took: a channel whose source row was too far enters with 0) and
+        ``determinable`` (at least ``min_cameras`` cameras have transfers and a source
+        row within ``max_row_offset``: the row could step had they matched, the
+        hardware's stand-in for :meth:`golden.tracker_solve.SlotSolver.determinable`)."""
         if not transfers:
             return [], None
         p = self.params
@@ -177,6 +183,8 @@ class ConsistencyModel:
         cameras = np.unique(channel[conf > 0] // p.segments)
         gated = conf.max() < p.min_confidence_raw or len(cameras) < p.min_cameras
         self.counts["gated_rows"] += int(gated)
+        near = np.unique(channel[~far] // p.segments)
         out = [{**t, "shift": int(sh), "conf": 0 if gated else int(c)}
                for t, sh, c in zip(transfers, verdict["shift"], conf)]
-        return out, {**verdict, "gated": gated, "conf_in": conf_in}
+        return out, {**verdict, "gated": gated, "conf_in": conf_in,
+                     "determinable": len(near) >= p.min_cameras}

@@ -7,19 +7,22 @@ has per row (``docs/pose/tracking_status.md`` lists every difference):
 * ``stepped``: the solver's record flags are 0 (the row was solved);
 * ``formed``: not ``EMPTY`` (a system was formed); ``ill``: ``ILL`` (the solver's pivot
   check stands for the golden's condition number);
-* ``judged``, ``outliers``, ``confident``: the row's counts
+* ``judged``, ``outliers``, ``confident``: the row's counts, and ``determinable``: at
+  least ``min_cameras`` cameras near enough in time to step
   (:meth:`hdl.pose.status_params.StatusParams.row_layout`).
 
 Over the last ``window`` rows (a register; the history restarts when it changes, and
 after a loss as in the golden) the unit keeps the sums ``S`` (stepped), ``J``
 (judged), ``O`` (outliers), ``F`` (formed), ``I`` (ill) and ``C`` (confident, stepped
-rows only) of ``n ≤ window`` rows, and with the raw registers (fractions ``f`` in
+rows only) of ``n ≤ window`` rows, and over the last ``window`` *determinable* rows
+(the golden's update fraction: a readout gap is no evidence of a loss) their number
+``d ≤ window`` and ``U`` of them stepped; with the raw registers (fractions ``f`` in
 ``FRACTION_FMT`` with ``b`` fraction bits, ``m`` in ``MEASUREMENTS_FMT`` with ``c``):
 
-* LOST if the window is full (``n = window``) and ``S·2**b < f_lu·n`` or
-  ``O·2**b > f_lo·J``; latched, the history cleared at the loss;
-* DEGRADED if ``S·2**b < f_du·n``, ``O·2**b > f_do·J``, ``F = 0``, ``I·2**b > f_di·F``,
-  or ``C·2**c < m·S`` (with ``S = 0``: ``m > 0``);
+* LOST if ``d = window`` and ``U·2**b < f_lu·d``, or if ``n = window`` and
+  ``O·2**b > f_lo·J``; latched, both histories cleared at the loss;
+* DEGRADED if ``U·2**b < f_du·d`` (with ``d = 0``: ``f_du > 0``), ``O·2**b > f_do·J``,
+  ``F = 0``, ``I·2**b > f_di·F``, or ``C·2**c < m·S`` (with ``S = 0``: ``m > 0``);
 * a latched loss stays LOST until a full window is not degraded;
 * drifted from the first LOST row after the first TRACKING row (``acquired``) on, until
   ``clear``: the golden tracker is given its first frame and monitors only the rows
@@ -59,28 +62,32 @@ def row_entry(flags, judged, outliers, confident):
 def measurement_verdicts(conf, verdict):
     """The verdict bits of a row's measurements (:func:`hdl.pose.row_counter.verdict_layout`)
     from the confidences the consistency stage judged (raw, after the far-camera
-    zeroing) and its verdict (:meth:`emulator.measurement.consistency.ConsistencyModel.judge`):
-    a confidence in, replaced as an outlier, a confidence out; ``last`` on the final one."""
+    zeroing) and its verdict (:meth:`emulator.measurement.consistency.ConsistencyModel.apply`):
+    a confidence in, replaced as an outlier, a confidence out; ``last`` on the final
+    one, which alone carries the row's ``determinable``."""
     conf = np.asarray(conf)
+    last = len(conf) - 1
     return [{"judged": int(c > 0), "outliers": int(o), "confident": int(out != 0),
-             "last": int(k == len(conf) - 1)}
+             "last": int(k == last), "determinable": int(k == last and verdict["determinable"])}
             for k, (c, o, out) in enumerate(zip(conf, verdict["outlier"], verdict["conf"]))]
 
 
 def count_rows(verdicts, slots):
-    """Per-row counts ``(judged, outliers, confident)`` of a run of measurement verdicts,
-    as :class:`hdl.pose.row_counter.RowCounter` sums them (each stops at ``slots``)."""
+    """Per-row ``(judged, outliers, confident, determinable)`` of a run of measurement
+    verdicts, as :class:`hdl.pose.row_counter.RowCounter` gives them: the counts sum
+    (each stops at ``slots``), ``determinable`` is the last verdict's."""
     out, counts = [], [0] * len(ROW_COUNTS)
     for v in verdicts:
         counts = [min(c + int(v[name]), slots) for c, name in zip(counts, ROW_COUNTS)]
         if v["last"]:
-            out.append(tuple(counts))
+            out.append((*counts, int(v["determinable"])))
             counts = [0] * len(ROW_COUNTS)
     return out
 
 
 def row_counts(conf, verdict, slots):
-    """A row's ``(judged, outliers, confident)`` from the consistency stage's verdict."""
+    """A row's ``(judged, outliers, confident, determinable)`` from the consistency
+    stage's verdict."""
     return count_rows(measurement_verdicts(conf, verdict), slots)[0]
 
 
@@ -110,6 +117,7 @@ class StatusUnitModel:
     def clear(self):
         """The ``status.clear`` command: history, loss latch, drifted and counters."""
         self._history = deque()
+        self._updates = deque()        # stepped, of the last ``window`` determinable rows
         self._window = None
         self.state = {"status": 0, "drifted": 0, "lost": 0, "acquired": 0, "window_error": 0,
                       "losses": 0,
@@ -128,21 +136,24 @@ class StatusUnitModel:
         self.state["window_error"] = int(effective != window)
         return effective
 
-    def update(self, flags, judged, outliers, confident):
+    def update(self, flags, judged, outliers, confident, determinable):
         """The status bits of one record: its flags (``PoseFlag`` bits) with the status
-        code at bits 5:4 and drifted at bit 6 (:data:`DRIFTED_BIT`)."""
+        code at bits 5:4 and drifted at bit 6 (:data:`DRIFTED_BIT`); ``determinable``
+        (0 or 1): the row's, from the consistency stage."""
         slots = self.params.slots
         for name, value, high in (("flags", flags, (1 << len(PoseFlag)) - 1),
                                   ("judged", judged, slots), ("outliers", outliers, slots),
-                                  ("confident", confident, slots)):
+                                  ("confident", confident, slots),
+                                  ("determinable", determinable, 1)):
             check_int(name, value, 0, high)
         window = self._effective_window()
         if window != self._window:
-            self._history.clear()
+            self._history, self._updates = deque(maxlen=window), deque(maxlen=window)
             self._window = window
-        if len(self._history) == window:
-            self._history.popleft()
-        self._history.append(row_entry(flags, judged, outliers, confident))
+        entry = row_entry(flags, judged, outliers, confident)
+        self._history.append(entry)
+        if determinable:
+            self._updates.append(entry["stepped"])
         status = self._classify(window)
         state, count = self.state, (1 << self.params.count_bits) - 1
         if status == TrackingStatus.LOST:
@@ -156,22 +167,28 @@ class StatusUnitModel:
         return (int(flags) | int(status) << STATUS_SHIFT | state["drifted"] << DRIFTED_BIT)
 
     def sums(self):
-        """The window sums and the row count ``n``."""
+        """The window sums, the row count ``n``, and over the determinable rows' window
+        their count ``d`` and ``updated`` (stepped among them)."""
         out = {name: sum(e[name] for e in self._history) for name in ENTRY_FIELDS}
-        return {**out, "n": len(self._history)}
+        return {**out, "n": len(self._history), "d": len(self._updates),
+                "updated": sum(self._updates)}
 
-    def verdicts(self, sums):
-        """``(lost_test, degraded)`` of window ``sums`` (the lost test without the
-        full-window condition)."""
+    def verdicts(self, sums, window):
+        """``(lost, degraded)`` of window ``sums`` with the window ``window`` (rows)."""
         s, b = self.settings, FRACTION_FMT.frac_bits
-        n, stepped, judged = sums["n"], sums["stepped"], sums["judged"]
+        stepped, judged, d = sums["stepped"], sums["judged"], sums["d"]
         outliers, formed = sums["outliers"], sums["formed"]
-        lost = ((stepped << b) < s["lost_update_fraction"] * n
-                or (outliers << b) > s["lost_outlier_fraction"] * judged)
+
+        def few_updates(fraction):
+            return fraction > 0 if d == 0 else (sums["updated"] << b) < fraction * d
+
+        lost = ((d == window and few_updates(s["lost_update_fraction"]))
+                or (sums["n"] == window
+                    and (outliers << b) > s["lost_outlier_fraction"] * judged))
         m = s["degraded_measurements"]
         few = (m > 0) if stepped == 0 else \
             (sums["confident"] << MEASUREMENTS_FMT.frac_bits) < m * stepped
-        degraded = ((stepped << b) < s["degraded_update_fraction"] * n
+        degraded = (few_updates(s["degraded_update_fraction"])
                     or (outliers << b) > s["degraded_outlier_fraction"] * judged
                     or formed == 0
                     or (sums["ill"] << b) > s["degraded_ill_fraction"] * formed
@@ -181,11 +198,12 @@ class StatusUnitModel:
     def _classify(self, window):
         state = self.state
         sums = self.sums()
-        lost, degraded = self.verdicts(sums)
+        lost, degraded = self.verdicts(sums, window)
         full = sums["n"] == window
-        if full and lost:
+        if lost:
             if not state["lost"]:
                 self._history.clear()          # a recovery must fill a whole new window
+                self._updates.clear()
                 state["losses"] = (state["losses"] + 1) & ((1 << self.params.count_bits) - 1)
             state["lost"] = 1
             return TrackingStatus.LOST
@@ -196,11 +214,12 @@ class StatusUnitModel:
         return TrackingStatus.DEGRADED if degraded else TrackingStatus.TRACKING
 
 
-def annotate(params, flags, judged, outliers, confident, model=None):
+def annotate(params, flags, judged, outliers, confident, determinable, model=None):
     """Annotated flags of a run of records (sequences of ints); ``model`` continues a
     run (a fresh one by default)."""
     model = StatusUnitModel(params) if model is None else model
-    return [model.update(*row) for row in zip(flags, judged, outliers, confident)]
+    return [model.update(*row)
+            for row in zip(flags, judged, outliers, confident, determinable)]
 
 
 

@@ -144,6 +144,10 @@ class ConsistencyStage(wiring.Component):
     gated : Out(1)
         With ``o.valid`` and ``o.payload.last``: the row failed the gates (the model sets
         all its confidences to 0).
+    determinable : Out(1)
+        With ``o.valid`` and ``o.payload.last``: at least ``min_cameras`` of the row's
+        cameras are near (``|delta| ≤ max_row_offset``), the model's ``determinable``
+        (0 on the row's other transfers).
     settings : In(settings_layout(params)), reset to the parameters'
         Change them between rows.
     counts : Out(counts_layout())
@@ -169,7 +173,7 @@ class ConsistencyStage(wiring.Component):
         layout = measurement_layout(params.solver)
         super().__init__({
             "i": In(stream.Signature(judge_layout(params))),
-            "o": Out(stream.Signature(layout)), "gated": Out(1),
+            "o": Out(stream.Signature(layout)), "gated": Out(1), "determinable": Out(1),
             "judged": Out(1), "outlier": Out(1),
             "settings": In(settings_layout(params), init=settings_init(params)),
             "counts": Out(counts_layout())})
@@ -215,7 +219,8 @@ class ConsistencyStage(wiring.Component):
         camera = Signal(range(p.cameras))
         cached, cached_camera = Signal(), Signal(range(p.cameras))
         factor = Signal(p.time_fmt.width)
-        far_seen, conf_cams = Signal(p.cameras), Signal(p.cameras)
+        far_seen, conf_cams, near_cams = (Signal(p.cameras) for _ in range(3))
+        far_r = Signal()                         # ``far`` of the measurement being judged
         max_conf = Signal(s.conf_fmt.width)
         sigma = Signal(p.scale_fmt.width)
         conf = Signal(s.conf_fmt.width)
@@ -297,6 +302,15 @@ class ConsistencyStage(wiring.Component):
         gated_now = _net(m, (below & (judged < low))
                          | Mux((judged > (1 << (shift - 1))) & fresh, short_more, short),
                          "gated_now")
+        # determinable: popcount(near_cams | camera unless far) ≥ min_cameras, split the
+        # same way (only ``far_r`` and the verdict's camera are of this measurement)
+        near_short, near_short_more, near_fresh = Signal(), Signal(), Signal()
+        near = _net(m, _popcount(near_cams), "near")
+        m.d.sync += [near_fresh.eq(~near_cams.bit_select(camera, 1)),
+                     near_short.eq(near < cfg.min_cameras),
+                     near_short_more.eq(near + 1 < cfg.min_cameras)]
+        determinable_now = _net(m, ~Mux(~far_r & near_fresh, near_short_more, near_short),
+                                "determinable_now")
         post = Signal()
         out_conf = self.o.payload.conf
 
@@ -343,7 +357,7 @@ class ConsistencyStage(wiring.Component):
                 m.d.comb += [div.start.eq(1), div.num.eq(Mux(is_outlier, b, a)
                                                          << p.ratio_fmt.frac_bits),
                              div.den.eq(ratio_den)]
-                m.d.sync += [outlier.eq(is_outlier), sigma.eq(read.data),
+                m.d.sync += [outlier.eq(is_outlier), sigma.eq(read.data), far_r.eq(far),
                              conf.eq(Mux(far, 0, meas.conf)),
                              counts.time_saturated.eq(counts.time_saturated + time_sat),
                              counts.innovation_saturated.eq(
@@ -358,6 +372,7 @@ class ConsistencyStage(wiring.Component):
                                  self.o.payload.shift.eq(Mux(replaced, replacement, scaled)),
                                  out_conf.eq(conf_out),
                                  self.gated.eq(meas.last & gated_now),
+                                 self.determinable.eq(meas.last & determinable_now),
                                  self.judged.eq(ok), self.outlier.eq(replaced),
                                  counts.outliers.eq(counts.outliers + replaced),
                                  counts.shift_saturated.eq(counts.shift_saturated
@@ -373,10 +388,11 @@ class ConsistencyStage(wiring.Component):
         with m.If(post):
             m.d.sync += post.eq(0)
             with m.If(self.o.payload.last):
-                m.d.sync += [conf_cams.eq(0), max_conf.eq(0),
+                m.d.sync += [conf_cams.eq(0), max_conf.eq(0), near_cams.eq(0),
                              counts.gated_rows.eq(counts.gated_rows + self.gated)]
             with m.Else():
                 m.d.sync += [conf_cams.eq(conf_cams | Mux(out_conf != 0, this_camera, 0)),
+                             near_cams.eq(near_cams | Mux(far_r, 0, this_camera)),
                              max_conf.eq(Mux(out_conf > max_conf, out_conf, max_conf))]
 
         # --- updater: σ' = max(min(round(√(σ² f)), ceiling), floor) -------------------------

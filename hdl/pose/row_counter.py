@@ -5,7 +5,8 @@ The consistency stage judges each measurement of a row and forwards it; tapping 
 output with three verdict bits per transfer (the judge's input confidence was non-zero,
 the measurement was an outlier, its confidence out is non-zero) and ``last``, this block
 sums them per row, so that :class:`hdl.pose.status_unit.StatusUnit` gets the row's
-``judged``, ``outliers`` and ``confident`` beside the solver's record of that row. The
+``judged``, ``outliers`` and ``confident`` (and the ``determinable`` bit of its last
+verdict) beside the solver's record of that row. The
 model is :func:`emulator.pose.tracking_status.count_rows`.
 """
 
@@ -19,10 +20,12 @@ __all__ = ["RowCounter", "verdict_layout", "default_row_counter"]
 
 
 def verdict_layout():
-    """One measurement's verdict, one bit per row count it adds to: ``judged`` (its confidence into the judge was not 0),
-    ``outliers`` (beyond ``kσ``, replaced), ``confident`` (its confidence out is not 0),
-    ``last`` (the row's final measurement)."""
-    return data.StructLayout({**{name: 1 for name in VERDICTS}, "last": 1})
+    """One measurement's verdict, one bit per row count it adds to: ``judged`` (its
+    confidence into the judge was not 0), ``outliers`` (beyond ``kσ``, replaced),
+    ``confident`` (its confidence out is not 0); ``last`` (the row's final measurement)
+    and, with it, the row's ``determinable``."""
+    return data.StructLayout({**{name: 1 for name in VERDICTS}, "last": 1,
+                              "determinable": 1})
 
 
 class RowCounter(wiring.Component):
@@ -68,7 +71,8 @@ class RowCounter(wiring.Component):
             with m.If(self.i.payload.last):
                 m.d.sync += [self.o.valid.eq(1), *(c.eq(0) for c in counts.values()),
                              *(getattr(self.o.payload, name).eq(sums[name])
-                               for name in VERDICTS)]
+                               for name in VERDICTS),
+                             self.o.payload.determinable.eq(self.i.payload.determinable)]
             with m.Else():
                 m.d.sync += [counts[name].eq(sums[name]) for name in VERDICTS]
         return m

@@ -20,7 +20,7 @@ from hdl.fixed import UQ, Overflow, Rounding
 from hdl.pose.params import PoseFlag, PoseSolverParams, solver_source
 
 __all__ = ["StatusParams", "FRACTION_FMT", "MEASUREMENTS_FMT", "FRACTIONS", "FLAG_BITS",
-           "TRACKER_THRESHOLDS", "ROW_COUNTS",
+           "TRACKER_THRESHOLDS", "ROW_COUNTS", "ROW_INPUTS",
            "status_source", "top_status_params", "TrackingStatus", "STATUS_SHIFT",
            "STATUS_BITS", "DRIFTED_BIT"]
 
@@ -42,6 +42,9 @@ TRACKER_THRESHOLDS = ("lost_update_fraction", "lost_outlier_fraction",
 #: The per-row counts (the fields of :meth:`StatusParams.row_layout`), each the sum of
 #: one verdict bit per measurement (:mod:`hdl.pose.row_counter`).
 ROW_COUNTS = ("judged", "outliers", "confident")
+#: A row's inputs to the unit, in the order of the emulator's row tuples: its counts,
+#: then whether it was determinable.
+ROW_INPUTS = (*ROW_COUNTS, "determinable")
 #: Width of the annotated flags: the solver's PoseFlag bits, then the status code and
 #: the drifted bit (golden.tracking_status's layout).
 FLAG_BITS = DRIFTED_BIT + 1
@@ -159,9 +162,12 @@ class StatusParams:
         """The per-row side input, one transfer per pose record and in the same order:
         ``judged`` measurements the consistency stage judged (non-zero confidence in),
         ``outliers`` among them beyond the Huber threshold, ``confident`` measurements
-        with a non-zero confidence after the judge (the golden's ``used``)."""
+        with a non-zero confidence after the judge (the golden's ``used``), and
+        ``determinable``: at least ``min_cameras`` of the row's cameras were near enough
+        in time to step (the update fraction counts only these rows)."""
         from amaranth.lib import data
-        return data.StructLayout({name: self.row_count_bits for name in ROW_COUNTS})
+        return data.StructLayout({name: self.row_count_bits if name in ROW_COUNTS else 1
+                                  for name in ROW_INPUTS})
 
     def state_layout(self):
         """What the unit shows the PS (register ``status.state``): the latest record's

@@ -12,7 +12,10 @@ rule and every rounding are :class:`emulator.pose.tracking_status.StatusUnitMode
 
 The window's rows live in a ``max_window``-deep memory (one entry per row: stepped,
 formed, ill and the three counts); the window sums are kept incrementally (add the new
-row, subtract the one ``window`` rows back once the window is full).
+row, subtract the one ``window`` rows back once the window is full). The update fraction
+has a window of its own over the *determinable* rows only (the row input's
+``determinable``, as the golden's): a second ring of one bit (stepped) per such row,
+with its row count and sum kept the same way.
 """
 
 from amaranth.hdl import Module, Mux, Signal
@@ -45,8 +48,8 @@ class StatusUnit(wiring.Component):
     i : In(stream.Signature(solver_source(solver).layout()))
         The solver's pose records (flags: ``PoseFlag`` bits).
     row : In(stream.Signature(params.row_layout()))
-        The counts of each record's row, one transfer per record, in order; taken
-        together with the record.
+        The counts of each record's row and whether it was determinable, one transfer
+        per record, in order; taken together with the record.
     o : Out(stream.Signature(status_source(solver).layout()))
         The same records, flags bits 5:4 the status code
         (:class:`golden.tracking_status.TrackingStatus`), bit 6 drifted since a loss
@@ -85,6 +88,8 @@ class StatusUnit(wiring.Component):
                                                   for name in COUNTS}})
         #: The history (one entry per row); tests may read it.
         self.history = Memory(shape=self.entry_layout, depth=params.max_window, init=[])
+        #: Stepped, of each determinable row: the update fraction's own window.
+        self.updates = Memory(shape=1, depth=params.max_window, init=[])
         super().__init__({
             "i": In(stream.Signature(solver_source(solver).layout())),
             "row": In(stream.Signature(params.row_layout())),
@@ -98,7 +103,9 @@ class StatusUnit(wiring.Component):
         p, cfg, state = self.params, self.settings, self.state
         m = Module()
         m.submodules.history = history = self.history
+        m.submodules.updates = updates = self.updates
         read, write = history.read_port(), history.write_port()
+        u_read, u_write = updates.read_port(), updates.write_port()
 
         record = Signal(self.i.payload.shape())
         entry, old = Signal(self.entry_layout), read.data
@@ -106,7 +113,13 @@ class StatusUnit(wiring.Component):
         rows, window, applied = (Signal(p.window_bits) for _ in range(3))
         sums = {name: Signal(p.window_bits) for name in BITS}
         sums.update({name: Signal(p.sum_bits) for name in COUNTS})
+        # the determinable rows' window: its position, rows and stepped rows
+        determinable, u_position = Signal(), Signal(p.address_bits)
+        u_rows, updated = Signal(p.window_bits), Signal(p.window_bits)
         restart, pending_clear = Signal(), Signal()
+        # emptied at a clear and at a loss, as the history
+        empty_windows = [rows.eq(0), u_rows.eq(0), updated.eq(0),
+                         *(s.eq(0) for s in sums.values())]
 
         asked = cfg.window
         effective = Mux(asked == 0, 1, Mux(asked > p.max_window, p.max_window, asked))
@@ -118,7 +131,8 @@ class StatusUnit(wiring.Component):
                     "ill": (flags & int(PoseFlag.ILL)).any(),
                     "judged": self.row.payload.judged, "outliers": self.row.payload.outliers,
                     "confident": Mux(flags == 0, self.row.payload.confident, 0)}
-        m.d.comb += read.addr.eq(position - effective)
+        m.d.comb += [read.addr.eq(position - effective),
+                     u_read.addr.eq(u_position - effective)]
 
         # the record waits in `record` until `o` takes it: one copy of its ~600 bits
         for name in record.shape().members:
@@ -127,8 +141,8 @@ class StatusUnit(wiring.Component):
         with m.FSM():
             with m.State("TAKE"):
                 with m.If(pending_clear):
-                    m.d.sync += [pending_clear.eq(0), rows.eq(0), applied.eq(0),
-                                 state.eq(0), *(s.eq(0) for s in sums.values())]
+                    m.d.sync += [pending_clear.eq(0), applied.eq(0), state.eq(0),
+                                 *empty_windows]
                 with m.Else():
                     both = self.i.valid & self.row.valid
                     m.d.comb += [self.i.ready.eq(both), self.row.ready.eq(both)]
@@ -136,6 +150,7 @@ class StatusUnit(wiring.Component):
                         m.d.sync += [record.eq(self.i.payload), window.eq(effective),
                                      applied.eq(effective), restart.eq(effective != applied),
                                      state.window_error.eq(effective != asked),
+                                 determinable.eq(self.row.payload.determinable),
                                      *(getattr(entry, k).eq(v) for k, v in incoming.items())]
                         m.next = "SUM"
             with m.State("SUM"):
@@ -148,9 +163,22 @@ class StatusUnit(wiring.Component):
                                          - Mux(full, getattr(old, name), 0))
                 m.d.comb += [write.en.eq(1), write.addr.eq(position), write.data.eq(entry)]
                 m.d.sync += [rows.eq(Mux(full, before, before + 1)), position.eq(position + 1)]
+                # the determinable rows' window, the same way
+                u_before = Mux(restart, 0, u_rows)
+                u_full = u_before == window
+                with m.If(determinable):
+                    m.d.comb += [u_write.en.eq(1), u_write.addr.eq(u_position),
+                                 u_write.data.eq(entry.stepped)]
+                    m.d.sync += [updated.eq(Mux(restart, 0, updated) + entry.stepped
+                                            - Mux(u_full, u_read.data, 0)),
+                                 u_rows.eq(Mux(u_full, u_before, u_before + 1)),
+                                 u_position.eq(u_position + 1)]
+                with m.Elif(restart):
+                    m.d.sync += [updated.eq(0), u_rows.eq(0)]
                 m.next = "DECIDE"
             with m.State("DECIDE"):
-                self._decide(m, record, sums, rows, window)
+                self._decide(m, record, sums, rows, window, (u_rows, updated),
+                             empty_windows)
                 m.next = "OUT"
             with m.State("OUT"):
                 with m.If(self.o.ready):
@@ -158,33 +186,39 @@ class StatusUnit(wiring.Component):
                     m.next = "TAKE"
         return m
 
-    def _verdicts(self, sums, rows):
-        """(lost test, degraded) of the window sums, as the model's ``verdicts``."""
+    def _verdicts(self, sums, rows, window, updates):
+        """(lost, degraded) of the window sums, as the model's ``verdicts``;
+        ``updates``: the determinable rows' window, (rows, stepped)."""
         cfg, b = self.settings, FRACTION_FMT.frac_bits
         stepped, outliers, judged = sums["stepped"], sums["outliers"], sums["judged"]
-        lost = (((stepped << b) < cfg.lost_update_fraction * rows)
-                | ((outliers << b) > cfg.lost_outlier_fraction * judged))
+        u_rows, updated = updates
+
+        def few_updates(fraction):
+            return Mux(u_rows == 0, fraction != 0, (updated << b) < fraction * u_rows)
+
+        lost = (((u_rows == window) & few_updates(cfg.lost_update_fraction))
+                | ((rows == window)
+                   & ((outliers << b) > cfg.lost_outlier_fraction * judged)))
         m_raw = cfg.degraded_measurements
         few = Mux(stepped == 0, m_raw != 0,
                   (sums["confident"] << MEASUREMENTS_FMT.frac_bits) < m_raw * stepped)
-        degraded = (((stepped << b) < cfg.degraded_update_fraction * rows)
+        degraded = (few_updates(cfg.degraded_update_fraction)
                     | ((outliers << b) > cfg.degraded_outlier_fraction * judged)
                     | (sums["formed"] == 0)
                     | ((sums["ill"] << b) > cfg.degraded_ill_fraction * sums["formed"])
                     | few)
         return lost, degraded
 
-    def _decide(self, m, record, sums, rows, window):
+    def _decide(self, m, record, sums, rows, window, updates, empty_windows):
         """The status of the row just summed, the latch, the counters and the output."""
         state = self.state
-        lost_test, degraded = self._verdicts(sums, rows)
+        lost, degraded = self._verdicts(sums, rows, window, updates)
         full = rows == window
         status = Signal(2)
-        with m.If(full & lost_test):
+        with m.If(lost):
             m.d.comb += status.eq(TrackingStatus.LOST)
             with m.If(~state.lost):
-                m.d.sync += [rows.eq(0), *(s.eq(0) for s in sums.values()),
-                             state.losses.eq(state.losses + 1)]
+                m.d.sync += [*empty_windows, state.losses.eq(state.losses + 1)]
             m.d.sync += state.lost.eq(1)
         with m.Elif(state.lost & (~full | degraded)):
             m.d.comb += status.eq(TrackingStatus.LOST)

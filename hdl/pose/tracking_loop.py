@@ -47,17 +47,11 @@ from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.forecast_predictor import output_layout
 from hdl.pose.loop_requests import RequestGenerator
 from hdl.pose.measured_shift import MeasuredShift
+from hdl.pose.row_counter import verdict_layout
 from hdl.pose_solver import PoseSolver, measurement_layout, record_layout
 from hdl.stream_fork import StreamFork
 
 __all__ = ["TrackingLoop", "loop_counters_layout", "verdict_layout"]
-
-
-def verdict_layout():
-    """A judged measurement's verdict: its confidence into the judge was not 0
-    (``judged``), it was an outlier replaced by the prediction (``outliers``), its
-    confidence out is not 0 (``confident``, before the row's gates), and ``last``."""
-    return data.StructLayout({"judged": 1, "outliers": 1, "confident": 1, "last": 1})
 
 
 def loop_counters_layout(params):
@@ -100,7 +94,8 @@ class TrackingLoop(wiring.Component):
     verdicts : Out(stream.Signature(verdict_layout()))
         Each judged measurement's verdict bits, offered as the solver is offered the
         measurement (a stalled ``verdicts`` stalls the solver's input): the tracking
-        status' row counts (``judged``, ``outliers``, ``confident``, ``last``).
+        status' row counts (:func:`hdl.pose.row_counter.verdict_layout`; ``confident``
+        is before the row's gates).
     coef_write : In(coef_write_signature(solver))
         The solver's coefficient store load (:class:`hdl.pose_solver.PoseSolver`).
     pivot_log2 : In, pivot_log2_error : Out
@@ -229,13 +224,14 @@ class TrackingLoop(wiring.Component):
         connect(m, shift.o, stage.i)
         # the judged measurements to the solver and, as verdicts, to the status' counts
         judged = data.StructLayout({"measurement": stage.o.payload.shape(), "judged": 1,
-                                    "outlier": 1})
+                                    "outlier": 1, "determinable": 1})
         m.submodules.judged_fork = judged_fork = StreamFork(judged, 2)
         to_solver, to_status = judged_fork.o
         m.d.comb += [judged_fork.i.valid.eq(stage.o.valid), stage.o.ready.eq(judged_fork.i.ready),
                      judged_fork.i.payload.measurement.eq(stage.o.payload),
                      judged_fork.i.payload.judged.eq(stage.judged),
                      judged_fork.i.payload.outlier.eq(stage.outlier),
+                     judged_fork.i.payload.determinable.eq(stage.determinable),
                      solver.i.valid.eq(to_solver.valid), to_solver.ready.eq(solver.i.ready),
                      solver.i.payload.eq(to_solver.payload.measurement),
                      self.verdicts.valid.eq(to_status.valid),
@@ -244,7 +240,8 @@ class TrackingLoop(wiring.Component):
                      self.verdicts.payload.outliers.eq(to_status.payload.outlier),
                      self.verdicts.payload.confident.eq(
                          to_status.payload.measurement.conf != 0),
-                     self.verdicts.payload.last.eq(to_status.payload.measurement.last)]
+                     self.verdicts.payload.last.eq(to_status.payload.measurement.last),
+                     self.verdicts.payload.determinable.eq(to_status.payload.determinable)]
         # every record to the forecast and out
         m.submodules.record_fork = record_fork = StreamFork(solver.o.payload.shape(), 2)
         connect(m, solver.o, record_fork.i)

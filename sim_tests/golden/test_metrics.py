@@ -36,7 +36,7 @@ def _result(dataset, rotations, positions):
                        status=np.zeros(n, np.uint8), drifted=np.zeros(n, bool),
                        judged=np.zeros(n, int), outliers=np.zeros(n, int),
                        dropped_group=np.full(n, -1), partial=np.zeros(n, bool),
-                       period=1 / 120, params={})
+                       determinable=np.ones(n, bool), period=1 / 120, params={})
 
 
 def test_display_focal_matches_the_stated_field_of_view():

@@ -44,8 +44,8 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
     prob = 0.6 if gaps else 1.0
     layout = judge_layout(params)
     count = sum(len(t) for t, _, _ in rows)
-    out = {"transfers": [], "gated": [], "judged": [], "outlier": [], "in_cycles": [],
-           "out_cycles": []}
+    out = {"transfers": [], "gated": [], "determinable": [], "judged": [], "outlier": [],
+           "in_cycles": [], "out_cycles": []}
     clock = Signal(32)                  # the sink's clock count, for the sources' records
 
     def source(port, lay, items, rng, record=None):
@@ -67,11 +67,13 @@ def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
             ready = rng.random() < prob
             ctx.set(dut.o.ready, ready)
             ctx.set(clock, cycle)
-            *_, valid, payload, gated, judged, outlier = await ctx.tick().sample(
-                dut.o.valid, dut.o.payload, dut.gated, dut.judged, dut.outlier)
+            *_, valid, payload, gated, determinable, judged, outlier = \
+                await ctx.tick().sample(dut.o.valid, dut.o.payload, dut.gated,
+                                        dut.determinable, dut.judged, dut.outlier)
             if valid and ready:
                 out["transfers"].append({n: int(getattr(payload, n)) for n in FIELDS})
                 out["gated"].append(int(gated))
+                out["determinable"].append(int(determinable))
                 out["judged"].append(int(judged))
                 out["outlier"].append(int(outlier))
                 out["out_cycles"].append(cycle)
@@ -107,6 +109,9 @@ def test_random_rows_bit_exact(name, gaps):
     reached = {k for k, v in model.counts.items() if v}
     assert reached == set(COUNTS)
     assert model.counts["gated_rows"] < len(rows)
+    # rows on both sides of the determinable test
+    rows_last = [d for d, t in zip(got["determinable"], got["transfers"]) if t["last"]]
+    assert 0 < sum(rows_last) < len(rows_last)
 
 
 @pytest.mark.parametrize("bits_per_clock", [1, 3, 4])

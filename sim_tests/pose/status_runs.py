@@ -49,7 +49,7 @@ def emulator_run(data):
     forecast with the hardware's loop delay, the consistency stage, a disparity per
     temporal segment, the cue fallback, started at the true one-frame motion of the
     first tracked row): ``(config, records, rows)`` with ``rows`` the status unit's
-    inputs ``(flags, judged, outliers, confident)`` of every record."""
+    inputs ``(flags, judged, outliers, confident, determinable)`` of every record."""
     from emulator.e2e import true_steps
     from hdl.top_params import DEFAULT_SEGMENTS
     config = PipelineConfig.for_rig(data.rig, stereo_segments=DEFAULT_SEGMENTS)
@@ -90,7 +90,7 @@ def golden_agreement(data, tracker=TrackerParams()):
     flags = golden_to_hardware(result.updated[t], result.condition[t],
                                tracker.degraded_condition)
     rows = list(zip(flags, result.judged[t].tolist(), result.outliers[t].tolist(),
-                    result.equations[t].tolist()))
+                    result.equations[t].tolist(), result.determinable[t].astype(int).tolist()))
     status, drifted, _ = model_statuses(params, rows)
     figures = _figures(status, result.status[t].tolist(), drifted,
                        result.drifted[t].astype(int).tolist())

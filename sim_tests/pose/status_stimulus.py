@@ -17,7 +17,9 @@ SMALL = StatusParams(slots=8, max_window=16, window=6)
 TRACKER = TrackerParams()
 DEFAULT = StatusParams.for_tracker(TRACKER, slots=16, frame_rows=40)
 
-#: Row regimes: (flags choices, judged, outlier share, confident) of each.
+#: Row regimes: (flags choices, judged, outlier share, confident) of each; a row is
+#: determinable with probability DETERMINABLE, except in a readout ``gap`` (never).
+DETERMINABLE = 0.9
 REGIMES = {
     "good": ((0,), (6, 16), (0.0, 0.1), (6, 16)),
     "outliers": ((0,), (6, 16), (0.5, 1.0), (6, 16)),
@@ -28,16 +30,18 @@ REGIMES = {
     "ill": ((int(PoseFlag.ILL),), (4, 16), (0.0, 0.3), (4, 16)),
     "mixed": ((0, 0, 0, int(PoseFlag.ILL), int(PoseFlag.EMPTY), int(PoseFlag.SATURATED)),
               (0, 16), (0.0, 0.6), (0, 16)),
+    "gap": ((int(PoseFlag.EMPTY), int(PoseFlag.SATURATED)), (0, 4), (0.0, 0.5), (0, 2)),
 }
 
 
 def regime_row(rng, regime, slots):
-    """One row ``(flags, judged, outliers, confident)`` of ``regime``."""
+    """One row ``(flags, judged, outliers, confident, determinable)`` of ``regime``."""
     flags, judged, share, confident = REGIMES[regime]
     j = int(rng.integers(min(judged[0], slots), min(judged[1], slots) + 1))
     o = min(j, int(round(j * rng.uniform(*share))))
     c = int(rng.integers(min(confident[0], slots), min(confident[1], slots) + 1))
-    return int(rng.choice(flags)), j, o, c
+    d = regime != "gap" and rng.random() < DETERMINABLE
+    return int(rng.choice(flags)), j, o, c, int(d)
 
 
 def regime_rows(rng, count, params, regimes=tuple(REGIMES)):
@@ -70,8 +74,9 @@ def golden_statuses(params, rows, tracker=TRACKER):
     monitor = StatusMonitor(params.window, tracker)
     stepped, condition = hardware_to_golden([r[0] for r in rows], tracker.degraded_condition)
     status, drifted, lost, acquired = [], [], False, False
-    for (flags, judged, outliers, confident), s, c in zip(rows, stepped, condition):
-        code = int(monitor.update(s, judged, outliers, c, confident))
+    for (flags, judged, outliers, confident, determinable), s, c in zip(rows, stepped,
+                                                                         condition):
+        code = int(monitor.update(s, judged, outliers, c, confident, bool(determinable)))
         lost |= acquired and code == TrackingStatus.LOST
         acquired |= code == TrackingStatus.TRACKING
         status.append(code)
@@ -115,11 +120,13 @@ def expected(params, records, rows, events=None):
 
 def random_verdicts(rng, rows, slots):
     """Measurement verdicts of ``rows`` rows of 1 to ``slots + 3`` measurements (the
-    longer ones make the row counter's counts stop at ``slots``)."""
+    longer ones make the row counter's counts stop at ``slots``); ``determinable``
+    random on every one (only the last's counts)."""
     out = []
     for _ in range(rows):
         n = int(rng.integers(1, slots + 4))
-        bits = rng.random((n, 3)) < rng.uniform(0.1, 0.9, 3)
+        bits = rng.random((n, 4)) < rng.uniform(0.1, 0.9, 4)
         out += [{"judged": int(j), "outliers": int(o), "confident": int(c),
-                 "last": int(k == n - 1)} for k, (j, o, c) in enumerate(bits)]
+                 "determinable": int(d), "last": int(k == n - 1)}
+                for k, (j, o, c, d) in enumerate(bits)]
     return out

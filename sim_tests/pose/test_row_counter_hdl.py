@@ -13,7 +13,7 @@ from amaranth.sim import Simulator
 from emulator.hdl_sim.payload import pack
 from emulator.pose.tracking_status import count_rows, measurement_verdicts
 from hdl.pose.row_counter import RowCounter, verdict_layout
-from hdl.pose.status_params import ROW_COUNTS
+from hdl.pose.status_params import ROW_INPUTS
 
 from sim_tests.pose.status_stimulus import SMALL, random_verdicts
 
@@ -43,7 +43,7 @@ def run_counter(params, verdicts, *, seed, gaps):
             ctx.set(dut.o.ready, ready)
             *_, valid, payload = await ctx.tick().sample(dut.o.valid, dut.o.payload)
             if valid and ready:
-                got.append(tuple(int(getattr(payload, n)) for n in ROW_COUNTS))
+                got.append(tuple(int(getattr(payload, n)) for n in ROW_INPUTS))
             cycles += 1
             assert cycles < 10 * len(verdicts) + 100, "counter hung"
         await ctx.tick().repeat(4)
@@ -64,14 +64,19 @@ def test_counts_match_model(gaps):
     verdicts = random_verdicts(rng, 300, SMALL.slots)
     want = count_rows(verdicts, SMALL.slots)
     assert run_counter(SMALL, verdicts, seed=SEED, gaps=gaps) == want
-    assert max(max(w) for w in want) == SMALL.slots          # some counts stopped
+    assert max(max(w[:3]) for w in want) == SMALL.slots      # some counts stopped
+    assert {w[3] for w in want} == {0, 1}                    # both determinable verdicts
 
 
 def test_measurement_verdicts_of_a_consistency_row():
-    verdict = {"outlier": np.array([False, True, False]), "conf": np.array([3, 0, 0])}
+    verdict = {"outlier": np.array([False, True, False]), "conf": np.array([3, 0, 0]),
+               "determinable": True}
     bits = measurement_verdicts(np.array([5, 7, 0]), verdict)
     assert [b["last"] for b in bits] == [0, 0, 1]
-    assert count_rows(bits, 8) == [(2, 1, 1)]
+    assert [b["determinable"] for b in bits] == [0, 0, 1]
+    assert count_rows(bits, 8) == [(2, 1, 1, 1)]
+    bits = measurement_verdicts(np.array([5]), {**verdict, "determinable": False})
+    assert count_rows(bits, 8) == [(1, 0, 1, 0)]
 
 
 def test_parameter_check():

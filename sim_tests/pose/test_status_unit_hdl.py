@@ -14,7 +14,7 @@ from amaranth.sim import Simulator
 
 from emulator.hdl_sim.payload import pack
 from hdl.pose.params import PoseSolverParams, solver_source
-from hdl.pose.status_params import StatusParams
+from hdl.pose.status_params import ROW_INPUTS, StatusParams
 from hdl.pose.status_unit import StatusUnit
 
 from sim_tests.pose.status_stimulus import (SMALL, SOLVER, expected, packable, random_records,
@@ -38,7 +38,7 @@ def run_unit(params, solver, records, rows, *, seed, gaps, events=None):
     cycle = [0]
 
     async def source(ctx):
-        for k, (record, (flags, judged, outliers, confident)) in enumerate(zip(records, rows)):
+        for k, (record, row) in enumerate(zip(records, rows)):
             while len(out["records"]) < k and k in events:
                 await ctx.tick()
             event = events.get(k)
@@ -52,9 +52,9 @@ def run_unit(params, solver, records, rows, *, seed, gaps, events=None):
             while rng.random() >= prob:
                 await ctx.tick()
             ctx.set(dut.i.payload.as_value(), pack(src_layout, packable({**record,
-                                                                          "flags": flags})))
-            ctx.set(dut.row.payload.as_value(), pack(dut.row.payload.shape(), {
-                "judged": judged, "outliers": outliers, "confident": confident}))
+                                                                          "flags": row[0]})))
+            ctx.set(dut.row.payload.as_value(), pack(dut.row.payload.shape(),
+                                                     dict(zip(ROW_INPUTS, row[1:]))))
             ctx.set(dut.i.valid, 1)
             ctx.set(dut.row.valid, 1)
             await ctx.tick().until(dut.i.ready)

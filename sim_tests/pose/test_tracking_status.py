@@ -25,7 +25,9 @@ SEED = int(os.environ.get("SEED", "1"))
 T, D, L = TrackingStatus.TRACKING, TrackingStatus.DEGRADED, TrackingStatus.LOST
 W = DEFAULT.window
 SAT, ILL, EMPTY = int(PoseFlag.SATURATED), int(PoseFlag.ILL), int(PoseFlag.EMPTY)
-GOOD = (0, 10, 0, 10)
+GOOD = (0, 10, 0, 10, 1)
+#: A row in a readout gap: too few cameras near in time to step.
+GAP = (EMPTY, 0, 0, 0, 0)
 
 
 def both(rows, params=DEFAULT, tracker=TRACKER):
@@ -64,7 +66,7 @@ def test_good_rows_track():
 
 def test_lost_by_update_fraction():
     """Rows that stop stepping: degraded below 70 % of the window, lost below 20 %."""
-    rows = [GOOD] * W + [(SAT, 10, 0, 0)] * W
+    rows = [GOOD] * W + [(SAT, 10, 0, 0, 1)] * W
     status, drifted = both(rows)
     assert first(status, D) == W + 3       # 4th unsolved row: 6 of 10 stepped < 0.7
     assert first(status, L) == W + 8       # 9th: 1 of 10 < 0.2 (2 of 10 is not)
@@ -73,7 +75,7 @@ def test_lost_by_update_fraction():
 
 def test_lost_by_outliers():
     """Stepped rows whose innovations are mostly outliers."""
-    rows = [GOOD] * W + [(0, 10, 8, 10)] * W
+    rows = [GOOD] * W + [(0, 10, 8, 10, 1)] * W
     status, _ = both(rows)
     assert first(status, D) == W + 3       # 4th bad row: 32 of 100 outliers > 25 %
     assert first(status, L) == W + 6       # 7th: 56 of 100 > 50 % (48 is not)
@@ -84,28 +86,48 @@ def test_degraded_by_condition_alone():
     the update-fraction bounds at 0 nothing else can."""
     tracker = replace(TRACKER, degraded_update_fraction=0.0, lost_update_fraction=0.0)
     params = DEFAULT.replace(degraded_update_fraction=0.0, lost_update_fraction=0.0)
-    rows = [GOOD] * W + [(ILL, 10, 0, 0)] * W
+    rows = [GOOD] * W + [(ILL, 10, 0, 0, 1)] * W
     status, _ = both(rows, params, tracker)
     assert first(status, D) == W + 5      # 6 of 10 formed rows ILL (5 of 10 is not more)
     assert L not in status
 
 
 def test_degraded_by_measurements_and_no_system():
-    rows = [GOOD] * W + [(0, 4, 0, 4)] * W + [GOOD] * W + [(EMPTY, 0, 0, 0)] * 3
+    rows = [GOOD] * W + [(0, 4, 0, 4, 1)] * W + [GOOD] * W + [(EMPTY, 0, 0, 0, 1)] * 3
     status, _ = both(rows)
     # the window mean of confident measurements per stepped row drops below 6
     assert D in status[W:2 * W] and L not in status
     assert status[3 * W - 1] == T
 
 
+def test_readout_gap_is_no_loss():
+    """Rows that could not have stepped (a readout gap) leave the update fraction alone:
+    degraded (no system formed), never lost; marked determinable, the same rows lose."""
+    rows = [GOOD] * W + [GAP] * 2 * W + [GOOD] * W
+    status, drifted = both(rows)
+    assert L not in status and D in status[W:3 * W] and not any(drifted)
+    assert status[-1] == T
+    status, _ = both([r[:4] + (1,) for r in rows])
+    assert L in status
+
+
+def test_update_fraction_counts_determinable_rows_only():
+    """Unsolved rows between gap rows lose track after as many unsolved rows as without
+    the gap rows in between: the window is one of determinable rows."""
+    plain, _ = both([GOOD] * W + [(SAT, 10, 0, 0, 1)] * W)
+    k = first(plain, L) - W                 # unsolved rows it takes
+    status, _ = both([GOOD] * W + [(SAT, 10, 0, 0, 1), GAP] * W)
+    assert first(status, L) == W + 2 * k
+
+
 def test_no_formed_row_is_degraded():
-    status, _ = both([(EMPTY, 0, 0, 0)] * (W - 1))
+    status, _ = both([(EMPTY, 0, 0, 0, 1)] * (W - 1))
     assert set(status) == {D}        # window not full: never lost, but nothing formed
 
 
 def test_latch_and_recovery():
     """Lost stays until a whole window after the loss is not degraded; drifted stays."""
-    rows = [GOOD] * W + [(SAT, 10, 0, 0)] * W + [GOOD] * 3 * W
+    rows = [GOOD] * W + [(SAT, 10, 0, 0, 1)] * W + [GOOD] * 3 * W
     status, drifted = both(rows)
     lost_at = first(status, L)
     back = lost_at + 1 + next(k for k, s in enumerate(status[lost_at + 1:]) if s != L)
@@ -115,7 +137,7 @@ def test_latch_and_recovery():
 
 def test_clear_forgets_loss_and_drift():
     model = StatusUnitModel(DEFAULT)
-    for row in [GOOD] * W + [(SAT, 10, 0, 0)] * W:
+    for row in [GOOD] * W + [(SAT, 10, 0, 0, 1)] * W:
         flags = model.update(*row)
     assert model.state["lost"] and model.state["drifted"] and model.state["losses"] == 1
     model.clear()
@@ -141,7 +163,7 @@ def test_window_register_restarts_and_is_flagged():
     params = DEFAULT.replace(max_window=16)
     model = StatusUnitModel(params)
     for _ in range(W):
-        model.update(SAT, 10, 0, 0)
+        model.update(SAT, 10, 0, 0, 1)
     assert model.state["lost"]
     model.set_settings(window=4)
     model.update(*GOOD)
@@ -182,9 +204,11 @@ def test_status_source_widens_flags():
 def test_model_rejects_bad_input():
     model = StatusUnitModel(DEFAULT)
     with pytest.raises(ValueError, match="flags must be an integer .* 15"):
-        model.update(16, 0, 0, 0)
+        model.update(16, 0, 0, 0, 1)
     with pytest.raises(ValueError, match="outliers must be an integer"):
-        model.update(0, 0, DEFAULT.slots + 1, 0)
+        model.update(0, 0, DEFAULT.slots + 1, 0, 1)
+    with pytest.raises(ValueError, match="determinable must be an integer"):
+        model.update(0, 0, 0, 0, 2)
     with pytest.raises(ValueError, match="unknown settings"):
         model.set_settings(windw=3)
     with pytest.raises(TypeError, match="params must be a StatusParams"):
@@ -224,7 +248,7 @@ def test_regime_rows_are_reproducible():
 def test_loss_before_acquisition_marks_no_drift():
     """Start-up rows (no reference yet: EMPTY) are LOST but leave no drift; a loss
     after the first TRACKING row does."""
-    rows = [(EMPTY, 0, 0, 0)] * 2 * W + [GOOD] * 3 * W + [(SAT, 10, 0, 0)] * W
+    rows = [(EMPTY, 0, 0, 0, 1)] * 2 * W + [GOOD] * 3 * W + [(SAT, 10, 0, 0, 1)] * W
     status, drifted = both(rows)
     acquired = first(status, T)
     assert status[W - 1] == L and acquired > 2 * W

@@ -25,12 +25,14 @@ from sim_tests.measurement.consistency.stimulus import (check_against_model, jud
                                                        random_rows)
 
 
-async def _watch_gated(dut, clock, gated):
-    """The ``gated`` output of every transfer on ``o`` (read where the sink reads)."""
+async def _watch_verdicts(dut, clock, gated, determinable):
+    """The ``gated`` and ``determinable`` outputs of every transfer on ``o`` (read where
+    the sink reads)."""
     while True:
         await ReadOnly()
         if int(dut.o__valid.value) and int(dut.o__ready.value):
             gated.append(int(dut.gated.value))
+            determinable.append(int(dut.determinable.value))
         await RisingEdge(clock.clk)
 
 
@@ -47,15 +49,15 @@ async def transfers_match_model(dut, traffic):
                           valid_prob=1.0 if busy else 0.6)
     sink = StreamSink(dut, "o", measurement_layout(params.solver), clock, rng=rng,
                       ready_prob=1.0 if busy else 0.5)
-    gated = []
+    gated, determinable = [], []
     await reset(dut)
-    cocotb.start_soon(_watch_gated(dut, clock, gated))
+    cocotb.start_soon(_watch_verdicts(dut, clock, gated, determinable))
     await source.send(judge_inputs(params, rows))
     total = sum(len(t) for t, _, _ in rows)
     await sink.wait_for(total, timeout_cycles=200 * total)
     await ClockCycles(dut.clk, 64)     # the last measurement's scale update is counted
     got = {"transfers": [payload for _, payload in sink.received], "gated": gated,
-           "counts": unpack(counts_layout(), dut.counts.value)}
+           "determinable": determinable, "counts": unpack(counts_layout(), dut.counts.value)}
     model = check_against_model(params, rows, got)
     assert set(got["counts"]) == set(COUNTS)
     dut._log.info(f"{traffic}: {total} transfers of {count} rows bit-exact; {model.counts}")

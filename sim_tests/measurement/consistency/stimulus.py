@@ -23,14 +23,20 @@ LARGE = dataclasses.replace(SMALL, scale_initial=31.0,
 
 
 def check_against_model(params, rows, got):
-    """Every transfer, the row verdicts, the counters and the scales equal the model's;
-    the per-measurement ``judged`` and ``outlier`` bits too where ``got`` has them."""
+    """Every transfer, the row verdicts (``gated``, and ``determinable`` where ``got``
+    has it: the row's on ``last``, 0 before), the counters and the scales equal the
+    model's; the per-measurement ``judged`` and ``outlier`` bits too where ``got`` has
+    them."""
     model = ConsistencyModel(params)
     n = 0
     for r, (transfers, predicted, delta) in enumerate(rows):
         want, verdict = model.apply(transfers, predicted, delta)
         row_gated = got["gated"][n + len(want) - 1]        # the verdict rides on `last`
         assert row_gated == verdict["gated"], f"row {r} gated"
+        if "determinable" in got:
+            bits = got["determinable"][n:n + len(want)]
+            assert bits == [0] * (len(want) - 1) + [int(verdict["determinable"])], \
+                f"row {r} determinable: hardware {bits}, model {verdict['determinable']}"
         for k, w in enumerate(want):
             g = got["transfers"][n]
             assert g == {**w, "conf": int(verdict["conf"][k])}, \

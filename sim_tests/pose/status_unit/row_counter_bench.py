@@ -14,7 +14,7 @@ from emulator.hdl_sim.cocotb_env import load_params
 from emulator.hdl_sim.streams import StreamSink, StreamSource
 from emulator.pose.tracking_status import count_rows
 from hdl.pose.row_counter import verdict_layout
-from hdl.pose.status_params import ROW_COUNTS
+from hdl.pose.status_params import ROW_INPUTS
 
 from sim_tests.pose.status_stimulus import random_verdicts
 
@@ -36,6 +36,6 @@ async def counts_match_model(dut, traffic):
     want = count_rows(verdicts, params.slots)
     await sink.wait_for(len(want), timeout_cycles=10 * len(verdicts) + 100)
     await ClockCycles(dut.clk, 4)
-    got = [tuple(payload[n] for n in ROW_COUNTS) for _, payload in sink.received]
+    got = [tuple(payload[n] for n in ROW_INPUTS) for _, payload in sink.received]
     assert got == want
     dut._log.info(f"{traffic}: {len(want)} rows of {len(verdicts)} verdicts bit-exact")

@@ -20,7 +20,7 @@ from emulator.hdl_sim.cocotb_env import load_params
 from emulator.hdl_sim.payload import pack, unpack
 from emulator.hdl_sim.streams import StreamSink, StreamSource
 from hdl.pose.params import solver_source
-from hdl.pose.status_params import status_source
+from hdl.pose.status_params import ROW_INPUTS, status_source
 
 from sim_tests.pose.status_stimulus import (SOLVER, expected, packable, random_records,
                                             regime_rows)
@@ -84,12 +84,10 @@ async def records_match_model(dut, traffic):
                 await RisingEdge(dut.clk)
             if k in events:
                 await ClockCycles(dut.clk, 2)
-            cocotb.start_soon(counts.send([dict(zip(("judged", "outliers", "confident"),
-                                                    row[1:]))]))
+            cocotb.start_soon(counts.send([dict(zip(ROW_INPUTS, row[1:]))]))
             await source.send([packable({**record, "flags": row[0]})])
     else:
-        cocotb.start_soon(counts.send([dict(zip(("judged", "outliers", "confident"), r[1:]))
-                                       for r in rows]))
+        cocotb.start_soon(counts.send([dict(zip(ROW_INPUTS, r[1:])) for r in rows]))
         await source.send([packable({**r, "flags": row[0]}) for r, row in zip(records, rows)])
     await sink.wait_for(len(records), timeout_cycles=20 * len(records) + 100)
     await ClockCycles(dut.clk, 8)
