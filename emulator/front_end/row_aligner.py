@@ -26,8 +26,9 @@ class RowAlignerModel:
         self.done = [False] * n
         self.missing = [False] * n
         self.absent = [False] * n
-        # Last clock's same/newer/older verdicts, and whether the target has kept still since:
-        # the wait and the commit read these, as the hardware's registers.
+        # Last clock's usable/same/newer/older verdicts, and whether the target and the
+        # floor have kept still since: every decision reads these, as the hardware does.
+        self.shown = [False] * n
         self.seen = [False] * n
         self.ahead = [False] * n
         self.behind = [False] * n
@@ -56,8 +57,10 @@ class RowAlignerModel:
         same = [usable[k] and tv and keys[k] == self.target for k in range(n)]
         older = [usable[k] and tv and _older(keys[k], self.target, bits) for k in range(n)]
         newer = [usable[k] and tv and _older(self.target, keys[k], bits) for k in range(n)]
-        seen, ahead, behind, fresh = self.seen, self.ahead, self.behind, self.fresh
-        self.seen, self.ahead, self.behind, self.fresh = same, newer, older, True
+        shown, seen, ahead, behind = self.shown, self.seen, self.ahead, self.behind
+        fresh = self.fresh
+        self.shown, self.seen, self.ahead, self.behind = usable, same, newer, older
+        self.fresh = True
         awaited = [enable[k] and not self.absent[k] and not seen[k] and not ahead[k]
                    for k in range(n)]
         live = [self.active[k] and not self.done[k] for k in range(n)]
@@ -84,9 +87,9 @@ class RowAlignerModel:
                 if not any(live[k] and not finished[k] for k in range(n)):
                     self._close_set()
         elif not self.target_valid:
-            if any(usable):
+            if fresh and any(shown):
                 self.target_valid = True
-                self.target = keys[usable.index(True)]
+                self.target = keys[shown.index(True)]
                 self.timer = 0
                 self.fresh = False
                 row_bits = p.row_bits
@@ -104,6 +107,7 @@ class RowAlignerModel:
                 self.missing = [enable[k] and not seen[k] for k in range(n)]
                 self.absent = [enable[k] and not seen[k] and not ahead[k] for k in range(n)]
                 self.streaming = any(seen)
+                self.fresh = False
                 if not any(seen):
                     self._close_set()
                 for k in range(n):

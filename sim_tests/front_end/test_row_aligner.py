@@ -147,6 +147,29 @@ def test_aligner_matches_model(busy):
     assert record["status"] == {"missing_count": [0, 2, 1], "stale_count": [1, 1, 0]}
 
 
+@pytest.mark.parametrize("busy", [True, False], ids=["full_rate", "gaps_and_backpressure"])
+def test_an_older_row_wins_over_the_target(busy):
+    """Camera 0 lost row 0 and shows row 1 first; row 0 from the others still forms its
+    set (at full rate by moving the target back), before row 1."""
+    print(f"SEED={SEED}")
+    rng = random.Random(SEED)
+    cfg = {"enable": 0b111, "timeout": 20}
+    lanes = {0: [(0, row(0, 3, 1)), (40, row(0, 3, 2))],
+             1: [(3, row(1, 3, 0)), (20, row(1, 3, 1)), (40, row(1, 3, 2))],
+             2: [(5, row(2, 3, 0)), (20, row(2, 3, 1)), (40, row(2, 3, 2))]}
+    cycles = 150
+    record = simulate(PARAMS, cfg, HEIGHT, lanes, cycles, rng, busy)
+    model = RowAlignerModel(PARAMS, cfg, HEIGHT)
+    for c in range(cycles):
+        out, taken = model.cycle(record["offers"][c], record["ready"][c])
+        assert record["outs"][c] == out, f"o differs in cycle {c}"
+        assert record["taken"][c] == taken, f"lane ready differs in cycle {c}"
+    assert record["status"] == model.status
+    assert [(f, y, lanes, missing) for f, y, lanes, missing, _ in sets_of(record)] == [
+        (3, 0, (1, 2), 0b001), (3, 1, (0, 1, 2), 0), (3, 2, (0, 1, 2), 0)]
+    assert record["status"] == {"missing_count": [1, 0, 0], "stale_count": [0, 0, 0]}
+
+
 def test_disabled_camera_is_drained_and_ignored():
     rng = random.Random(SEED)
     cfg = {"enable": 0b101, "timeout": 5}
