@@ -26,6 +26,13 @@ class RowAlignerModel:
         self.done = [False] * n
         self.missing = [False] * n
         self.absent = [False] * n
+        # Last clock's usable/same/newer/older verdicts, and whether the target and the
+        # floor have kept still since: every decision reads these, as the hardware does.
+        self.shown = [False] * n
+        self.seen = [False] * n
+        self.ahead = [False] * n
+        self.behind = [False] * n
+        self.fresh = False
         self.status = {"missing_count": [0] * n, "stale_count": [0] * n}
         self.zero = {name: 0 for name, _ in params.pixel_layout()}
 
@@ -50,7 +57,11 @@ class RowAlignerModel:
         same = [usable[k] and tv and keys[k] == self.target for k in range(n)]
         older = [usable[k] and tv and _older(keys[k], self.target, bits) for k in range(n)]
         newer = [usable[k] and tv and _older(self.target, keys[k], bits) for k in range(n)]
-        awaited = [enable[k] and not self.absent[k] and not same[k] and not newer[k]
+        shown, seen, ahead, behind = self.shown, self.seen, self.ahead, self.behind
+        fresh = self.fresh
+        self.shown, self.seen, self.ahead, self.behind = usable, same, newer, older
+        self.fresh = True
+        awaited = [enable[k] and not self.absent[k] and not seen[k] and not ahead[k]
                    for k in range(n)]
         live = [self.active[k] and not self.done[k] for k in range(n)]
         discard = [offers[k] is not None and (not enable[k] or (
@@ -76,25 +87,28 @@ class RowAlignerModel:
                 if not any(live[k] and not finished[k] for k in range(n)):
                     self._close_set()
         elif not self.target_valid:
-            if any(usable):
+            if fresh and any(shown):
                 self.target_valid = True
-                self.target = keys[usable.index(True)]
+                self.target = keys[shown.index(True)]
                 self.timer = 0
+                self.fresh = False
                 row_bits = p.row_bits
                 if not self.last_valid or self.target >> row_bits != self.last_key >> row_bits:
                     self.absent = [False] * n
-        elif any(older):
-            self.target = keys[older.index(True)]
+        elif fresh and any(behind):
+            self.target = keys[behind.index(True)]
+            self.fresh = False
         else:
-            start = not any(awaited) or self.timer >= self.cfg["timeout"]
+            start = fresh and (not any(awaited) or self.timer >= self.cfg["timeout"])
             self.timer = min(self.timer + 1, 2 ** p.timer_bits - 1)
             if start:
-                self.active = list(same)
+                self.active = list(seen)
                 self.done = [False] * n
-                self.missing = [enable[k] and not same[k] for k in range(n)]
-                self.absent = [enable[k] and not same[k] and not newer[k] for k in range(n)]
-                self.streaming = any(same)
-                if not any(same):
+                self.missing = [enable[k] and not seen[k] for k in range(n)]
+                self.absent = [enable[k] and not seen[k] and not ahead[k] for k in range(n)]
+                self.streaming = any(seen)
+                self.fresh = False
+                if not any(seen):
                     self._close_set()
                 for k in range(n):
                     if self.missing[k]:

@@ -60,9 +60,10 @@ class RowAligner(wiring.Component):
         Per camera: sets it was missing from, rows discarded as stale (both wrap).
 
     Latency: :attr:`latency` clocks while a set streams (the data path is
-    combinational); a set starts one clock after its last camera's first pixel is
-    offered. Throughput: one column per clock. Backpressure: ``o.ready`` low holds every
-    lane. Reset: waits for a new set.
+    combinational); a set starts two clocks after its last camera's first pixel is
+    offered (its decisions read the row comparisons a clock late, from flip-flops).
+    Throughput: one column per clock. Backpressure: ``o.ready`` low holds every lane.
+    Reset: waits for a new set.
     """
 
     latency = 0
@@ -119,7 +120,25 @@ class RowAligner(wiring.Component):
                             for k in range(n)), "older")
         newer = wire(m, Cat(usable[k] & target_valid & _older(target, keys[k], key_bits)
                             for k in range(n)), "newer")
-        awaited = enable & ~absent & ~same & ~newer
+        # Every decision reads the verdicts of the clock before (issue 17, LUT levels: the
+        # floor and key comparisons end at flip-flops). A usable row is popped only as
+        # part of a set, and no set's row is usable (the floor is its key), so a verdict
+        # still holds a clock later unless the target or the floor moved; ``fresh`` is low
+        # for the clock after either moves. A row older than the target still wins over a
+        # commit: the commit reads the same clock's verdicts.
+        shown = Signal(n)
+        # Per camera: its row starts a frame other than the floor's.
+        new_frame = Signal(n)
+        seen = Signal(n)
+        ahead = Signal(n)
+        behind = Signal(n)
+        fresh = Signal()
+        m.d.sync += [
+            shown.eq(usable), seen.eq(same), ahead.eq(newer), behind.eq(older), fresh.eq(1),
+            new_frame.eq(Cat(~floor_valid | (key[p.row_bits:] != floor_key[p.row_bits:])
+                             for key in keys)),
+        ]
+        awaited = enable & ~absent & ~seen & ~ahead
         live = wire(m, active & ~done, "live")
         # Rows that cannot join a set: stale rows, stray pixels, disabled cameras.
         discard = wire(m, Cat(lane.valid & (~enable[k] | (~(streaming & live[k]) &
@@ -154,25 +173,26 @@ class RowAligner(wiring.Component):
                 with m.If((live & ~finished) == 0):
                     m.d.sync += [streaming.eq(0), target_valid.eq(0)]
         with m.Elif(~target_valid):
-            with m.If(usable.any()):
-                new_target = wire(m, _lowest(usable, keys), "new_target")
-                m.d.sync += [target_valid.eq(1), target.eq(new_target), timer.eq(0)]
+            with m.If(fresh & shown.any()):
+                m.d.sync += [target_valid.eq(1), target.eq(_lowest(shown, keys)),
+                             timer.eq(0), fresh.eq(0)]
                 # The trigger brings every camera back in step at each frame.
-                with m.If(~floor_valid | (new_target[p.row_bits:] != floor_key[p.row_bits:])):
+                with m.If(_lowest(shown, new_frame)):
                     m.d.sync += absent.eq(0)
-        with m.Elif(older.any()):
-            m.d.sync += target.eq(_lowest(older, keys))
+        with m.Elif(fresh & behind.any()):
+            m.d.sync += [target.eq(_lowest(behind, keys)), fresh.eq(0)]
         with m.Else():
             m.d.sync += timer.eq(saturating_increment(timer, 2 ** p.timer_bits - 1))
-            with m.If((awaited == 0) | (timer >= self.cfg.timeout)):
+            with m.If(fresh & ((awaited == 0) | (timer >= self.cfg.timeout))):
                 m.d.sync += [
-                    active.eq(same), done.eq(0), missing.eq(enable & ~same),
-                    absent.eq(enable & ~same & ~newer),
-                    streaming.eq(same.any()), floor_valid.eq(1), floor_key.eq(target),
+                    active.eq(seen), done.eq(0), missing.eq(enable & ~seen),
+                    absent.eq(enable & ~seen & ~ahead),
+                    streaming.eq(seen.any()), floor_valid.eq(1), floor_key.eq(target),
+                    fresh.eq(0),
                 ]
-                with m.If(same == 0):
+                with m.If(seen == 0):
                     m.d.sync += target_valid.eq(0)
                 for k in range(n):
-                    with m.If(enable[k] & ~same[k]):
+                    with m.If(enable[k] & ~seen[k]):
                         m.d.sync += status.missing_count[k].eq(status.missing_count[k] + 1)
         return m

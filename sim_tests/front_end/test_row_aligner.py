@@ -121,19 +121,23 @@ def sets_of(record):
     return sets
 
 
+def assert_matches_model(params, cfg, height, record):
+    """Every cycle's output set and lane pops, and the counters, as the model has them."""
+    model = RowAlignerModel(params, cfg, height)
+    for c, (offers, ready) in enumerate(zip(record["offers"], record["ready"])):
+        out, taken = model.cycle(offers, ready)
+        assert record["outs"][c] == out, f"o differs in cycle {c}"
+        assert record["taken"][c] == taken, f"lane ready differs in cycle {c}"
+    assert record["status"] == model.status
+
+
 @pytest.mark.parametrize("busy", [True, False], ids=["full_rate", "gaps_and_backpressure"])
 def test_aligner_matches_model(busy):
     print(f"SEED={SEED}")
     rng = random.Random(SEED)
     cfg = {"enable": 0b111, "timeout": 20}
-    cycles = 400
-    record = simulate(PARAMS, cfg, HEIGHT, lanes_scenario(), cycles, rng, busy)
-    model = RowAlignerModel(PARAMS, cfg, HEIGHT)
-    for c in range(cycles):
-        out, taken = model.cycle(record["offers"][c], record["ready"][c])
-        assert record["outs"][c] == out, f"o differs in cycle {c}"
-        assert record["taken"][c] == taken, f"lane ready differs in cycle {c}"
-    assert record["status"] == model.status
+    record = simulate(PARAMS, cfg, HEIGHT, lanes_scenario(), 400, rng, busy)
+    assert_matches_model(PARAMS, cfg, HEIGHT, record)
 
     sets = sets_of(record)
     assert [(f, y, lanes, missing) for f, y, lanes, missing, _ in sets] == [
@@ -145,6 +149,23 @@ def test_aligner_matches_model(busy):
             width = 2 if (k, frame, y) == (2, 1, 1) else 4
             assert pixels[k] == [beat["data"] for beat in row(k, frame, y, width)]
     assert record["status"] == {"missing_count": [0, 2, 1], "stale_count": [1, 1, 0]}
+
+
+@pytest.mark.parametrize("busy", [True, False], ids=["full_rate", "gaps_and_backpressure"])
+def test_an_older_row_wins_over_the_target(busy):
+    """Camera 0 lost row 0 and shows row 1 first; row 0 from the others still forms its
+    set (at full rate by moving the target back), before row 1."""
+    print(f"SEED={SEED}")
+    rng = random.Random(SEED)
+    cfg = {"enable": 0b111, "timeout": 20}
+    lanes = {0: [(0, row(0, 3, 1)), (40, row(0, 3, 2))],
+             1: [(3, row(1, 3, 0)), (20, row(1, 3, 1)), (40, row(1, 3, 2))],
+             2: [(5, row(2, 3, 0)), (20, row(2, 3, 1)), (40, row(2, 3, 2))]}
+    record = simulate(PARAMS, cfg, HEIGHT, lanes, 150, rng, busy)
+    assert_matches_model(PARAMS, cfg, HEIGHT, record)
+    assert [(f, y, lanes, missing) for f, y, lanes, missing, _ in sets_of(record)] == [
+        (3, 0, (1, 2), 0b001), (3, 1, (0, 1, 2), 0), (3, 2, (0, 1, 2), 0)]
+    assert record["status"] == {"missing_count": [1, 0, 0], "stale_count": [0, 0, 0]}
 
 
 def test_disabled_camera_is_drained_and_ignored():
