@@ -124,12 +124,15 @@ def cosim_failures(cosim):
     if not cosim.rows_match:
         failures.append("HDL ↔ emulator: the HDL front end's row sets are not the slice's "
                         "rows")
-    for what, count in (("PS FIFO record", cosim.mismatches),
-                        ("solver record", cosim.solver_mismatches),
-                        ("forecast row", cosim.forecast_mismatches)):
-        if count:
-            failures.append(f"HDL ↔ emulator: {count} mismatching {what} field(s); first "
-                            f"difference: {cosim.first_mismatch}")
+    # one line for every kind that differs: the result keeps only the first difference
+    # of all of them
+    counts = [f"{count} mismatching {what} field(s)"
+              for what, count in (("PS FIFO record", cosim.mismatches),
+                                  ("solver record", cosim.solver_mismatches),
+                                  ("forecast row", cosim.forecast_mismatches)) if count]
+    if counts:
+        failures.append(f"HDL ↔ emulator: {', '.join(counts)}; first difference: "
+                        f"{cosim.first_mismatch}")
     if not cosim.uart_packets_match:
         failures.append("HDL ↔ emulator: the UART packets differ from the emulator's")
     if _count(cosim.records) and not cosim.solved:

@@ -216,6 +216,10 @@ def test_mismatches_and_silence_are_failures(outcome):
         failures = cosim_failures(_cosim_result(outcome, **{field: 1}, first_mismatch=where))
         assert failures == [f"HDL ↔ emulator: 1 mismatching {what} field(s); first "
                             f"difference: {where}"]
+    failures = cosim_failures(_cosim_result(outcome, mismatches=2, solver_mismatches=3,
+                                            first_mismatch=where))
+    assert failures == [f"HDL ↔ emulator: 2 mismatching PS FIFO record field(s), 3 "
+                        f"mismatching solver record field(s); first difference: {where}"]
     empty = {k: v[:0] for k, v in outcome.emulated.records.items()}
     assert cosim_failures(_cosim_result(outcome, records=empty, solved=0)) == [
         "HDL ↔ emulator: the co-simulated slice produced no pose record"]
