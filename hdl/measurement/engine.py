@@ -9,9 +9,10 @@ delivers row ``y`` of every camera as one stream) and the pose solver
   row set; it registers ``rows`` (its ``ready`` is the AND of every lane's, which would
   otherwise run on into the row aligner and the camera inputs, issue 17);
 * :class:`hdl.register_slice.RegisterSlice` on every lane input: the fork's ``valid``
-  follows its forecast join, and a lane's ``ready`` comes through its framer, FIR and
-  (paired) the stereo join's key comparison; registered, neither runs on into the
-  other's logic;
+  follows its forecast join, and a lane's ``ready`` comes through its framer and FIR;
+  registered, neither runs on into the other's logic. Likewise on each stereo lane's
+  two inputs: the stereo join's ``ready`` waits for both cameras' columns and would
+  otherwise chain the pair's two FIRs and framers;
 * one temporal lane per camera (:class:`hdl.row_descriptor.RowDescriptor`: the row
   against the same row of the previous frame, K segment measurements), which also
   hands its FIR's bits of the paired rows on (``paired=True``);
@@ -39,6 +40,7 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from hdl.descriptor.framer import saturate_half_width
+from hdl.descriptor.layouts import descriptor_layout
 from hdl.front_end.params import CameraParams
 from hdl.measurement.engine_params import (EngineParams, engine_config_layout,
                                            engine_status_layout)
@@ -130,6 +132,11 @@ class MeasurementEngine(wiring.Component):
             if params.follow else {}
         self.stereo_lanes = [StereoRowDescriptor(params.stereo, shared=True)
                              for _ in params.pairs]
+        # the stereo join's ``ready`` waits for both cameras' columns: registered, it does
+        # not run on into the other temporal lane's FIR and framer (issue 17, 14 LUT
+        # levels in the board top without them)
+        self.stereo_slices = [[RegisterSlice(descriptor_layout(params.stereo, 1))
+                               for _ in "ab"] for _ in params.pairs]
         self.router = MeasurementRouter(params.router)
         super().__init__({
             "rows": In(stream.Signature(params.aligned_layout())),
@@ -153,7 +160,8 @@ class MeasurementEngine(wiring.Component):
         lane = self.temporal_lanes[0]
         lanes = self.temporal_slices[0].latency + max(
             lane.latency + t.segments - 1,
-            lane.bits_latency + self.stereo_lanes[0].latency + s.segments - 1)
+            lane.bits_latency + RegisterSlice.latency + self.stereo_lanes[0].latency
+            + s.segments - 1)
         return self.fork.latency + lanes + self.router.latency - s.segments
 
     def elaborate(self, platform):
@@ -175,8 +183,10 @@ class MeasurementEngine(wiring.Component):
                 m.d.comb += lane.centre.eq(self.cfg.temporal[k])
         for j, (lane, (a, b)) in enumerate(zip(self.stereo_lanes, self.params.pairs)):
             m.submodules[f"stereo{j}"] = lane
-            connect_shared_bits(m, self.temporal_lanes[a].bits, lane.a)
-            connect_shared_bits(m, self.temporal_lanes[b].bits, lane.b)
+            for side, camera, lane_slice in zip("ab", (a, b), self.stereo_slices[j]):
+                m.submodules[f"stereo{j}_slice_{side}"] = lane_slice
+                connect_shared_bits(m, self.temporal_lanes[camera].bits, lane_slice.i)
+                wiring.connect(m, lane_slice.o, getattr(lane, side))
             wiring.connect(m, lane.o, router.stereo[j])
             m.d.comb += lane.centre.eq(self.cfg.stereo[j])
         if self.params.follow:
