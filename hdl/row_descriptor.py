@@ -15,8 +15,11 @@ A temporal lane (:class:`RowDescriptor`) chains four blocks, one pixel per clock
    refinement and the peak-ratio confidence.
 
 :class:`StereoRowDescriptor` matches the two cameras of a stereo pair against each
-other instead (two framers, :class:`hdl.descriptor.framer.StereoJoin`, a two-channel
-FIR, the matcher).
+other instead: the two rows' descriptor bits, joined column by column
+(:class:`hdl.descriptor.framer.StereoJoin`), into the matcher. In the measurement engine
+the bits are the pair's temporal lanes' (``RowDescriptor(paired=True)`` hands its FIR's
+bits on, ``StereoRowDescriptor(shared=True)`` takes them: the same filter is not built
+twice); alone, the stereo lane has a framer and a FIR per camera.
 Conventions are ``golden.descriptor``'s; the bit-accurate model is
 ``emulator/row_descriptor.py``; the formats are listed in ``docs/descriptor/row_descriptor.md``.
 """
@@ -25,19 +28,35 @@ from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from hdl.descriptor.layouts import descriptor_layout
 from hdl.descriptor.matcher import ShiftMatcher
 from hdl.descriptor.params import STEREO_640X480, RowDescriptorParams, check_lane_params
 from hdl.descriptor.store import COUNT_BITS, ReferenceStore
 from hdl.descriptor.fir import DescriptorFIR
 from hdl.descriptor.framer import RowFramer, StereoJoin
+from hdl.stream_fork import StreamFork
 
-__all__ = ["RowDescriptor", "StereoRowDescriptor"]
+__all__ = ["RowDescriptor", "StereoRowDescriptor", "connect_shared_bits"]
 
 
-def _connect_pair(m, fir, matcher):
-    """A two-channel FIR's bits as the matcher's current (camera a) and reference
-    (camera b) bits."""
-    src, dst = fir.o, matcher.i
+def connect_shared_bits(m, src, dst):
+    """A temporal lane's ``bits`` (``RowDescriptor(paired=True)``) into an input of its
+    pair's ``StereoRowDescriptor(shared=True)``: the bits and what the stereo lane
+    reads of the row's metadata (its key, ``t_first`` and ``bad``; the centre and
+    half-width are the stereo lane's own, :class:`hdl.descriptor.framer.StereoJoin`).
+    The two lanes' parameters differ in ``match``, hence in the metadata's widths."""
+    item, to = src.payload, dst.payload
+    m.d.comb += [dst.valid.eq(src.valid), src.ready.eq(dst.ready),
+                 to.bits.eq(item.bits), to.strong.eq(item.strong), to.pos.eq(item.pos),
+                 to.first.eq(item.first), to.last.eq(item.last)]
+    m.d.comb += [to.meta[name].eq(item.meta[name])
+                 for name in ("camera", "frame", "row", "t_first", "bad")]
+
+
+def _connect_pair(m, join, matcher):
+    """The joined bits as the matcher's current (camera a) and reference (camera b)
+    bits."""
+    src, dst = join.o, matcher.i
     m.d.comb += [
         dst.valid.eq(src.valid), src.ready.eq(dst.ready),
         dst.payload.cur.eq(src.payload.bits[0]), dst.payload.ref.eq(src.payload.bits[1]),
@@ -61,12 +80,18 @@ class RowDescriptor(wiring.Component):
     params : RowDescriptorParams
     follow : bool
         Follow rows: centre and source row come with each row's first beat.
+    paired : bool
+        The lane also hands its FIR's bits on (``bits``) to its pair's stereo lane, for
+        the rows whose first beat carries ``paired`` (both cameras of the pair are in
+        the row set); a :class:`hdl.stream_fork.StreamFork` gives every column to the
+        reference store and, of those rows, to ``bits``.
 
     Members
     -------
-    i : In(stream.Signature(params.input_layout(follow)))
+    i : In(stream.Signature(params.input_layout(follow, paired)))
         Camera beats, one pixel per transfer (``hdl.streams.camera_pixel_layout``, with
-        ``follow`` ``hdl.streams.followed_pixel_layout``).
+        ``follow`` ``hdl.streams.followed_pixel_layout``, with ``paired`` a ``paired``
+        bit).
     centre : In(params.centre_fmt.shape()), without ``follow`` only
         Window centre in pixels (e.g. the shift predicted from the motion), sampled
         with each row's first pixel, saturated to ``±centre_range``.
@@ -78,34 +103,45 @@ class RowDescriptor(wiring.Component):
         Measurements (formats in ``hdl.descriptor.params.row_measurement_layout``).
     out_of_range : Out(hdl.descriptor.store.COUNT_BITS), with ``follow`` only
         Rows whose source row was outside the range the ring serves (saturating).
+    bits : Out(stream.Signature(descriptor_layout(params, 1))), with ``paired`` only
+        The FIR's columns of the paired rows (``connect_shared_bits``), :attr:`bits_latency`
+        clocks after their pixels.
 
     Latency :attr:`latency` clocks from a row's last pixel to its segment-0
     measurement (segment k follows k clocks later); one pixel per clock with no
-    bubbles between rows. Backpressure on ``o`` stalls the pipeline back to ``i``.
-    Reset empties the pipeline; the reference store keeps its contents but every
-    reference is invalid until a full frame has passed (tags start invalid).
+    bubbles between rows. Backpressure on ``o`` (and on ``bits`` for a paired row) stalls
+    the pipeline back to ``i``. Reset empties the pipeline; the reference store keeps
+    its contents but every reference is invalid until a full frame has passed (tags
+    start invalid).
     """
 
-    def __init__(self, params=RowDescriptorParams(), follow=False):
+    def __init__(self, params=RowDescriptorParams(), follow=False, paired=False):
         self.params = check_lane_params(params)
         self.store = ReferenceStore(params, follow)
-        self.follow = follow
-        self.framer = RowFramer(params, follow)
+        self.follow, self.paired = follow, paired
+        self.framer = RowFramer(params, follow, paired)
         self.fir = DescriptorFIR(params)
+        self.tap = StreamFork(descriptor_layout(params, 1), 2) if paired else None
         self.matcher = ShiftMatcher(params)
-        members = {"i": In(stream.Signature(params.input_layout(follow))),
+        members = {"i": In(stream.Signature(params.input_layout(follow, paired))),
                    "half_width": In(params.half_width_fmt.shape()),
                    "o": Out(stream.Signature(params.measurement_layout()))}
         if follow:
             members["out_of_range"] = Out(COUNT_BITS)
         else:
             members["centre"] = In(params.centre_fmt.shape())
+        if paired:
+            members["bits"] = Out(stream.Signature(descriptor_layout(params, 1)))
         super().__init__(members)
 
     @property
+    def bits_latency(self):
+        """Clocks from a pixel to its column on ``bits`` (the fork adds none)."""
+        return self.framer.latency + self.fir.latency
+
+    @property
     def latency(self):
-        return self.framer.latency + self.fir.latency + self.store.latency + \
-            self.matcher.latency
+        return self.bits_latency + self.store.latency + self.matcher.latency
 
     def elaborate(self, platform):
         m = Module()
@@ -120,7 +156,18 @@ class RowDescriptor(wiring.Component):
         else:
             m.d.comb += self.framer.centre.eq(self.centre)
         wiring.connect(m, self.framer.o, self.fir.i)
-        wiring.connect(m, self.fir.o, self.store.i)
+        if self.paired:
+            m.submodules.tap = tap = self.tap
+            wiring.connect(m, self.fir.o, tap.i)
+            wiring.connect(m, tap.o[0], self.store.i)
+            # the stereo lane sees only paired rows; the others' columns pass it by
+            shared = tap.o[1]
+            paired = shared.payload.meta.paired
+            m.d.comb += [self.bits.payload.eq(shared.payload),
+                         self.bits.valid.eq(shared.valid & paired),
+                         shared.ready.eq(self.bits.ready | ~paired)]
+        else:
+            wiring.connect(m, self.fir.o, self.store.i)
         wiring.connect(m, self.store.o, self.matcher.i)
         wiring.connect(m, self.matcher.o, wiring.flipped(self.o))
         return m
@@ -131,52 +178,72 @@ class StereoRowDescriptor(wiring.Component):
     ``b``'s row of the same time (``cur[x] ≈ ref[x − d]``: ``a`` is the left camera of a
     rectified pair). Default window ``[10, 70]`` px (``STEREO_640X480``).
 
+    Parameters
+    ----------
+    params : RowDescriptorParams
+    shared : bool
+        Take the two rows' descriptor bits from the pair's temporal lanes
+        (``RowDescriptor(paired=True).bits`` through ``connect_shared_bits``, the
+        measurement engine's way: their parameters' descriptor must be these) instead
+        of framing and filtering camera beats in the lane (a framer and a FIR per
+        camera).
+
     Members
     -------
-    a, b : In(stream.Signature(params.input_layout()))
-        Beats of the two cameras.
+    a, b : In(stream.Signature(params.input_layout())), or with ``shared``
+           In(stream.Signature(descriptor_layout(params, 1)))
+        Beats, or descriptor bits, of the two cameras.
     centre : In(params.centre_fmt.shape())
-        Window centre, sampled with the first pixel of each row of ``a``.
+        Window centre, sampled with the first column of each row of ``a`` the lane
+        pairs with ``b``'s (:class:`hdl.descriptor.framer.StereoJoin`).
     o : Out(stream.Signature(params.measurement_layout()))
-        Measurements with ``a``'s metadata; ``bad`` if either row was bad;
-        ``no_reference`` is always 0.
+        Measurements with ``a``'s row key and ``t_first``; ``bad`` if either row was
+        bad; ``no_reference`` is always 0.
 
     The stereo lane searches its whole built window (no run-time half-width).
 
-    Latency :attr:`latency` from the later of the pair's last pixels to segment 0.
-    No memory: the reference is the partner row itself.
+    Latency :attr:`latency` from the later of the pair's last pixels (with ``shared``:
+    last descriptor columns) to segment 0. No memory: the reference is the partner row
+    itself.
     """
 
-    def __init__(self, params=STEREO_640X480):
+    def __init__(self, params=STEREO_640X480, shared=False):
         self.params = check_lane_params(params)
-        self.framer_a = RowFramer(params)
-        self.framer_b = RowFramer(params)
+        self.shared = shared
+        self.fronts = [] if shared else [(RowFramer(params), DescriptorFIR(params))
+                                         for _ in "ab"]
         self.join = StereoJoin(params)
-        self.fir = DescriptorFIR(params, channels=2)
         self.matcher = ShiftMatcher(params)
+        beat = descriptor_layout(params, 1) if shared else params.input_layout()
         super().__init__({
-            "a": In(stream.Signature(params.input_layout())),
-            "b": In(stream.Signature(params.input_layout())),
+            "a": In(stream.Signature(beat)),
+            "b": In(stream.Signature(beat)),
             "centre": In(params.centre_fmt.shape()),
             "o": Out(stream.Signature(params.measurement_layout())),
         })
 
     @property
     def latency(self):
-        return self.framer_a.latency + self.join.latency + self.fir.latency + \
-            self.matcher.latency
+        front = sum(block.latency for block in self.fronts[0]) if self.fronts else 0
+        return front + self.join.latency + self.matcher.latency
 
     def elaborate(self, platform):
         m = Module()
-        for name in ("framer_a", "framer_b", "join", "fir", "matcher"):
-            m.submodules[name] = getattr(self, name)
-        wiring.connect(m, wiring.flipped(self.a), self.framer_a.i)
-        wiring.connect(m, wiring.flipped(self.b), self.framer_b.i)
-        m.d.comb += [self.framer_a.centre.eq(self.centre), self.framer_b.centre.eq(0),
-                     self.framer_a.half_width.eq(self.params.max_half_width)]
-        wiring.connect(m, self.framer_a.o, self.join.a)
-        wiring.connect(m, self.framer_b.o, self.join.b)
-        wiring.connect(m, self.join.o, self.fir.i)
-        _connect_pair(m, self.fir, self.matcher)
+        m.submodules.join = join = self.join
+        m.submodules.matcher = self.matcher
+        if self.shared:
+            wiring.connect(m, wiring.flipped(self.a), join.a)
+            wiring.connect(m, wiring.flipped(self.b), join.b)
+        for name, (framer, fir), port, to in zip("ab", self.fronts, (self.a, self.b),
+                                                 (join.a, join.b)):
+            m.submodules[f"framer_{name}"] = framer
+            m.submodules[f"fir_{name}"] = fir
+            wiring.connect(m, wiring.flipped(port), framer.i)
+            wiring.connect(m, framer.o, fir.i)
+            wiring.connect(m, fir.o, to)
+            # the join samples the lane's centre; the stereo window has no run-time width
+            m.d.comb += [framer.centre.eq(0), framer.half_width.eq(0)]
+        m.d.comb += join.centre.eq(self.centre)
+        _connect_pair(m, join, self.matcher)
         wiring.connect(m, self.matcher.o, wiring.flipped(self.o))
         return m

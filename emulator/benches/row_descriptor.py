@@ -214,7 +214,8 @@ def report(figures):
 [{t.match.shift_min}, {t.match.shift_max}] around a run-time centre (±{t.centre_range}),
 {t.segments} segments, {t.scan_lanes} scan lanes — and `StereoRowDescriptor` (camera
 pair) with `STEREO_640X480` (window [{s.match.shift_min}, {s.match.shift_max}],
-{s.segments} segment).
+{s.segments} segment; alone, with a framer and a FIR per camera: in the measurement
+engine it takes the bits of its pair's temporal lanes instead).
 
 Throughput and latency: {f['pixels_played'] // t.width} rows of 640 pixels (three
 frames of 24 rows) played at one pixel per clock into the generated Verilog (cocotb +

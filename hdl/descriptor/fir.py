@@ -13,7 +13,8 @@ __all__ = ["DescriptorFIR"]
 
 
 class DescriptorFIR(wiring.Component):
-    """Second-derivative-of-Gaussian FIR and sign, one column per clock per channel.
+    """Second-derivative-of-Gaussian FIR and sign of one camera's rows, one column per
+    clock.
 
     The window holds the last ``2R + 1`` pixels of the row; the symmetric kernel is
     applied as ``R + 1`` pre-added pairs times constant coefficients (raw
@@ -24,8 +25,8 @@ class DescriptorFIR(wiring.Component):
 
     Members
     -------
-    i : In(stream.Signature(framed_layout(params, channels)))
-    o : Out(stream.Signature(descriptor_layout(params, channels)))
+    i : In(stream.Signature(framed_layout(params, 1)))
+    o : Out(stream.Signature(descriptor_layout(params, 1)))
 
     Latency :attr:`latency` clocks; one column per clock; backpressure stalls the whole
     pipeline (``i.ready`` low while ``o`` holds an untaken item). Reset clears the
@@ -33,15 +34,12 @@ class DescriptorFIR(wiring.Component):
     masked).
     """
 
-    def __init__(self, params, channels=1):
+    def __init__(self, params):
         self.params = check_lane_params(params)
-        if channels not in (1, 2):
-            raise ValueError(f"channels must be 1 or 2, not {channels!r}")
-        self.channels = channels
         self._terms = sum(1 for q in self._pair_coeffs() if q != 0)
         super().__init__({
-            "i": In(stream.Signature(framed_layout(params, channels))),
-            "o": Out(stream.Signature(descriptor_layout(params, channels))),
+            "i": In(stream.Signature(framed_layout(params, 1))),
+            "o": Out(stream.Signature(descriptor_layout(params, 1))),
         })
 
     def _pair_coeffs(self):
@@ -68,7 +66,7 @@ class DescriptorFIR(wiring.Component):
         m.d.comb += self.i.ready.eq(advance)
 
         # control that rides along: one record per stage, valid bit separate
-        ctrl_layout = descriptor_layout(p, self.channels)
+        ctrl_layout = descriptor_layout(p, 1)
         stages = self.tree_levels + 2                 # window, pre-add, product, tree…
         valid = [Signal(name=f"valid{k}") for k in range(stages + 1)]
         ctrl = [Signal(ctrl_layout, name=f"ctrl{k}") for k in range(stages + 1)]
@@ -82,59 +80,55 @@ class DescriptorFIR(wiring.Component):
 
         pixel_fmt = p.pixel_fmt
         coeffs = self._pair_coeffs()
-        out_bits, out_strong = [], []
         tau = p.strong_raw()
-        for ch in range(self.channels):
-            window = [Signal(p.pixel_bits, name=f"w{ch}_{t}") for t in range(2 * r + 1)]
-            with m.If(advance & self.i.valid):
-                m.d.sync += window[0].eq(item.pixels[ch])
-                m.d.sync += [window[t].eq(window[t - 1]) for t in range(1, 2 * r + 1)]
-            # pre-add the symmetric pairs (registered)
-            pair_fmt = UQ(pixel_fmt.int_bits + 1, 0)
-            pairs = []
-            for d, q in enumerate(coeffs):
-                if q == 0:
-                    continue
-                s = Signal(pair_fmt.shape(), name=f"pair{ch}_{d}")
-                value = window[r] if d == 0 else hdl_add(window[r - d], pixel_fmt,
-                                                          window[r + d], pixel_fmt)[0]
-                with m.If(advance):
-                    m.d.sync += s.eq(value)
-                pairs.append((s, q))
-            # constant products (registered)
-            terms = []
-            for s, q in pairs:
-                value, fmt = hdl_mul(s, pair_fmt, Const(q, p.coeff_fmt.shape()), p.coeff_fmt)
-                prod = Signal(fmt.shape(), name=f"prod{ch}_{len(terms)}")
-                with m.If(advance):
-                    m.d.sync += prod.eq(value)
-                terms.append((prod, fmt))
-            # adder tree, one registered level per clock; the last level keeps the sign
-            for level in range(self.tree_levels):
-                nxt = []
-                for t in range(0, len(terms), 2):
-                    if t + 1 < len(terms):
-                        value, fmt = hdl_add(*terms[t], *terms[t + 1])
-                    else:
-                        value, fmt = terms[t]
-                    nxt.append((value, fmt))
-                if level == self.tree_levels - 1:
-                    bit, strong = Signal(name=f"bit{ch}"), Signal(name=f"strong{ch}")
-                    interior = ctrl[stages - 1].pos >= 2 * r
-                    total = nxt[0][0]
-                    with m.If(advance):
-                        m.d.sync += [bit.eq((total > 0) & interior),
-                                     strong.eq(((total >= tau) | (total <= -tau)) & interior)]
-                    out_bits.append(bit)
-                    out_strong.append(strong)
+        window = [Signal(p.pixel_bits, name=f"w{t}") for t in range(2 * r + 1)]
+        with m.If(advance & self.i.valid):
+            m.d.sync += window[0].eq(item.pixels[0])
+            m.d.sync += [window[t].eq(window[t - 1]) for t in range(1, 2 * r + 1)]
+        # pre-add the symmetric pairs (registered)
+        pair_fmt = UQ(pixel_fmt.int_bits + 1, 0)
+        pairs = []
+        for d, q in enumerate(coeffs):
+            if q == 0:
+                continue
+            s = Signal(pair_fmt.shape(), name=f"pair{d}")
+            value = window[r] if d == 0 else hdl_add(window[r - d], pixel_fmt,
+                                                      window[r + d], pixel_fmt)[0]
+            with m.If(advance):
+                m.d.sync += s.eq(value)
+            pairs.append((s, q))
+        # constant products (registered)
+        terms = []
+        for s, q in pairs:
+            value, fmt = hdl_mul(s, pair_fmt, Const(q, p.coeff_fmt.shape()), p.coeff_fmt)
+            prod = Signal(fmt.shape(), name=f"prod{len(terms)}")
+            with m.If(advance):
+                m.d.sync += prod.eq(value)
+            terms.append((prod, fmt))
+        # adder tree, one registered level per clock; the last level keeps the sign
+        for level in range(self.tree_levels):
+            nxt = []
+            for t in range(0, len(terms), 2):
+                if t + 1 < len(terms):
+                    value, fmt = hdl_add(*terms[t], *terms[t + 1])
                 else:
-                    regs = []
-                    for value, fmt in nxt:
-                        reg = Signal(fmt.shape(), name=f"sum{ch}_{level}_{len(regs)}")
-                        with m.If(advance):
-                            m.d.sync += reg.eq(value)
-                        regs.append((reg, fmt))
-                    terms = regs
+                    value, fmt = terms[t]
+                nxt.append((value, fmt))
+            if level == self.tree_levels - 1:
+                bit, strong = Signal(name="bit"), Signal(name="strong")
+                interior = ctrl[stages - 1].pos >= 2 * r
+                total = nxt[0][0]
+                with m.If(advance):
+                    m.d.sync += [bit.eq((total > 0) & interior),
+                                 strong.eq(((total >= tau) | (total <= -tau)) & interior)]
+            else:
+                regs = []
+                for value, fmt in nxt:
+                    reg = Signal(fmt.shape(), name=f"sum{level}_{len(regs)}")
+                    with m.If(advance):
+                        m.d.sync += reg.eq(value)
+                    regs.append((reg, fmt))
+                terms = regs
 
         last = ctrl[stages]
         m.d.comb += [
@@ -142,6 +136,5 @@ class DescriptorFIR(wiring.Component):
             self.o.payload.pos.eq(last.pos), self.o.payload.first.eq(last.first),
             self.o.payload.last.eq(last.last), self.o.payload.meta.eq(last.meta),
         ]
-        for ch, (bit, strong) in enumerate(zip(out_bits, out_strong)):
-            m.d.comb += [self.o.payload.bits[ch].eq(bit), self.o.payload.strong[ch].eq(strong)]
+        m.d.comb += [self.o.payload.bits[0].eq(bit), self.o.payload.strong[0].eq(strong)]
         return m

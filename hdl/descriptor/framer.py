@@ -1,15 +1,22 @@
 """Framing of the row-descriptor lanes (:mod:`hdl.row_descriptor`): rows of exactly
-``width`` pixels out of a camera beat stream (:class:`RowFramer`), and two framed
-streams of a stereo pair joined column by column (:class:`StereoJoin`)."""
+``width`` pixels out of a camera beat stream (:class:`RowFramer`), and the descriptor
+bits of a stereo pair's two rows joined column by column (:class:`StereoJoin`)."""
 
 from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from hdl.descriptor.layouts import framed_layout
+from hdl.descriptor.layouts import descriptor_layout, framed_layout
 from hdl.descriptor.params import check_lane_params
 
-__all__ = ["RowFramer", "StereoJoin", "saturate_half_width"]
+__all__ = ["RowFramer", "StereoJoin", "saturate_centre", "saturate_half_width"]
+
+
+def saturate_centre(params, value):
+    """A run-time window centre (``centre_fmt``) saturated to ``±centre_range``
+    (``params.clamp_centre`` in gateware), as the lanes sample it."""
+    cr = params.centre_range
+    return Mux(value > cr, cr, Mux(value < -cr, -cr, value))
 
 
 def saturate_half_width(params, value):
@@ -38,10 +45,13 @@ class RowFramer(wiring.Component):
         The beats carry their row's centre and source row
         (``hdl.streams.followed_pixel_layout``) instead of a ``centre`` port; without,
         ``meta.source`` is the row itself.
+    paired : bool
+        The beats carry ``paired`` (``params.input_layout(follow, paired=True)``), kept
+        in ``meta.paired``; without, ``meta.paired`` is 0.
 
     Members
     -------
-    i : In(stream.Signature(params.input_layout(follow)))
+    i : In(stream.Signature(params.input_layout(follow, paired)))
         Camera beats (``hdl.streams.camera_pixel_layout``).
     centre : In(params.centre_fmt.shape()), without ``follow`` only
         Shift-window centre, integer pixels, sampled with each row's first beat and
@@ -59,10 +69,10 @@ class RowFramer(wiring.Component):
 
     latency = 1
 
-    def __init__(self, params, follow=False):
+    def __init__(self, params, follow=False, paired=False):
         self.params = check_lane_params(params)
-        self.follow = follow
-        members = {"i": In(stream.Signature(params.input_layout(follow))),
+        self.follow, self.paired = follow, paired
+        members = {"i": In(stream.Signature(params.input_layout(follow, paired))),
                    "o": Out(stream.Signature(framed_layout(params, 1))),
                    "half_width": In(params.half_width_fmt.shape())}
         if not follow:
@@ -91,15 +101,14 @@ class RowFramer(wiring.Component):
         short = take & beat.last & ~at_end
         long_row = take & at_end & ~beat.last
 
-        cr = p.centre_range
-        centre = Mux(asked > cr, cr, Mux(asked < -cr, -cr, asked))
         item = Signal.like(self.o.payload)
         with m.If(opens):
             m.d.comb += [
                 item.meta.camera.eq(beat.camera), item.meta.frame.eq(beat.frame),
                 item.meta.row.eq(beat.row), item.meta.t_first.eq(beat.t_first),
-                item.meta.centre.eq(centre), item.meta.source.eq(source),
+                item.meta.centre.eq(saturate_centre(p, asked)), item.meta.source.eq(source),
                 item.meta.half_width.eq(saturate_half_width(p, self.half_width)[0]),
+                item.meta.paired.eq(beat.paired if self.paired else 0),
             ]
         with m.Else():
             m.d.comb += item.meta.eq(meta)
@@ -128,18 +137,25 @@ class RowFramer(wiring.Component):
 
 
 class StereoJoin(wiring.Component):
-    """Pair the framed rows of a stereo pair column by column.
+    """Pair the descriptor bits of a stereo pair's rows column by column.
 
     At a row boundary the two head rows are compared: same (frame, row) → their columns
-    go out together (``pixels[0]`` from ``a``, ``pixels[1]`` from ``b``; metadata from
-    ``a``, ``bad`` from either); otherwise the older row (frame order modulo
-    ``2**frame_bits``, then row index) is dropped whole, so one lost row does not
-    misalign the pair for good.
+    go out together (``bits[0]``/``strong[0]`` from ``a``, ``bits[1]``/``strong[1]`` from
+    ``b``); otherwise the older row (frame order modulo ``2**frame_bits``, then row
+    index) is dropped whole, so one lost row does not misalign the pair for good.
+
+    The output's metadata is the stereo lane's own: ``camera``, ``frame``, ``row``,
+    ``t_first`` from ``a``, ``bad`` from either, the ``centre`` port sampled with the
+    first column pair of each row (saturated to ``±centre_range``) and the built
+    maximum half-width (the stereo lane searches its whole window); whatever centre,
+    half-width or source row the inputs carry (a temporal lane's, the forecast's in the
+    closed loop) is not used.
 
     Members
     -------
-    a, b : In(stream.Signature(framed_layout(params, 1)))
-    o : Out(stream.Signature(framed_layout(params, 2)))
+    a, b : In(stream.Signature(descriptor_layout(params, 1)))
+    centre : In(params.centre_fmt.shape())
+    o : Out(stream.Signature(descriptor_layout(params, 2)))
 
     Latency 1 (output register); one column pair per clock; two different head rows
     wait one clock before the older starts to drop.
@@ -150,9 +166,10 @@ class StereoJoin(wiring.Component):
     def __init__(self, params):
         self.params = check_lane_params(params)
         super().__init__({
-            "a": In(stream.Signature(framed_layout(params, 1))),
-            "b": In(stream.Signature(framed_layout(params, 1))),
-            "o": Out(stream.Signature(framed_layout(params, 2))),
+            "a": In(stream.Signature(descriptor_layout(params, 1))),
+            "b": In(stream.Signature(descriptor_layout(params, 1))),
+            "centre": In(params.centre_fmt.shape()),
+            "o": Out(stream.Signature(descriptor_layout(params, 2))),
         })
 
     def elaborate(self, platform):
@@ -182,13 +199,22 @@ class StereoJoin(wiring.Component):
             self.a.ready.eq((pairing & self.b.valid & advance) | drop_a),
             self.b.ready.eq((pairing & self.a.valid & advance) | drop_b),
         ]
+        centre = Signal.like(self.o.payload.meta.centre)     # of the row being paired
+        sampled = saturate_centre(p, self.centre)
+        with m.If(paired & a.first):
+            m.d.sync += centre.eq(sampled)
         out = self.o.payload
         with m.If(advance):
             m.d.sync += [
                 self.o.valid.eq(both & pairing),
-                out.pixels[0].eq(a.pixels[0]), out.pixels[1].eq(b.pixels[0]),
+                out.bits[0].eq(a.bits[0]), out.bits[1].eq(b.bits[0]),
+                out.strong[0].eq(a.strong[0]), out.strong[1].eq(b.strong[0]),
                 out.pos.eq(a.pos), out.first.eq(a.first), out.last.eq(a.last),
-                out.meta.eq(a.meta), out.meta.bad.eq(a.meta.bad | b.meta.bad),
+                out.meta.camera.eq(a.meta.camera), out.meta.frame.eq(a.meta.frame),
+                out.meta.row.eq(a.meta.row), out.meta.t_first.eq(a.meta.t_first),
+                out.meta.bad.eq(a.meta.bad | b.meta.bad),
+                out.meta.centre.eq(Mux(a.first, sampled, centre)),
+                out.meta.half_width.eq(p.max_half_width),
             ]
         with m.If(paired):
             m.d.sync += mode.eq(Mux(a.last, 0, 1))

@@ -342,17 +342,23 @@ class RowDescriptorParams:
 
     # --- stream layouts (Amaranth imported only when asked for) -------------------------
 
-    def input_layout(self, follow=False):
+    def input_layout(self, follow=False, paired=False):
         """The camera pixel stream this lane consumes (one pixel per transfer); with
         ``follow`` each beat also carries its row's window centre and source row
-        (``hdl.streams.followed_pixel_layout``)."""
+        (``hdl.streams.followed_pixel_layout``); with ``paired`` a ``paired`` bit,
+        sampled with the row's first beat: the row also goes to the pair's stereo lane
+        (``hdl.row_descriptor.RowDescriptor``)."""
+        from amaranth.lib import data
+
         from hdl.streams import camera_pixel_layout, followed_pixel_layout
         camera = {"pixel_bits": self.pixel_bits, "camera_bits": self.camera_bits,
                   "frame_bits": self.frame_bits, "row_bits": self.row_bits,
                   "timestamp_bits": self.timestamp_bits}
         if follow:
-            return followed_pixel_layout(centre_fmt=self.centre_fmt, **camera)
-        return camera_pixel_layout(**camera)
+            layout = followed_pixel_layout(centre_fmt=self.centre_fmt, **camera)
+        else:
+            layout = camera_pixel_layout(**camera)
+        return data.StructLayout({**layout.members, "paired": 1}) if paired else layout
 
     def measurement_layout(self):
         """The measurement stream (one transfer per segment per row)."""

@@ -4,16 +4,22 @@ Between the camera front end (:class:`hdl.front_end.camera_sync.CameraFrontEnd`,
 delivers row ``y`` of every camera as one stream) and the pose solver
 (:class:`hdl.pose_solver.PoseSolver`) sit
 
-* :class:`hdl.measurement.row_set_fork.RowSetFork`: each camera's beats to its lanes, one ticket per
+* :class:`hdl.measurement.row_set_fork.RowSetFork`: each camera's beats to its temporal
+  lane, marked ``paired`` when the camera's pair is complete in the set, one ticket per
   row set; it registers ``rows`` (its ``ready`` is the AND of every lane's, which would
   otherwise run on into the row aligner and the camera inputs, issue 17);
 * :class:`hdl.register_slice.RegisterSlice` on every lane input: the fork's ``valid``
-  follows its forecast join, and a stereo lane's ``ready`` comes through two framers
-  and the join's key comparison; registered, neither runs on into the other's logic;
+  follows its forecast join, and a lane's ``ready`` comes through its framer and FIR;
+  registered, neither runs on into the other's logic. Likewise on each stereo lane's
+  two inputs: the stereo join's ``ready`` waits for both cameras' columns and would
+  otherwise chain the pair's two FIRs and framers;
 * one temporal lane per camera (:class:`hdl.row_descriptor.RowDescriptor`: the row
-  against the same row of the previous frame, K segment measurements);
+  against the same row of the previous frame, K segment measurements), which also
+  hands its FIR's bits of the paired rows on (``paired=True``);
 * one stereo lane per rectified pair (:class:`hdl.row_descriptor.StereoRowDescriptor`:
-  camera A's row against camera B's), fed only when both cameras are in the set;
+  camera A's row against camera B's) on the bits of its pair's two temporal lanes
+  (``shared=True``: the descriptor filter is built once per camera), fed only the rows
+  of sets in which both cameras are;
 * the measurement router (:class:`hdl.measurement.router.MeasurementRouter`): each
   ticket's measurements to the solver's slots, with the pair's disparity as depth cue.
 
@@ -22,7 +28,8 @@ In the closed loop (``EngineParams.follow``, issue 16) the temporal lanes follow
 forecast's window centre), a ``forecast`` input takes the forecast's rows
 (:class:`hdl.measurement.forecast_rows.ForecastRows` gathers each), and the fork joins
 one with each row set, checking their row keys (mismatches counted and resynchronized,
-:mod:`hdl.measurement.row_set_fork`). The stereo lanes stay at the ``cfg`` centre.
+:mod:`hdl.measurement.row_set_fork`). The stereo lanes stay at the ``cfg`` centre and
+their built window: they take the temporal lanes' bits, not their rows' metadata.
 
 The bit-accurate model is :mod:`emulator.measurement.engine`; ``docs/measurement/measurement_engine.md``
 has the figures.
@@ -33,6 +40,7 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from hdl.descriptor.framer import saturate_half_width
+from hdl.descriptor.layouts import descriptor_layout
 from hdl.front_end.params import CameraParams
 from hdl.measurement.engine_params import (EngineParams, engine_config_layout,
                                            engine_status_layout)
@@ -40,7 +48,7 @@ from hdl.measurement.forecast_rows import ForecastRows
 from hdl.measurement.router import MeasurementRouter
 from hdl.pose.params import PoseSolverParams
 from hdl.pose_solver import measurement_layout
-from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor
+from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor, connect_shared_bits
 from hdl.measurement.row_set_fork import RowSetFork
 from hdl.register_slice import RegisterSlice
 
@@ -82,8 +90,9 @@ class MeasurementEngine(wiring.Component):
         ``source_row``, ``row``, ``last``), one per row set in camera-row order.
     cfg : In(engine_config_layout(params))
         ``temporal[k]`` (without ``follow``): window centre of camera ``k``'s temporal
-        lane; ``stereo[j]``: of pair ``j``'s stereo lane (integer pixels,
-        ``centre_fmt``, sampled with each row's first pixel, saturated to
+        lane, sampled with each row's first pixel; ``stereo[j]``: of pair ``j``'s stereo
+        lane, sampled with each paired row's first descriptor column, the temporal
+        lanes' ``bits_latency`` clocks later (integer pixels, ``centre_fmt``, saturated to
         ``±centre_range``); ``enable``: 0 drops row sets (counted), sampled with each
         set's first column; ``half_width``: every temporal lane's run-time window
         half-width (``centre ± w`` within the built window, sampled with each row's
@@ -113,16 +122,21 @@ class MeasurementEngine(wiring.Component):
             raise TypeError(f"params must be an EngineParams, not {params!r}")
         self.params = params
         self.fork = RowSetFork(params)
-        self.temporal_lanes = [RowDescriptor(params.temporal, params.follow)
+        self.temporal_lanes = [RowDescriptor(params.temporal, params.follow, paired=True)
                                for _ in range(params.cameras)]
-        self.temporal_slices = [RegisterSlice(params.temporal.input_layout(params.follow))
+        self.temporal_slices = [RegisterSlice(params.temporal.input_layout(params.follow,
+                                                                           paired=True))
                                 for _ in range(params.cameras)]
         self.forecast_rows = ForecastRows(params) if params.follow else None
         follow = {"forecast": In(stream.Signature(params.forecast_layout()))} \
             if params.follow else {}
-        self.stereo_lanes = [StereoRowDescriptor(params.stereo) for _ in params.pairs]
-        beat = params.pixel_layout()
-        self.stereo_slices = [(RegisterSlice(beat), RegisterSlice(beat)) for _ in params.pairs]
+        self.stereo_lanes = [StereoRowDescriptor(params.stereo, shared=True)
+                             for _ in params.pairs]
+        # the stereo join's ``ready`` waits for both cameras' columns: registered, it does
+        # not run on into the other temporal lane's FIR and framer (issue 17, 14 LUT
+        # levels in the board top without them)
+        self.stereo_slices = [[RegisterSlice(descriptor_layout(params.stereo, 1))
+                               for _ in "ab"] for _ in params.pairs]
         self.router = MeasurementRouter(params.router)
         super().__init__({
             "rows": In(stream.Signature(params.aligned_layout())),
@@ -135,17 +149,19 @@ class MeasurementEngine(wiring.Component):
     @property
     def latency(self):
         """Clocks from a row set's last column to its row's first solver transfer when
-        nothing stalls: the fork's input register, the later of the lanes' last
-        measurements (temporal segment K − 1, stereo segment K_s − 1, each after its
-        lane's input slice), then the router, whose count from a ticket includes the
-        clock a measurement takes into its lane FIFO and the K_s clocks that take the
-        stereo measurements, all but the last overlapping their arrival (66 clocks with
-        K_s = 1, 67 with K_s = 2 on 256-pixel rows, measured in the cocotb benches)."""
+        nothing stalls: the fork's input register, a temporal lane's input slice, the
+        later of the lanes' last measurements (temporal segment K − 1; stereo segment
+        K_s − 1, its lane after the temporal lanes' FIRs), then the router, whose count
+        from a ticket includes the clock a measurement takes into its lane FIFO and the
+        K_s clocks that take the stereo measurements, all but the last overlapping their
+        arrival (66 clocks with K_s = 1, 67 with K_s = 2 on 256-pixel rows, measured in
+        the cocotb benches)."""
         t, s = self.params.temporal, self.params.stereo
-        lanes = max(self.temporal_slices[0].latency + self.temporal_lanes[0].latency
-                    + t.segments - 1,
-                    self.stereo_slices[0][0].latency + self.stereo_lanes[0].latency
-                    + s.segments - 1)
+        lane = self.temporal_lanes[0]
+        lanes = self.temporal_slices[0].latency + max(
+            lane.latency + t.segments - 1,
+            lane.bits_latency + RegisterSlice.latency + self.stereo_lanes[0].latency
+            + s.segments - 1)
         return self.fork.latency + lanes + self.router.latency - s.segments
 
     def elaborate(self, platform):
@@ -165,15 +181,12 @@ class MeasurementEngine(wiring.Component):
                 m.d.comb += self.status.out_of_range[k].eq(lane.out_of_range)
             else:
                 m.d.comb += lane.centre.eq(self.cfg.temporal[k])
-        for j, lane in enumerate(self.stereo_lanes):
+        for j, (lane, (a, b)) in enumerate(zip(self.stereo_lanes, self.params.pairs)):
             m.submodules[f"stereo{j}"] = lane
-            slice_a, slice_b = self.stereo_slices[j]
-            m.submodules[f"stereo{j}_slice_a"] = slice_a
-            m.submodules[f"stereo{j}_slice_b"] = slice_b
-            wiring.connect(m, fork.stereo_a[j], slice_a.i)
-            wiring.connect(m, slice_a.o, lane.a)
-            wiring.connect(m, fork.stereo_b[j], slice_b.i)
-            wiring.connect(m, slice_b.o, lane.b)
+            for side, camera, lane_slice in zip("ab", (a, b), self.stereo_slices[j]):
+                m.submodules[f"stereo{j}_slice_{side}"] = lane_slice
+                connect_shared_bits(m, self.temporal_lanes[camera].bits, lane_slice.i)
+                wiring.connect(m, lane_slice.o, getattr(lane, side))
             wiring.connect(m, lane.o, router.stereo[j])
             m.d.comb += lane.centre.eq(self.cfg.stereo[j])
         if self.params.follow:

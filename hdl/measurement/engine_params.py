@@ -30,6 +30,10 @@ _BEAT_FIELDS = {"width": "max_width", "height": "max_height", "pixel_bits": "pix
                 "camera_bits": "camera_bits", "frame_bits": "frame_bits",
                 "row_bits": "row_bits", "timestamp_bits": "timestamp_bits"}
 
+#: Lane parameters that, with the beat's, fix a row's descriptor bits (the framer's and
+#: the FIR's): the stereo lanes take the temporal lanes' bits, so they must agree.
+_DESCRIPTOR_FIELDS = ("descriptor", "coeff_frac_bits")
+
 
 @dataclass(frozen=True, kw_only=True)
 class EngineParams:
@@ -39,7 +43,9 @@ class EngineParams:
     ----------
     router : RouterParams
         Cameras, stereo pairs, the temporal and stereo lanes' parameters and the pose
-        solver's. Both lane parameter sets must take the same camera beat.
+        solver's. Both lane parameter sets must take the same camera beat and have the
+        same ``descriptor`` and ``coeff_frac_bits``: each stereo lane matches the bits
+        its pair's temporal lanes compute (``StereoRowDescriptor(shared=True)``).
     count_bits : int
         Width of the engine's own wrapping counters (row sets in, dropped, stereo rows
         skipped, forecast mismatches).
@@ -70,7 +76,7 @@ class EngineParams:
                              f"store computes its addresses meanwhile), not "
                              f"{self.router.temporal.radius}")
         t, s = self.router.temporal, self.router.stereo
-        for name in _BEAT_FIELDS:
+        for name in (*_BEAT_FIELDS, *_DESCRIPTOR_FIELDS):
             if getattr(t, name) != getattr(s, name):
                 raise ValueError(f"router.stereo.{name} must be router.temporal.{name} "
                                  f"({getattr(t, name)}), not {getattr(s, name)}")

@@ -1,11 +1,13 @@
 """Fan-out of the aligned row sets to the row-descriptor lanes, with one ticket per set.
 
 The row aligner (:mod:`hdl.front_end.row_aligner`) delivers row ``y`` of every camera as one
-stream, a column per transfer (:func:`hdl.streams.aligned_row_layout`). The lanes of the
-measurement engine each take one camera's beats: the temporal lane of camera ``k``, and
-the ``a`` or ``b`` input of the stereo lane of the pair camera ``k`` belongs to. The
-router (:mod:`hdl.measurement.router`) needs to know which lanes got which row: one
-*ticket* per row set, marking the temporal lanes and the stereo lanes that received it.
+stream, a column per transfer (:func:`hdl.streams.aligned_row_layout`). The temporal
+lane of camera ``k`` takes camera ``k``'s beats; the stereo lane of its pair takes the
+descriptor bits of those rows from the pair's two temporal lanes, so each beat also
+says whether its row goes on to the stereo lane (``paired``: both cameras of the pair
+are in the set). The router (:mod:`hdl.measurement.router`) needs to know which lanes
+got which row: one *ticket* per row set, marking the temporal lanes and the stereo
+lanes that received it.
 
 In the closed loop (``EngineParams.follow``) the fork also joins each row set with its
 forecast row (:class:`hdl.measurement.forecast_rows.ForecastRows`): the temporal lanes'
@@ -43,12 +45,12 @@ __all__ = ["RowSetFork"]
 
 
 class RowSetFork(wiring.Component):
-    """Eager fork of row sets into per-lane camera beat streams.
+    """Eager fork of row sets into per-camera beat streams.
 
     Each column of a row set goes to every output it is addressed to, exactly once: to
-    ``temporal[k]`` when lane ``k`` carries a beat, to ``stereo_a[j]`` / ``stereo_b[j]``
-    when pair ``j`` = (A, B) is complete in the set (both cameras in it) and its camera
-    carries a beat, and, with the set's first column, to ``tickets``. An output that
+    ``temporal[k]`` when lane ``k`` carries a beat (``paired`` when camera ``k``'s pair
+    is complete in the set: both cameras in it) and, with the set's first column, to
+    ``tickets``. An output that
     takes the column early is marked *taken* and waits; the column is consumed when
     every addressed output has taken it. When ``enable`` (sampled with the set's first
     column) is 0 the set is consumed and counted as dropped, and no output sees it.
@@ -66,11 +68,10 @@ class RowSetFork(wiring.Component):
     enable : In(1)
     forecast : In(stream.Signature(params.forecast_row_layout())), with ``follow`` only
         Forecast rows, one taken per row set handed on (see the module docstring).
-    temporal : Out(stream.Signature(params.temporal.input_layout(follow))).array(cameras)
-    stereo_a, stereo_b : Out(stream.Signature(params.pixel_layout())).array(pairs)
-        Camera beats, unchanged (``hdl.streams.camera_pixel_layout``); with ``follow``
-        the temporal beats carry the forecast row's ``centre[k]`` and ``source[k]``
-        (valid with the set's first column, which the lanes sample).
+    temporal : Out(stream.Signature(params.temporal.input_layout(follow, True))).array(cameras)
+        Camera beats (``hdl.streams.camera_pixel_layout``) and ``paired``; with
+        ``follow`` also the forecast row's ``centre[k]`` and ``source[k]`` (valid with
+        the set's first column, which the lanes sample).
     tickets : Out(stream.Signature(ticket_layout(params.router)))
         ``cameras``: the temporal lanes that get the set; ``pairs``: the stereo lanes;
         ``frame``, ``row``: the set's row key.
@@ -90,18 +91,14 @@ class RowSetFork(wiring.Component):
         if not isinstance(params, EngineParams):
             raise TypeError(f"params must be an EngineParams, not {params!r}")
         self.params = params
-        beat = stream.Signature(params.pixel_layout())
-        n_pairs = len(params.pairs)
         follow = {"forecast": In(stream.Signature(params.forecast_row_layout()))} \
             if params.follow else {}
         super().__init__({
             "i": In(stream.Signature(params.aligned_layout())),
             "enable": In(1),
             **follow,
-            "temporal": Out(stream.Signature(params.temporal.input_layout(params.follow)))
-            .array(params.cameras),
-            "stereo_a": Out(beat).array(n_pairs),
-            "stereo_b": Out(beat).array(n_pairs),
+            "temporal": Out(stream.Signature(
+                params.temporal.input_layout(params.follow, paired=True))).array(params.cameras),
             "tickets": Out(stream.Signature(ticket_layout(params.router))),
             "status": Out(fork_status_layout(params)),
         })
@@ -118,13 +115,8 @@ class RowSetFork(wiring.Component):
                                   "complete": len(p.pairs), **joinable})
 
     def _outputs(self):
-        """Every output port with the camera whose beats it carries (None: tickets) and
-        the stereo pair it serves (None: a temporal lane or the tickets)."""
-        pairs = self.params.pairs
-        return ([(port, k, None) for k, port in enumerate(self.temporal)] +
-                [(port, a, j) for j, (port, (a, _)) in enumerate(zip(self.stereo_a, pairs))] +
-                [(port, b, j) for j, (port, (_, b)) in enumerate(zip(self.stereo_b, pairs))] +
-                [(self.tickets, None, None)])
+        """Every output port with the camera whose beats it carries (None: tickets)."""
+        return [*enumerate(self.temporal), (None, self.tickets)]
 
     def elaborate(self, platform):
         p = self.params
@@ -162,13 +154,8 @@ class RowSetFork(wiring.Component):
         # of every output's ``done`` is taken over the addressed ones alone, from
         # registers, and ``enabled`` (the join's verdict) joins it last
         taken, done = [], []
-        for port, camera, pair in self._outputs():
-            if camera is None:
-                addressed = opens
-            elif pair is None:
-                addressed = live[camera]
-            else:
-                addressed = live[camera] & pairs[pair]
+        for camera, port in self._outputs():
+            addressed = opens if camera is None else live[camera]
             flag = Signal(name=f"taken{len(taken)}")
             m.d.comb += port.valid.eq(head.valid & enabled & addressed & ~flag)
             taken.append(flag)
@@ -178,17 +165,15 @@ class RowSetFork(wiring.Component):
                      head.ready.eq((~enabled | all_done) & ~(opens & join["wait"]))]
         transfer = head.valid & head.ready
 
-        for port, camera, pair in self._outputs():
-            if camera is None:
-                continue
-            if p.follow and pair is None:
+        pair_index = {camera: j for j, pair in enumerate(p.pairs) for camera in pair}
+        for camera, port in enumerate(self.temporal):
+            m.d.comb += [port.payload[name].eq(col.lanes[camera][name])
+                         for name, _ in p.pixel_layout()]
+            m.d.comb += port.payload.paired.eq(pairs[pair_index[camera]])
+            if p.follow:
                 forecast = self.forecast.payload
-                m.d.comb += [port.payload[name].eq(col.lanes[camera][name])
-                             for name, _ in p.pixel_layout()]
                 m.d.comb += [port.payload.centre.eq(forecast.centre[camera]),
                              port.payload.source.eq(forecast.source[camera])]
-            else:
-                m.d.comb += port.payload.eq(col.lanes[camera])
         if p.follow:
             # the forecast row is taken with the set's first column
             with m.If(transfer & opens & join["accept"]):
@@ -204,7 +189,7 @@ class RowSetFork(wiring.Component):
             with m.If(opens):
                 m.d.sync += [set_enable.eq(join["accept"]), set_pairs.eq(complete)]
         with m.Else():
-            for (port, _, _), flag in zip(self._outputs(), taken):
+            for (_, port), flag in zip(self._outputs(), taken):
                 with m.If(port.valid & port.ready):
                     m.d.sync += flag.eq(1)
 

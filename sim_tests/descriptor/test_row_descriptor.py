@@ -11,7 +11,9 @@ import random
 
 import numpy as np
 import pytest
-from amaranth.hdl import Fragment
+from amaranth.hdl import Fragment, Module
+from amaranth.lib import stream, wiring
+from amaranth.lib.wiring import In, Out
 from amaranth.sim import Simulator
 
 from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel
@@ -21,7 +23,7 @@ from golden.descriptor import STEREO_MATCH, MatchParams
 from hdl.fixed import SQ, UQ
 from hdl.descriptor.matcher import SerialDivider
 from hdl.descriptor.fir import DescriptorFIR
-from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor
+from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor, connect_shared_bits
 from hdl.descriptor.params import STEREO_640X480, TEMPORAL_640X480, RowDescriptorParams
 from emulator.hdl_sim.row_stimulus import (frame_beats, inject_faults,
                                                       moving_rows, row_beats)
@@ -49,9 +51,7 @@ def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_pro
     stream, like ``centres`` (default: the port stays 0, read as the built maximum).
     """
     rng = random.Random(seed)
-    params = dut.params
-    in_layout = params.input_layout(centres is None)
-    out_layout = params.measurement_layout()
+    out_layout = dut.o.payload.shape()
     names = list(streams)
     accepted = {name: [] for name in names}
     outputs = []
@@ -71,7 +71,8 @@ def simulate(dut, streams, centres, expected, *, seed, valid_prob=1.0, ready_pro
                     offering[name] = rng.random() < valid_prob
                 ctx.set(port.valid, offering[name])
                 if idx < len(streams[name]):
-                    ctx.set(port.payload.as_value(), pack(in_layout, streams[name][idx]))
+                    ctx.set(port.payload.as_value(),
+                            pack(port.payload.shape(), streams[name][idx]))
             if centres is not None:
                 ctx.set(dut.centre, centres[min(len(accepted[names[0]]), len(centres) - 1)])
             if half_widths is not None:
@@ -134,8 +135,8 @@ def test_bad_params(kwargs, error, message):
 def test_bad_block_arguments():
     with pytest.raises(TypeError, match="params must be a RowDescriptorParams"):
         RowDescriptor(MatchParams())
-    with pytest.raises(ValueError, match="channels must be 1 or 2, not 3"):
-        DescriptorFIR(SMALL, channels=3)
+    with pytest.raises(TypeError, match="params must be a RowDescriptorParams"):
+        DescriptorFIR(MatchParams())
 
 
 def test_quantized_kernel():
@@ -294,3 +295,80 @@ def test_stereo_lane_matches_model():
     outputs, accepted = simulate(StereoRowDescriptor(p), {"a": left, "b": right}, centres,
                                  len(expected), seed=SEED, valid_prob=0.8, ready_prob=0.6)
     assert [m for _, m in outputs] == expected, f"SEED={SEED}"
+
+
+class SharedPair(wiring.Component):
+    """The measurement engine's pair: two paired temporal lanes at their own centre
+    ``TEMPORAL_CENTRE`` and narrowest half-width, their bits into a shared stereo lane
+    (``centre`` is the stereo lane's); the temporal measurements are drained."""
+
+    TEMPORAL_CENTRE = -3
+
+    def __init__(self, stereo, temporal):
+        self.params = stereo
+        self.lanes = [RowDescriptor(temporal, paired=True) for _ in "ab"]
+        self.stereo = StereoRowDescriptor(stereo, shared=True)
+        beat = stream.Signature(temporal.input_layout(paired=True))
+        super().__init__({"a": In(beat), "b": In(beat),
+                          "centre": In(stereo.centre_fmt.shape()),
+                          "o": Out(stream.Signature(stereo.measurement_layout()))})
+
+    @property
+    def latency(self):
+        return self.lanes[0].bits_latency + self.stereo.latency
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.stereo = self.stereo
+        for name, lane, to in zip("ab", self.lanes, (self.stereo.a, self.stereo.b)):
+            m.submodules[name] = lane
+            wiring.connect(m, wiring.flipped(getattr(self, name)), lane.i)
+            m.d.comb += [lane.centre.eq(self.TEMPORAL_CENTRE), lane.o.ready.eq(1),
+                         lane.half_width.eq(lane.params.min_half_width)]
+            connect_shared_bits(m, lane.bits, to)
+        m.d.comb += self.stereo.centre.eq(self.centre)
+        wiring.connect(m, self.stereo.o, wiring.flipped(self.o))
+        return m
+
+
+def test_shared_stereo_lane_keeps_its_own_centre_and_window():
+    """Rows of a pair's temporal lanes, some without their partner (a row set missing
+    camera b, another missing camera a: those rows are not ``paired``), into a stereo
+    lane on their bits: its measurements are the stereo model's on the paired rows at
+    the stereo centres (per row, saturation included) and the stereo window; the
+    temporal lanes' centre and half-width would move the shifts."""
+    p = SMALL_STEREO
+    temporal = SMALL.replace(height=p.height)
+    rng = np.random.default_rng(SEED)
+    frames, _ = moving_rows(rng, 3, p.height, p.width + 60)
+    left = frame_beats(frames[:, :, 20:p.width + 20])
+    right = frame_beats(frames[:, :, 60:], camera=1)          # disparity 40
+    rows_a = [left[n:n + p.width] for n in range(0, len(left), p.width)]
+    rows_b = [right[n:n + p.width] for n in range(0, len(right), p.width)]
+    rows_a[6][-1] = dict(rows_a[6][-1], flags=2)             # a bad row of a pair
+    lone_a, lone_b = 5, 9                                    # b, then a, missing
+    a, b, centres, paired_a, paired_b, model_centres = [], [], [], [], [], []
+    for n, (row_a, row_b) in enumerate(zip(rows_a, rows_b)):
+        centre = int(rng.integers(-6, 7))
+        if n != lone_b:
+            paired = int(n != lone_a)
+            a += [dict(beat, paired=paired) for beat in row_a]
+            centres += [centre] * len(row_a)
+            if paired:
+                paired_a += row_a
+                model_centres += [centre] * len(row_a)
+        if n != lone_a:
+            paired = int(n != lone_b)
+            b += [dict(beat, paired=paired) for beat in row_b]
+            if paired:
+                paired_b += row_b
+    expected = StereoLaneModel(p).run(paired_a, model_centres, paired_b)
+    assert len(expected) == len(rows_a) - 2 and any(m["bad"] for m in expected)
+    good = [m for m in expected if not m["bad"]]
+    assert good and all(m["shift"] in (39, 40, 41) for m in good)
+    for traffic in ("full_rate", "gaps_and_backpressure"):
+        busy = traffic == "full_rate"
+        outputs, _ = simulate(SharedPair(p, temporal), {"a": a, "b": b}, centres,
+                              len(expected), seed=SEED, valid_prob=1.0 if busy else 0.8,
+                              ready_prob=1.0 if busy else 0.6)
+        assert [m for _, m in outputs] == expected, f"{traffic}, SEED={SEED}"

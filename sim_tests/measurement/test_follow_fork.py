@@ -23,7 +23,8 @@ from emulator.measurement.engine import (fork_row_sets, forecast_rows, join_fore
 from hdl.measurement.engine_params import EngineParams
 from hdl.measurement.forecast_rows import ForecastRows
 from hdl.measurement.row_set_fork import RowSetFork
-from sim_tests.measurement.test_measurement_engine import CAMERA, PAIRS, SOLVER, _row
+from sim_tests.measurement.test_measurement_engine import (CAMERA, PAIRS, SOLVER, _row,
+                                                           stereo_beats)
 
 SEED = int(os.environ.get("SEED", "3"))
 HEIGHT = CAMERA.max_height
@@ -72,9 +73,8 @@ def simulate(params, sets, configs, forecast, rng, busy):
     columns = [(column, cfg["enable"]) for row_set, cfg in zip(sets, configs)
                for column in row_set_columns(params, row_set)]
     ports = [("temporal", k, p) for k, p in enumerate(fork.temporal)] + \
-        [("stereo_a", j, p) for j, p in enumerate(fork.stereo_a)] + \
-        [("stereo_b", j, p) for j, p in enumerate(fork.stereo_b)] + [("tickets", 0, fork.tickets)]
-    out = {name: {} for name in ("temporal", "stereo_a", "stereo_b", "tickets")}
+        [("tickets", 0, fork.tickets)]
+    out = {name: {} for name in ("temporal", "tickets")}
     record = {}
 
     async def forecasts(ctx):
@@ -153,8 +153,9 @@ def test_forecast_join_matches_model(params, busy):
             assert {name: g[name] for name in b} == b, f"temporal lane {k}"
             if b["first"]:          # the lane samples centre and source with it
                 assert (g["centre"], g["source"]) == (c, s), f"temporal lane {k}, {b}"
+    temporal = [out["temporal"].get(k, []) for k in range(params.cameras)]
     for j, (beats_a, _, beats_b) in enumerate(model.stereo):
-        assert out["stereo_a"].get(j, []) == beats_a and out["stereo_b"].get(j, []) == beats_b
+        assert stereo_beats(params, temporal, j) == [beats_a, beats_b], f"stereo lane {j}"
     assert record["status"] == {"row_sets": model.status["row_sets"],
                                 "dropped": model.status["dropped"], **join_status}
     assert record["stereo_skipped"] == model.status["stereo_skipped"]

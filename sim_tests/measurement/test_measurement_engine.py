@@ -8,6 +8,7 @@ SEED replays a run (printed).
 
 import os
 import random
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -78,6 +79,17 @@ def test_engine_params_checks(params):
     with pytest.raises(ValueError, match=r"router.stereo.width must be router.temporal.width "
                                          r"\(256\), not 300"):
         EngineParams(router=narrow)
+    # the stereo lanes match the temporal lanes' bits: one descriptor for both
+    router = params.router
+    sharper = replace(router, stereo=router.stereo.replace(
+        descriptor=router.stereo.descriptor.replace(sigma=1.5)))
+    with pytest.raises(ValueError, match=r"router.stereo.descriptor must be "
+                                         r"router.temporal.descriptor \(DescriptorParams\("):
+        EngineParams(router=sharper)
+    finer = replace(router, stereo=router.stereo.replace(coeff_frac_bits=12))
+    with pytest.raises(ValueError, match=r"router.stereo.coeff_frac_bits must be "
+                                         r"router.temporal.coeff_frac_bits \(16\), not 12"):
+        EngineParams(router=finer)
     with rejected_components():
         with pytest.raises(TypeError, match="params must be an EngineParams"):
             MeasurementEngine(params.router)
@@ -159,17 +171,29 @@ def random_row_sets(params, rng, count):
     return sets, configs
 
 
+def camera_beats(params, beats):
+    """A temporal output's beats as plain camera beats (the model's: without ``paired``
+    and, with ``follow``, the forecast's ``centre`` and ``source``)."""
+    names = [name for name, _ in params.pixel_layout()]
+    return [{name: beat[name] for name in names} for beat in beats]
+
+
+def stereo_beats(params, temporal, j):
+    """The beats of pair ``j``'s cameras A and B that go on to its stereo lane: those
+    of the rows the fork marked ``paired`` (each row's flag rides on its beats)."""
+    return [camera_beats(params, [b for b in temporal[camera] if b["paired"]])
+            for camera in params.pairs[j]]
+
+
 def simulate_fork(params, sets, configs, rng, busy):
     """Play the row sets into a RowSetFork; returns what every output took, the cycles
     the input took a column, and the final status."""
     dut = RowSetFork(params)
     columns = [(column, cfg["enable"], x == 0) for row_set, cfg in zip(sets, configs)
                for x, column in enumerate(row_set_columns(params, row_set))]
-    outputs = {name: [[] for _ in getattr(dut, name)] for name in
-               ("temporal", "stereo_a", "stereo_b")}
-    outputs["tickets"] = [[]]
-    ports = [(name, n, port) for name in ("temporal", "stereo_a", "stereo_b")
-             for n, port in enumerate(getattr(dut, name))] + [("tickets", 0, dut.tickets)]
+    outputs = {"temporal": [[] for _ in dut.temporal], "tickets": [[]]}
+    ports = [("temporal", n, port) for n, port in enumerate(dut.temporal)] + \
+        [("tickets", 0, dut.tickets)]
     record = {"taken": []}
 
     def take_outputs(ctx):
@@ -230,10 +254,11 @@ def test_fork_matches_model(params, busy):
     model = fork_row_sets(params, sets, configs)
     assert outputs["tickets"][0] == model.tickets
     for k, (beats, _) in enumerate(model.temporal):
-        assert outputs["temporal"][k] == beats, f"temporal lane {k}"
+        assert camera_beats(params, outputs["temporal"][k]) == beats, f"temporal lane {k}"
     for j, (beats_a, _, beats_b) in enumerate(model.stereo):
-        assert outputs["stereo_a"][j] == beats_a, f"stereo lane {j}, camera a"
-        assert outputs["stereo_b"][j] == beats_b, f"stereo lane {j}, camera b"
+        got_a, got_b = stereo_beats(params, outputs["temporal"], j)
+        assert got_a == beats_a, f"stereo lane {j}, camera a"
+        assert got_b == beats_b, f"stereo lane {j}, camera b"
     assert record["status"] == model.status
     assert model.status["dropped"] > 0 and any(model.status["stereo_skipped"])
     if busy:        # one column per clock when nobody stalls
