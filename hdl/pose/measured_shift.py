@@ -15,7 +15,9 @@ the forecast's copy (its memories' second port and its own Horner datapath; no t
 copy of the store).
 
 One measurement at a time: :attr:`latency` clocks from its transfer to ``o.valid``; the
-next is taken when the result has gone or goes in the same clock. The consistency stage
+next is taken the clock after the result has gone, so that ``i.ready`` does not depend on
+``o.ready`` (issue 17: the consistency stage's ready reached the measurement router
+through this unit, 11 LUT levels in the board top). The consistency stage
 after it needs more clocks per measurement than that (its ``latency``, 13 at two bits per
 clock), so the unit adds its latency to a row's first measurement only.
 """
@@ -85,7 +87,7 @@ class MeasuredShift(wiring.Component):
         held = Signal(query_layout(p, self.stage))
         active, issuing, term = Signal(), Signal(), Signal(range(6))
         take = Signal()
-        m.d.comb += [self.i.ready.eq(~active & (~self.o.valid | self.o.ready)),
+        m.d.comb += [self.i.ready.eq(~active & ~self.o.valid),
                      take.eq(self.i.valid & self.i.ready),
                      self.coef.slot.eq(held.slot), self.coef.row.eq(held.row),
                      self.coef.term.eq(term)]
