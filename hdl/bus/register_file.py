@@ -34,12 +34,12 @@ class RegisterFile(wiring.Component):
     axi : In(AXI4LiteSignature(addr_width))
     <group> : Out(Signature)
         One member per group, and in it one per register: ``rw`` → ``Out(shape)`` (the
-        stored value), ``ro`` → ``In(shape)`` (sampled when the read address is taken),
-        ``wo`` → ``Out(Signature(data: shape, stb: count))`` (``stb[k]`` high for one
-        clock when element ``k`` was written), ``const`` → no port. ``shape`` is the
-        register's shape, or an ``ArrayLayout`` of it when ``count > 1``.
+        stored value), ``ro`` → ``In(shape)`` (sampled the clock after the read address
+        is taken), ``wo`` → ``Out(Signature(data: shape, stb: count))`` (``stb[k]`` high
+        for one clock when element ``k`` was written), ``const`` → no port. ``shape`` is
+        the register's shape, or an ``ArrayLayout`` of it when ``count > 1``.
 
-    Latency: a read answers the clock after its address is taken; a write is accepted
+    Latency: a read answers two clocks after its address is taken; a write is accepted
     when address and data are both valid and answers the next clock. One read and one
     write can be in flight at once. Reset: ``rw`` registers return to their reset
     values.
@@ -148,17 +148,23 @@ class RegisterFile(wiring.Component):
                                     if w.last:
                                         m.d.sync += stb[w.index].eq(1)
 
-        # Reads: one at a time, answered the clock after the address is taken.
+        # Reads: one at a time. The decoded address is registered and the word read the
+        # clock after (issue 17: the decoder, the status blocks' logic and the word
+        # multiplexer made one 12-LUT-level path in the board top); answered then.
+        r_pending, r_hit = Signal(), Signal()
+        r_index = Signal(regmap.addr_bits - 2)
         r_valid = Signal()
         r_resp = Signal(2)
         r_data = Signal(32)
-        m.d.comb += [axi.arready.eq(~r_valid), axi.rvalid.eq(r_valid),
+        m.d.comb += [axi.arready.eq(~r_pending & ~r_valid), axi.rvalid.eq(r_valid),
                      axi.rresp.eq(r_resp), axi.rdata.eq(r_data)]
         with m.If(axi.arvalid & axi.arready):
-            m.d.sync += [r_valid.eq(1), r_resp.eq(RESP_SLVERR), r_data.eq(0)]
             hit, index = self._decode(axi.araddr)
-            with m.If(hit):
-                with m.Switch(index):
+            m.d.sync += [r_pending.eq(1), r_hit.eq(hit), r_index.eq(index)]
+        with m.If(r_pending):
+            m.d.sync += [r_pending.eq(0), r_valid.eq(1), r_resp.eq(RESP_SLVERR), r_data.eq(0)]
+            with m.If(r_hit):
+                with m.Switch(r_index):
                     for w in regmap.words():
                         reg = w.register
                         if reg.access is Access.WO:
