@@ -2,7 +2,7 @@
 one port per register, so a block adds a register by adding a line to its group in
 :mod:`hdl.bus.regmap`, with no decoder changes."""
 
-from amaranth.hdl import Cat, Const, Module, Signal, Value
+from amaranth.hdl import Cat, Const, Module, Mux, Signal, Value
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
@@ -34,12 +34,12 @@ class RegisterFile(wiring.Component):
     axi : In(AXI4LiteSignature(addr_width))
     <group> : Out(Signature)
         One member per group, and in it one per register: ``rw`` → ``Out(shape)`` (the
-        stored value), ``ro`` → ``In(shape)`` (sampled when the read address is taken),
-        ``wo`` → ``Out(Signature(data: shape, stb: count))`` (``stb[k]`` high for one
-        clock when element ``k`` was written), ``const`` → no port. ``shape`` is the
-        register's shape, or an ``ArrayLayout`` of it when ``count > 1``.
+        stored value), ``ro`` → ``In(shape)`` (sampled the clock after the read address
+        is taken), ``wo`` → ``Out(Signature(data: shape, stb: count))`` (``stb[k]`` high
+        for one clock when element ``k`` was written), ``const`` → no port. ``shape`` is
+        the register's shape, or an ``ArrayLayout`` of it when ``count > 1``.
 
-    Latency: a read answers the clock after its address is taken; a write is accepted
+    Latency: a read answers two clocks after its address is taken; a write is accepted
     when address and data are both valid and answers the next clock. One read and one
     write can be in flight at once. Reset: ``rw`` registers return to their reset
     values.
@@ -148,31 +148,38 @@ class RegisterFile(wiring.Component):
                                     if w.last:
                                         m.d.sync += stb[w.index].eq(1)
 
-        # Reads: one at a time, answered the clock after the address is taken.
+        # Reads: one at a time. The decoded address is registered, and the word is read
+        # the clock after through a balanced multiplexer tree on the index bits (issue 17:
+        # the decoder, a case statement over every word and the status blocks' logic made
+        # one 12-LUT-level path in the board top); answered then.
+        r_pending, r_hit = Signal(), Signal()
+        r_index = Signal(regmap.addr_bits - 2)
         r_valid = Signal()
         r_resp = Signal(2)
         r_data = Signal(32)
-        m.d.comb += [axi.arready.eq(~r_valid), axi.rvalid.eq(r_valid),
+        m.d.comb += [axi.arready.eq(~r_pending & ~r_valid), axi.rvalid.eq(r_valid),
                      axi.rresp.eq(r_resp), axi.rdata.eq(r_data)]
         with m.If(axi.arvalid & axi.arready):
-            m.d.sync += [r_valid.eq(1), r_resp.eq(RESP_SLVERR), r_data.eq(0)]
             hit, index = self._decode(axi.araddr)
-            with m.If(hit):
-                with m.Switch(index):
-                    for w in regmap.words():
-                        reg = w.register
-                        if reg.access is Access.WO:
-                            continue
-                        if reg.access is Access.RW:
-                            source = stored[(w.group.name, reg.name)]
-                        elif reg.access is Access.RO:
-                            source = Value.cast(getattr(getattr(self, w.group.name), reg.name))
-                        else:
-                            source = Const(reg.value << (w.index * reg.width),
-                                           reg.width * reg.count)
-                        with m.Case(w.offset // WORD_BYTES):
-                            m.d.sync += [r_data.eq(self._word_value(w, element(w, source))),
-                                         r_resp.eq(RESP_OKAY)]
+            m.d.sync += [r_pending.eq(1), r_hit.eq(hit), r_index.eq(index)]
+        readable = {}
+        for w in regmap.words():
+            reg = w.register
+            if reg.access is Access.RW:
+                source = stored[(w.group.name, reg.name)]
+            elif reg.access is Access.RO:
+                source = Value.cast(getattr(getattr(self, w.group.name), reg.name))
+            elif reg.access is Access.CONST:
+                source = Const(reg.value << (w.index * reg.width), reg.width * reg.count)
+            else:
+                continue
+            readable[w.offset // WORD_BYTES] = self._word_value(w, element(w, source))
+        okay = Const(sum(1 << i for i in readable), 1 << len(r_index))
+        with m.If(r_pending):
+            m.d.sync += [r_pending.eq(0), r_valid.eq(1),
+                         r_data.eq(Mux(r_hit, _select(readable, r_index), 0)),
+                         r_resp.eq(Mux(r_hit & okay.bit_select(r_index, 1),
+                                       RESP_OKAY, RESP_SLVERR))]
         with m.Elif(axi.rvalid & axi.rready):
             m.d.sync += r_valid.eq(0)
         return m
@@ -187,3 +194,19 @@ class RegisterFile(wiring.Component):
             parts.append(element[piece.src:piece.src + piece.width])
             at = piece.dst + piece.width
         return Cat(*parts)
+
+
+def _select(words, index, bit=None):
+    """``words[index]`` (a dict of word index → 32-bit value; 0 elsewhere) as a balanced
+    tree of 2:1 multiplexers on the bits of ``index``, the highest first: its depth grows
+    with the index width, not with the number of words as a case statement's does."""
+    bit = len(index) - 1 if bit is None else bit
+    if not words:
+        return Const(0, 32)
+    if bit < 0:
+        (value,) = words.values()
+        return value
+    half = 1 << bit
+    low = {i: v for i, v in words.items() if not i & half}
+    high = {i & ~half: v for i, v in words.items() if i & half}
+    return Mux(index[bit], _select(high, index, bit - 1), _select(low, index, bit - 1))
