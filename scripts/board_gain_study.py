@@ -3,8 +3,8 @@
 On the hw_tracking benchmark's own sequences (:func:`emulator.benches.tracker.noisy_sequence`,
 12 frames) of a rig, per-row one-frame motion Y RMS against truth:
 
-* ``golden``: golden (b) (``reference="previous"``, ``follow_rows=True``, the hardware's
-  loop delay of 1 row) with ``motion_gain`` ``"scalar"`` (the hardware's law) and
+* ``golden``: golden (b) (``reference="previous"``, ``follow_rows=True``, the hardware
+  path's loop delay) with ``motion_gain`` ``"scalar"`` (the hardware's law) and
   ``"information"``;
 * ``hardware``: the emulator's closed loop (:func:`emulator.benches.hw_tracking.hardware_path`)
   with its filter's level moved by golden's information gain instead of the scalar
@@ -29,11 +29,12 @@ from golden.tracker_solve import TYPICAL_SMOOTHING
 
 
 def golden_runs(dataset):
-    from emulator.hardware_path import golden_b_params
+    from emulator.hardware_path import golden_b_params, hardware_config
     from golden.metrics import evaluate
     from golden.tracker import track
+    delay = hardware_config(dataset.rig).forecast().loop_delay_rows
     for gain in ("scalar", "information"):
-        params = dataclasses.replace(golden_b_params(1), motion_gain=gain)
+        params = dataclasses.replace(golden_b_params(delay), motion_gain=gain)
         m = evaluate(track(dataset, params), dataset)
         yield f"golden (b), {gain} gain", m["rms_t_cm"], m["rms_r_rad"], None
 

@@ -150,7 +150,7 @@ class StatusUnit(wiring.Component):
                         m.d.sync += [record.eq(self.i.payload), window.eq(effective),
                                      applied.eq(effective), restart.eq(effective != applied),
                                      state.window_error.eq(effective != asked),
-                                 determinable.eq(self.row.payload.determinable),
+                                     determinable.eq(self.row.payload.determinable),
                                      *(getattr(entry, k).eq(v) for k, v in incoming.items())]
                         m.next = "SUM"
             with m.State("SUM"):

@@ -51,7 +51,7 @@ from hdl.pose.row_counter import verdict_layout
 from hdl.pose_solver import PoseSolver, measurement_layout, record_layout
 from hdl.stream_fork import StreamFork
 
-__all__ = ["TrackingLoop", "loop_counters_layout", "verdict_layout"]
+__all__ = ["TrackingLoop", "loop_counters_layout"]
 
 
 def loop_counters_layout(params):

@@ -23,7 +23,8 @@ from emulator.hdl_sim.payload import pack, unpack
 from emulator.hdl_sim.streams import StreamSink, StreamSource
 from hdl.measurement.consistency import counts_layout, settings_init, settings_layout
 from hdl.pose.forecast_predictor import output_layout
-from hdl.pose.tracking_loop import loop_counters_layout, verdict_layout
+from hdl.pose.row_counter import verdict_layout
+from hdl.pose.tracking_loop import loop_counters_layout
 from hdl.pose_solver import measurement_layout, record_layout
 
 from sim_tests.pose.forecast.forecast_bench import _indexed
