@@ -45,10 +45,12 @@ def hardware_config(rig):
     return PipelineConfig.for_rig(rig, stereo_segments=DEFAULT_SEGMENTS)
 
 
-def golden_b_params(loop_delay_rows):
-    """Golden reference (b) with the hardware's loop delay and gain law."""
+def golden_b_params(loop_delay_rows, motion_gain="scalar"):
+    """Golden reference (b) with the hardware's loop delay and gain law (the gateware's is
+    ``"scalar"``; ``"information"`` is the emulator's model of the next one,
+    :mod:`emulator.pose.information_gain`)."""
     from golden.tracker import TrackerParams
-    return TrackerParams(reference="previous", follow_rows=True, motion_gain="scalar",
+    return TrackerParams(reference="previous", follow_rows=True, motion_gain=motion_gain,
                          loop_delay_rows=loop_delay_rows)
 
 

@@ -39,7 +39,8 @@ from hdl.pose.program import STATE_NAMES, UPPER, build_row_program
 from emulator.pose.program import (Value, batches, bit_length, dot, execute, exact_sum,
                                    operand_key, round_half_even, split_program)
 
-__all__ = ["PoseRows", "StepResult", "accumulate", "scale_system", "solve_rows",
+__all__ = ["PoseRows", "StepResult", "accumulate", "diagonal", "jacobi_exponents",
+           "scale_matrix", "scale_system", "solve_rows", "solve_system",
            "integrate_rows",
            "pose_solver_model", "identity_pose", "initial_poses", "flags_from_checks",
            "rows_from_float", "rig_solver", "solve_trace"]
@@ -155,22 +156,41 @@ def _shift_scaled(value, shift, shift_range, dst):
     return round_half_even(raw, wide, dst)
 
 
-def scale_system(params, normal, rhs):
-    """Jacobi scaling. Returns (N̂ as 21 Values, b̂ as 6 Values, scales ``2**-e`` as 6
-    Values, empty mask (n,), saturated mask (n,))."""
+def diagonal(normal):
+    """The diagonal of 21 ``UPPER`` Values as raw Python integers (6, n)."""
     index = {pair: k for k, pair in enumerate(UPPER)}
-    diag = np.stack([np.asarray(normal[index[(i, i)]].raw, dtype=object) for i in range(6)])
-    empty = np.any(diag < params.min_diagonal_raw, axis=0)
-    low, high = params.exponent_range
-    exponents = np.clip(params.exponent(bit_length(diag.ravel())).reshape(diag.shape),
-                        low, high)
-    saturated = np.zeros(diag.shape[1], dtype=bool)
+    return np.stack([np.asarray(normal[index[(i, i)]].raw, dtype=object) for i in range(6)])
+
+
+def jacobi_exponents(params, diag, exponent_range):
+    """Per unknown and row (6, n): the exponent ``e`` with ``N_ii·2**(-2e)`` in
+    ``[1/4, 1)``, clipped to ``exponent_range``."""
+    return np.clip(params.exponent(bit_length(diag.ravel())).reshape(diag.shape),
+                   *exponent_range)
+
+
+def scale_matrix(params, matrix, exponents, exponent_range):
+    """``S A S`` of 21 ``UPPER`` Values into ``unit_fmt`` with ``S = diag(2**-e)``:
+    (21 Values, saturated mask (n,))."""
+    low, high = exponent_range
+    saturated = np.zeros(exponents.shape[1], dtype=bool)
     scaled = []
-    for (i, j), value in zip(UPPER, normal):
+    for (i, j), value in zip(UPPER, matrix):
         v, sat = _shift_scaled(value, exponents[i] + exponents[j], (2 * low, 2 * high),
                                 params.unit_fmt)
         scaled.append(v)
         saturated |= sat
+    return scaled, saturated
+
+
+def scale_system(params, normal, rhs):
+    """Jacobi scaling. Returns (N̂ as 21 Values, b̂ as 6 Values, scales ``2**-e`` as 6
+    Values, empty mask (n,), saturated mask (n,))."""
+    diag = diagonal(normal)
+    empty = np.any(diag < params.min_diagonal_raw, axis=0)
+    exponents = jacobi_exponents(params, diag, params.exponent_range)
+    scaled, saturated = scale_matrix(params, normal, exponents, params.exponent_range)
+    low, high = params.exponent_range
     scaled_rhs = []
     for i, value in enumerate(rhs):
         v, sat = _shift_scaled(value, exponents[i], (low, high), params.solution_fmt)
@@ -240,9 +260,15 @@ def solve_rows(params, coef_raw, rows, pivot_log2=None):
     ``pivot_log2``: the solver's run-time register when each row was solved (int or
     (n,); None: the build's value, its reset)."""
     normal, rhs = accumulate(params, coef_raw, rows)
+    return solve_system(params, normal, rhs, rows.counts > params.slots, pivot_log2)
+
+
+def solve_system(params, normal, rhs, overrun, pivot_log2=None):
+    """:func:`solve_rows` from the accumulated system (:func:`accumulate`) and the
+    rows' OVERRUN mask (n,)."""
     scaled, scaled_rhs, scales, empty, sat_scale = scale_system(params, normal, rhs)
     values, program, ill, sat_solve = _solve(params, scaled, scaled_rhs, scales, pivot_log2)
-    flags = flags_from_checks(rows.counts > params.slots, empty, ill, sat_scale | sat_solve)
+    flags = flags_from_checks(overrun, empty, ill, sat_scale | sat_solve)
     raw = np.stack([np.asarray(values[operand_key(v)].raw, dtype=object) for v in program.step],
                    axis=1)
     raw = np.where((flags == 0)[:, None], raw, 0).astype(np.int64)

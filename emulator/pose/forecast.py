@@ -67,18 +67,31 @@ class MotionFilter:
         return resize(product, product_fmt, sum_format(p.motion_fmt, 1), Rounding.HALF_EVEN,
                       Overflow.ERROR)
 
+    def predicted(self):
+        """``p = L + B`` saturated into ``motion_fmt`` (raw (6,)): the level a row's
+        update starts from, and the information gain's prediction."""
+        return clamp(self.params.motion_fmt, self.level + self.trend, [])
+
     def update(self, value=None, gain=None):
         """Take a solved step (raw ``solver.step_fmt``, (6,)) or none; returns the new
-        level. ``gain`` must be ``None``: the hardware has scalar gains only (the
-        argument keeps the interface of :class:`golden.temporal_filter.HoltWinters`)."""
-        if gain is not None:
-            raise ValueError(f"gain must be None (scalar gains only), not {gain!r}")
+        level. ``gain``: the level's move ``d`` already solved by the information gain
+        (raw ``solver.step_fmt``, :func:`emulator.pose.information_gain.gain_step`);
+        None: the scalar ``α``. (The argument keeps the interface of
+        :class:`golden.temporal_filter.HoltWinters`, whose ``gain`` is the matrix.)"""
         p = self.params
+        if gain is not None and (p.motion_gain != "information" or np.shape(gain) != (6,)):
+            raise ValueError(f"gain must be None, or the information gain's move (6 raw "
+                             f"step_fmt values) with motion_gain 'information', not {gain!r} "
+                             f"with motion_gain {p.motion_gain!r}")
         clamps = []
         predicted = clamp(p.motion_fmt, self.level + self.trend, clamps)
         level = predicted
-        if value is not None:
-            step_fmt = p.solver.step_fmt
+        step_fmt = p.solver.step_fmt
+        if value is not None and gain is not None:
+            d = resize(step_fmt.raw(np.asarray(gain, dtype=np.int64)), step_fmt,
+                       p.motion_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+            level = clamp(p.motion_fmt, predicted + d, clamps)
+        elif value is not None:
             y = resize(step_fmt.raw(np.asarray(value, dtype=np.int64)), step_fmt,
                        p.motion_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
             level = clamp(p.motion_fmt, predicted + self._gained(p.alpha_raw, y - predicted),
@@ -132,10 +145,11 @@ class ForecastModel:
         self.filter.restart(initial)
         self.loop = DelayedForecast(self.filter, self.params.loop_delay_rows)
 
-    def take(self, slot, step=None):
+    def take(self, slot, step=None, gain=None):
         """The solver's step of row slot ``slot`` (raw ``step_fmt``; ``None`` if the row
-        was flagged): the filter's update."""
-        return self.loop.update(slot, step)
+        was flagged) and the information gain's move (:meth:`MotionFilter.update`): the
+        filter's update."""
+        return self.loop.update(slot, step, gain)
 
     def motion(self, slot):
         """Forecast ``Ŷ`` (raw ``motion_fmt``, saturated) for row slot ``slot``, whose

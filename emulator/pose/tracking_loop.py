@@ -30,7 +30,8 @@ from emulator.measurement.consistency import ConsistencyModel
 from emulator.measurement.router import pose_rows
 from emulator.pose.forecast import ForecastModel
 from emulator.pose.tracking_status import row_counts
-from emulator.pose_solver import solve_rows
+from emulator.pose.information_gain import PriorInformation, gain_step
+from emulator.pose_solver import accumulate, solve_system
 
 __all__ = ["TrackingLoopModel"]
 
@@ -54,6 +55,9 @@ class TrackingLoopModel:
         self.params, self.coef_raw, self.row_coef_raw = params, coef_raw, row_coef_raw
         self.forecast = ForecastModel(params, coef_raw, row_coef_raw, initial)
         self.consistency = None if consistency is None else ConsistencyModel(consistency)
+        information = params.motion_gain == "information"
+        self.prior = PriorInformation(params) if information else None
+        self._counts = {"gain_flagged": 0} if information else {}
         self.cues = np.zeros((params.solver.slots, params.height), dtype=np.int64)
         self.prediction = None
         #: The last judged row's ``(judged, outliers, confident)``, the tracking-status
@@ -63,8 +67,10 @@ class TrackingLoopModel:
 
     @property
     def counts(self):
-        """The consistency stage's counters (empty without one)."""
-        return {} if self.consistency is None else dict(self.consistency.counts)
+        """The consistency stage's counters (empty without one) and, with the
+        information gain, its ``gain_flagged`` rows."""
+        stage = {} if self.consistency is None else dict(self.consistency.counts)
+        return {**stage, **self._counts}
 
     def restart(self, initial):
         """The filter as constructed at ``initial`` (raw ``motion_fmt``, (6,)), before
@@ -97,9 +103,27 @@ class TrackingLoopModel:
         for t in transfers:
             if t["cue"]:                          # 0: no stereo cue for that segment
                 self.cues[t["slot"], row] = t["cue"]
+        gain = None
         if transfers:
-            result = solve_rows(self.params.solver, self.coef_raw,
-                                pose_rows(self.params, transfers))
+            solver = self.params.solver
+            rows = pose_rows(self.params, transfers)
+            normal, rhs = accumulate(solver, self.coef_raw, rows)
+            result = solve_system(solver, normal, rhs, rows.counts > solver.slots)
             if result.flags[0] == 0:
                 step = result.step[0]
-        return transfers, self.forecast.take(slot, step)
+                if self.prior is not None:
+                    gain = self._gain(normal, rhs)
+        return transfers, self.forecast.take(slot, step, gain)
+
+    def _gain(self, normal, rhs):
+        """The information gain's move of a solved row (None: its solve was flagged,
+        counted in ``gain_flagged``; the filter moves by ``α``); the row's normal matrix
+        joins the prior information."""
+        prior = self.prior.updated([int(v.raw[0]) for v in normal])
+        d, flags = gain_step(self.params, normal, rhs, prior[None],
+                             self.forecast.filter.predicted()[None])
+        self.prior.keep(prior)
+        if flags[0]:
+            self._counts["gain_flagged"] += 1
+            return None
+        return d[0]

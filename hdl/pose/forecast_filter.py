@@ -82,6 +82,10 @@ class MotionFilter(wiring.Component):
     def __init__(self, params, *, slot_bits=DEFAULT_SLOT_BITS):
         if not isinstance(params, ForecastParams):
             raise TypeError(f"params must be a ForecastParams, not {params!r}")
+        if params.motion_gain != "scalar":
+            raise ValueError(f"motion_gain {params.motion_gain!r} is not built in the "
+                             f"gateware yet (the scalar gain is; the information gain is "
+                             f"emulator.pose.information_gain's model)")
         if not isinstance(slot_bits, int) or isinstance(slot_bits, bool) or not 2 <= slot_bits <= 32:
             raise ValueError(f"slot_bits must be an integer from 2 to 32, not {slot_bits!r}")
         self.params, self.slot_bits = params, slot_bits

@@ -13,11 +13,15 @@ the shift along the row, a second one of the same layout for the displacement ac
 from dataclasses import dataclass, replace
 
 from golden.checks import check_int, check_number
+from golden.tracker_solve import TYPICAL_SMOOTHING
 
 from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding
 from hdl.pose.params import PoseSolverParams
 
-__all__ = ["ForecastParams"]
+__all__ = ["ForecastParams", "MOTION_GAINS"]
+
+#: The level's gain laws (``golden.tracker.TrackerParams.motion_gain``'s).
+MOTION_GAINS = ("scalar", "information")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,6 +61,16 @@ class ForecastParams:
     loop_delay_rows : int
         Row periods between a row's solve and the first row whose forecast includes it
         (``golden.tracker``'s parameter of the same name).
+    motion_gain : str
+        ``"scalar"``: the level moves by ``alpha`` of the innovation; ``"information"``:
+        by ``(N + Λ)⁻¹ N`` of it, with ``Λ = (1 − α)/α · N_typical``
+        (``golden.tracker``'s parameter of the same name; the emulator's model,
+        :mod:`emulator.pose.information_gain`; not yet in the gateware).
+    typical_smoothing : float
+        Weight of each solved row's normal matrix in the running typical information
+        (``motion_gain="information"``); quantized to ``gain_fmt``.
+    prior_fmt : QFormat
+        Unsigned format of the prior's weight ``(1 − α)/α`` (half-even).
     """
     solver: PoseSolverParams
     row_coef_t_fmt: QFormat
@@ -72,6 +86,9 @@ class ForecastParams:
     motion_fmt: QFormat = SQ(1, 39)
     displacement_fmt: QFormat = SQ(10, 8)
     loop_delay_rows: int = 1
+    motion_gain: str = "scalar"
+    typical_smoothing: float = TYPICAL_SMOOTHING
+    prior_fmt: QFormat = UQ(8, 16)
 
     def __post_init__(self):
         if not isinstance(self.solver, PoseSolverParams):
@@ -96,6 +113,19 @@ class ForecastParams:
         if self.alpha_raw == 0:
             raise ValueError(f"alpha {self.alpha} rounds to 0 in gain_fmt {self.gain_fmt}")
         check_int("loop_delay_rows", self.loop_delay_rows, 0)
+        if self.motion_gain not in MOTION_GAINS:
+            raise ValueError(f"motion_gain must be one of {MOTION_GAINS}, not "
+                             f"{self.motion_gain!r}")
+        check_number("typical_smoothing", self.typical_smoothing, 0, 1, low_open=True)
+        if self.smoothing_raw == 0:
+            raise ValueError(f"typical_smoothing {self.typical_smoothing} rounds to 0 in "
+                             f"gain_fmt {self.gain_fmt}")
+        if not isinstance(self.prior_fmt, QFormat) or self.prior_fmt.signed:
+            raise ValueError(f"prior_fmt must be an unsigned QFormat, not {self.prior_fmt!r}")
+        prior = (1 - self.alpha) / self.alpha
+        if prior > self.prior_fmt.max_value:
+            raise ValueError(f"alpha {self.alpha} gives a prior weight (1 - alpha)/alpha = "
+                             f"{prior:.4g} beyond prior_fmt {self.prior_fmt}")
         self.row_store   # the across-rows store must be a valid store of the solver's kind
 
     replace = replace
@@ -123,3 +153,21 @@ class ForecastParams:
     @property
     def beta_raw(self):
         return self._gain_raw(self.beta)
+
+    @property
+    def smoothing_raw(self):
+        return self._gain_raw(self.typical_smoothing)
+
+    @property
+    def prior_raw(self):
+        """``(1 − α)/α`` raw in ``prior_fmt``: the prior information's weight, so that a
+        typical row's information gain is ``α``."""
+        return int(self.prior_fmt.quantize((1 - self.alpha) / self.alpha, Rounding.HALF_EVEN,
+                                           Overflow.ERROR))
+
+    @property
+    def information_fmt(self):
+        """The prior information ``Λ`` and ``N + Λ``: the solver's ``normal_fmt`` with
+        room for the prior's weight and the sum."""
+        normal = self.solver.normal_fmt
+        return SQ(normal.int_bits + self.prior_fmt.int_bits + 1, normal.frac_bits)

@@ -25,7 +25,8 @@ from dataclasses import dataclass, field
 
 from hdl.fixed import QFormat
 
-__all__ = ["Operand", "Op", "RowProgram", "build_row_program", "Schedule", "schedule",
+__all__ = ["Operand", "Op", "RowProgram", "build_row_program", "build_gain_program",
+           "cholesky_solve", "Schedule", "schedule",
            "UPPER", "MAC_LATENCY", "SEED_LATENCY", "NORMALIZER_LATENCY", "STATE_NAMES"]
 
 #: (i, j) entries of the upper triangle of N̂, in normalizer order.
@@ -157,50 +158,16 @@ def build_row_program(params):
     """The op list of one row for ``params`` (a PoseSolverParams): what the engine's ROM
     is built from and what ``emulator.pose_solver`` executes."""
     prog = RowProgram()
-    unit, lower, sol = params.unit_fmt, params.lower_fmt, params.solution_fmt
     qf, sf, pf = params.quat_fmt, params.step_fmt, params.position_fmt
-    for (i, j) in UPPER:
-        prog._new(prog.inputs, "input", f"N{i}{j}", unit)
-    rhs = [prog._new(prog.inputs, "input", f"b{i}", sol) for i in range(6)]
-    scales = [prog._new(prog.inputs, "input", f"s{i}", params.scale_fmt) for i in range(6)]
+    n, rhs, scales = _system_inputs(prog, params)
     for name in STATE_NAMES:
         prog._new(prog.state, "state", name, qf if name.startswith("q") else pf)
-    for name, value, fmt in (("three_halves", 1.5, unit), ("three_halves_q", 1.5, qf),
-                             ("one", 1.0, qf), ("third", 1 / 3, qf)):
+    for name, value, fmt in (("three_halves", 1.5, params.unit_fmt),
+                             ("three_halves_q", 1.5, qf), ("one", 1.0, qf),
+                             ("third", 1 / 3, qf)):
         prog.constants[name] = (prog.work_value(name, fmt), value)
-    n = prog.inputs
-    three_halves = prog.constants["three_halves"][0]
 
-    # Cholesky N̂ = G Gᵀ with the forward substitution carried along; D^-1/2 is a seed
-    # and one Newton step, ρ = seed·(3/2 − D·seed²/2).
-    g, low, rho, z = {}, {}, [], []
-    for j in range(6):
-        pivot = prog.mac(f"D{j}", unit, n[f"N{j}{j}"],
-                         [(-1, g[(j, k)], g[(j, k)]) for k in range(j)], checked=True)
-        seed = prog.work_value(f"seed{j}", params.seed_fmt)
-        prog.ops.append(Op("seed", seed, source=pivot))
-        root = prog.mac(f"h{j}", unit, terms=[(1, pivot, seed)], checked=True)
-        newton = prog.mac(f"e{j}", unit, three_halves, [(-1, root, seed)], -1, checked=True)
-        rho.append(prog.mac(f"rho{j}", lower, terms=[(1, seed, newton)], checked=True))
-        for i in range(j + 1, 6):
-            schur = prog.mac(f"W{i}{j}", unit, n[f"N{j}{i}"],
-                             [(-1, g[(i, k)], g[(j, k)]) for k in range(j)], checked=True)
-            product = prog.mac(f"P{i}{j}", unit, terms=[(1, schur, seed)], checked=True)
-            g[(i, j)] = prog.mac(f"G{i}{j}", unit, terms=[(1, product, newton)], checked=True)
-            low[(i, j)] = prog.mac(f"L{i}{j}", lower, terms=[(1, g[(i, j)], rho[j])],
-                                   checked=True)
-        forward = prog.mac(f"c{j}", sol, rhs[j], [(-1, g[(j, k)], z[k]) for k in range(j)],
-                           checked=True)
-        z.append(prog.mac(f"z{j}", sol, terms=[(1, forward, rho[j])], checked=True))
-    # back substitution, right-looking: one single-term op per unknown on the chain
-    partial = [prog.mac(f"w{j}", sol, terms=[(1, z[j], rho[j])], checked=True)
-               for j in range(6)]
-    x = [None] * 6
-    for k in reversed(range(6)):
-        x[k] = partial[k]
-        for j in reversed(range(k)):  # the next unknown first: it is on the chain
-            partial[j] = prog.mac(f"u{j}_{k}", sol, partial[j], [(-1, low[(k, j)], x[k])],
-                                  checked=True)
+    x = cholesky_solve(prog, params, lambda i, j: n[f"N{i}{j}"], rhs)
     step = [prog.mac(f"Y{j}", sf, terms=[(1, x[j], scales[j])], checked=True) for j in range(6)]
     prog.step = tuple(step)
 
@@ -241,6 +208,94 @@ def build_row_program(params):
     for name, c in zip(("qw", "qx", "qy", "qz"), q1):
         prog.mac(name + "'", qf, terms=[(1, c, gain)], dst=s[name])
     return prog
+
+
+def _system_inputs(prog, params):
+    """The normalizer's inputs N̂ (21, upper triangle), b̂ (6) and the scales ``2**-e``
+    (6), in that order: (input table, b̂ operands, scale operands)."""
+    for (i, j) in UPPER:
+        prog._new(prog.inputs, "input", f"N{i}{j}", params.unit_fmt)
+    rhs = [prog._new(prog.inputs, "input", f"b{i}", params.solution_fmt) for i in range(6)]
+    scales = [prog._new(prog.inputs, "input", f"s{i}", params.scale_fmt) for i in range(6)]
+    return prog.inputs, rhs, scales
+
+
+def build_gain_program(params):
+    """The op list of the information gain's solve (issue 16, docs/pose/information_gain.md)
+    for ``params`` (a PoseSolverParams): the level update ``d = (N + Λ)⁻¹ N (Y − p)`` of
+    the motion filter, with ``N`` the row's normal matrix, ``Λ`` the prior information
+    (:mod:`emulator.pose.information_gain`) and ``p`` the filter's prediction.
+
+    Inputs, after the row program's own (N̂, b̂, ``s = 2**-e`` from the Jacobi exponents
+    ``e`` of N): ``M̂ = S_M (N + Λ) S_M`` with the exponents ``e_M`` of ``N + Λ``, the
+    prediction ``f = p·2**e`` in N's scaled unknowns, ``ratio = 2**(e − e_M)`` and
+    ``sM = 2**-e_M``. Since ``N Y = r``, ``S_N N (Y − p) = b̂ − N̂ f`` needs no step: the
+    solve runs beside the row's own. ``S_M N (Y − p)`` is that times ``ratio``; the
+    Cholesky solve of M̂ gives ``S_M⁻¹ d``, and ``d = sM · S_M⁻¹ d`` (``step``)."""
+    prog = RowProgram()
+    unit, sol = params.unit_fmt, params.solution_fmt
+    n, rhs, _ = _system_inputs(prog, params)
+    for (i, j) in UPPER:
+        prog._new(prog.inputs, "input", f"M{i}{j}", unit)
+    forecast = [prog._new(prog.inputs, "input", f"f{i}", sol) for i in range(6)]
+    ratio = [prog._new(prog.inputs, "input", f"ratio{i}", params.scale_fmt) for i in range(6)]
+    scales = [prog._new(prog.inputs, "input", f"sM{i}", params.scale_fmt) for i in range(6)]
+    prog.constants["three_halves"] = (prog.work_value("three_halves", unit), 1.5)
+
+    def entry(i, j):
+        return n[f"N{min(i, j)}{max(i, j)}"]
+
+    innovation = [prog.mac(f"v{i}", sol, rhs[i], [(-1, entry(i, j), forecast[j])
+                                                  for j in range(6)], checked=True)
+                  for i in range(6)]
+    scaled = [prog.mac(f"vM{i}", sol, terms=[(1, v, k)], checked=True)
+              for i, (v, k) in enumerate(zip(innovation, ratio))]
+    x = cholesky_solve(prog, params, lambda i, j: n[f"M{i}{j}"], scaled, prefix="g")
+    prog.step = tuple(prog.mac(f"d{j}", params.step_fmt, terms=[(1, x[j], scales[j])],
+                               checked=True) for j in range(6))
+    return prog
+
+
+def cholesky_solve(prog, params, entry, rhs, prefix=""):
+    """Append the ops that solve ``A x = rhs`` for a scaled symmetric ``A`` (``entry(i, j)``,
+    ``i ≤ j``, in ``unit_fmt``; ``rhs`` six ``solution_fmt`` operands): the Cholesky
+    ``A = G Gᵀ`` with the forward substitution carried along, ``D^-1/2`` a seed and one
+    Newton step ``ρ = seed·(3/2 − D·seed²/2)``, then the back substitution. Every value is
+    named with ``prefix`` (a second solve in one program). Returns the six unknowns."""
+    unit, lower, sol = params.unit_fmt, params.lower_fmt, params.solution_fmt
+    three_halves = prog.constants["three_halves"][0]
+    g, low, rho, z = {}, {}, [], []
+    for j in range(6):
+        pivot = prog.mac(f"{prefix}D{j}", unit, entry(j, j),
+                         [(-1, g[(j, k)], g[(j, k)]) for k in range(j)], checked=True)
+        seed = prog.work_value(f"{prefix}seed{j}", params.seed_fmt)
+        prog.ops.append(Op("seed", seed, source=pivot))
+        root = prog.mac(f"{prefix}h{j}", unit, terms=[(1, pivot, seed)], checked=True)
+        newton = prog.mac(f"{prefix}e{j}", unit, three_halves, [(-1, root, seed)], -1,
+                          checked=True)
+        rho.append(prog.mac(f"{prefix}rho{j}", lower, terms=[(1, seed, newton)], checked=True))
+        for i in range(j + 1, 6):
+            schur = prog.mac(f"{prefix}W{i}{j}", unit, entry(j, i),
+                             [(-1, g[(i, k)], g[(j, k)]) for k in range(j)], checked=True)
+            product = prog.mac(f"{prefix}P{i}{j}", unit, terms=[(1, schur, seed)],
+                               checked=True)
+            g[(i, j)] = prog.mac(f"{prefix}G{i}{j}", unit, terms=[(1, product, newton)],
+                                 checked=True)
+            low[(i, j)] = prog.mac(f"{prefix}L{i}{j}", lower, terms=[(1, g[(i, j)], rho[j])],
+                                   checked=True)
+        forward = prog.mac(f"{prefix}c{j}", sol, rhs[j],
+                           [(-1, g[(j, k)], z[k]) for k in range(j)], checked=True)
+        z.append(prog.mac(f"{prefix}z{j}", sol, terms=[(1, forward, rho[j])], checked=True))
+    # back substitution, right-looking: one single-term op per unknown on the chain
+    partial = [prog.mac(f"{prefix}w{j}", sol, terms=[(1, z[j], rho[j])], checked=True)
+               for j in range(6)]
+    x = [None] * 6
+    for k in reversed(range(6)):
+        x[k] = partial[k]
+        for j in reversed(range(k)):  # the next unknown first: it is on the chain
+            partial[j] = prog.mac(f"{prefix}u{j}_{k}", sol, partial[j],
+                                  [(-1, low[(k, j)], x[k])], checked=True)
+    return x
 
 
 # --- scheduling ---------------------------------------------------------------------------
