@@ -8,6 +8,7 @@ set SEED to replay the randomized tests, the seed in use is printed.
 """
 
 import os
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -85,26 +86,32 @@ def test_the_row_program_is_unchanged_by_the_gain_program(config):
 
 
 def test_prior_information_is_the_golden_running_average_of_solved_rows(config, params):
-    """First solved row: ``Λ = c·N``; later rows ``Λ ← (1 − s) Λ + s c N`` within the
-    rounding of one ulp per update (200 rows of random systems)."""
+    """First solved row: ``Λ = c·N``; later rows ``Λ ← (1 − s) Λ + s c N``, computed
+    exactly (rationals, the quantized c and s): each update rounds once by at most half
+    an ulp and the average forgets old errors at the rate s, so the error stays within
+    ``1/(2s) + 1`` ulp (200 rows of random systems)."""
     print(f"SEED={SEED}")
     rng = np.random.default_rng(SEED)
     solver = params.solver
     prior = PriorInformation(params)
-    c = params.prior_fmt.to_float(params.prior_raw)
-    s = params.gain_fmt.to_float(params.smoothing_raw)
-    expected = None
-    ulp = 2.0 ** -params.information_fmt.frac_bits
-    normals = []
+    c = Fraction(params.prior_raw, 1 << params.prior_fmt.frac_bits)
+    s = Fraction(params.smoothing_raw, 1 << params.gain_fmt.frac_bits)
+    unit = Fraction(1, 1 << (params.information_fmt.frac_bits - solver.normal_fmt.frac_bits))
+    bound = 1 / (2 * s) + 1
+    expected, normals, worst = None, [], 0
     for _ in range(200):
         normal, _ = accumulate(solver, config.coef_raw, _rows(params, rng, 1))
         raw = [int(v.raw[0]) for v in normal]
         normals.append(raw)
         prior.keep(prior.updated(raw))
-        n = solver.normal_fmt.to_float(np.array(raw, dtype=float))
-        expected = c * n if expected is None else (1 - s) * expected + s * c * n
-        got = params.information_fmt.to_float(np.array(prior.prior, dtype=float))
-        assert np.all(np.abs(got - expected) <= 200 * ulp + 1e-12 * np.abs(expected))
+        n = [c * v / unit for v in raw]          # c·N in information_fmt ulps, exactly
+        expected = n if expected is None else [(1 - s) * e + s * v
+                                               for e, v in zip(expected, n)]
+        error = max(abs(int(g) - e) for g, e in zip(prior.prior, expected))
+        worst = max(worst, error)
+        assert error <= bound
+    print(f"largest difference from the exact average: {float(worst):.2f} ulp "
+          f"(bound {float(bound):.1f})")
     assert np.ptp(np.array(normals, dtype=float), axis=0).max() > 0   # the rows differed
 
 
