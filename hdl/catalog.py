@@ -25,6 +25,7 @@ BLOCKS = {
     "pose_solver": "hdl.pose_solver:PoseSolver",
     "forecast": "hdl.pose.forecast:default_forecast",
     "status_unit": "hdl.pose.status_unit:default_status_unit",
+    "prior_store": "hdl.pose.prior_store:default_prior_store",
     "row_counter": "hdl.pose.row_counter:default_row_counter",
     "row_descriptor": "hdl.row_descriptor:RowDescriptor",
     "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",

@@ -13,16 +13,15 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from golden.rig import preset
 from golden.temporal_filter import information_gain
-from hdl.pipeline_config import PipelineConfig
 from hdl.pose.program import UPPER, build_gain_program, build_row_program, schedule
 from emulator.pose.forecast import MotionFilter
 from emulator.pose.information_gain import PriorInformation, gain_step
-from emulator.pose_solver import PoseRows, accumulate, solve_system
+from emulator.pose_solver import accumulate, solve_system
+
+from sim_tests.pose.prior_stimulus import cut_stereo20, measurement_rows
 
 SEED = int(os.environ.get("SEED", "5"))
-ROWS = 32
 
 #: |d_fixed − d_float| / |Y − p| per row, the largest allowed: the float gain is computed
 #: from the same fixed-point N, Λ and p, so only the engine's rounding (30 fraction bits
@@ -33,31 +32,12 @@ GAIN_TOLERANCE = 1e-7
 
 @pytest.fixture(scope="module")
 def config():
-    rig = preset("stereo20")
-    return PipelineConfig.for_rig(rig.replace_cameras(height=ROWS, cy=(ROWS - 1) / 2,
-                                                      t_r=1 / (120 * ROWS)))
+    return cut_stereo20()
 
 
 @pytest.fixture(scope="module")
 def params(config):
     return config.forecast(motion_gain="information")
-
-
-def _rows(params, rng, n, cameras=None):
-    """``n`` random rows of measurements of every segment of ``cameras`` (default all):
-    shifts of a few pixels, cues and confidences in their usual ranges."""
-    solver = params.solver
-    k = params.segments
-    cameras = range(params.cameras) if cameras is None else cameras
-    slots = np.array([c * k + s for c in cameras for s in range(k)])
-    m = len(slots)
-    shape = (n, m)
-    return PoseRows(slot=np.broadcast_to(slots, shape).copy(),
-                    shift=solver.shift_fmt.quantize(rng.normal(scale=2.0, size=shape)),
-                    cue=solver.cue_fmt.quantize(rng.uniform(10, 60, size=shape)),
-                    conf=solver.conf_fmt.quantize(rng.uniform(0.3, 1.0, size=shape)),
-                    present=np.ones(shape, dtype=bool),
-                    row=rng.integers(ROWS, size=n), time=np.zeros(n, dtype=np.int64))
 
 
 def _float(values):
@@ -100,7 +80,7 @@ def test_prior_information_is_the_golden_running_average_of_solved_rows(config, 
     bound = 1 / (2 * s) + 1
     expected, normals, worst = None, [], 0
     for _ in range(200):
-        normal, _ = accumulate(solver, config.coef_raw, _rows(params, rng, 1))
+        normal, _ = accumulate(solver, config.coef_raw, measurement_rows(params, rng, 1))
         raw = [int(v.raw[0]) for v in normal]
         normals.append(raw)
         prior.keep(prior.updated(raw))
@@ -141,12 +121,12 @@ def test_gain_step_is_the_golden_information_gain_of_the_row(config, params):
     coef = config.coef_raw
     prior = PriorInformation(params)
     for _ in range(30):
-        normal, _ = accumulate(solver, coef, _rows(params, rng, 1))
+        normal, _ = accumulate(solver, coef, measurement_rows(params, rng, 1))
         prior.keep(prior.updated([int(v.raw[0]) for v in normal]))
     errors, departures = [], []
     for r in range(40):
         cameras = None if r % 2 else sorted(rng.choice(params.cameras, 4, replace=False))
-        rows = _rows(params, rng, 1, cameras)
+        rows = measurement_rows(params, rng, 1, cameras)
         normal, rhs = accumulate(solver, coef, rows)
         result = solve_system(solver, normal, rhs, rows.counts > solver.slots)
         if result.flags[0]:
