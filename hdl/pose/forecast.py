@@ -83,6 +83,11 @@ class Forecast(wiring.Component):
     def __init__(self, params, coefficients, row_coefficients, *, slot_bits=DEFAULT_SLOT_BITS,
                  shared_port=False):
         self._filter = MotionFilter(params, slot_bits=slot_bits)
+        if params.motion_gain != "scalar":
+            raise ValueError(f"motion_gain {params.motion_gain!r} is not built in the "
+                             f"gateware yet: MotionFilter takes the information gain's "
+                             f"moves, the engine program that solves them is not built "
+                             f"(docs/pose/information_gain.md)")
         self._predictor = RowPredictor(params, coefficients, row_coefficients,
                                        shared_port=shared_port)
         self.params, self.slot_bits = params, slot_bits

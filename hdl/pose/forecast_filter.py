@@ -1,5 +1,5 @@
-"""The forecast's motion filter: Holt–Winters with scalar gains on the solver's steps,
-and the loop delay (:class:`emulator.pose.forecast.MotionFilter` and
+"""The forecast's motion filter: Holt–Winters on the solver's steps with the scalar gain
+or the information gain's moves (``motion_gain``), and the loop delay (:class:`emulator.pose.forecast.MotionFilter` and
 :class:`golden.temporal_filter.DelayedForecast` in gateware, bit for bit).
 
 One pose record per row slot updates the filter (a row without measurements is given a
@@ -24,7 +24,7 @@ from hdl.fixed import SQ, UQ, Overflow, Rounding, hdl_mul, hdl_resize
 from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import solver_source
 
-__all__ = ["MotionFilter", "DEFAULT_SLOT_BITS"]
+__all__ = ["MotionFilter", "DEFAULT_SLOT_BITS", "gain_layout"]
 
 #: Width of the row slot counter (wraps; slots are compared modulo ``2**slot_bits``).
 DEFAULT_SLOT_BITS = 16
@@ -35,8 +35,16 @@ def outside(value, fmt):
     return (value < fmt.min_raw) | (value > fmt.max_raw)
 
 
+def gain_layout(params):
+    """The information gain's move of one record (``motion_gain="information"``): ``move``
+    ``d`` per axis (the solver's ``step_fmt``) and ``ok`` (the gain solve raised no flag;
+    0: the filter moves by ``α``)."""
+    return data.StructLayout({"move": data.ArrayLayout(params.solver.step_fmt.shape(), 6),
+                              "ok": 1})
+
+
 class MotionFilter(wiring.Component):
-    """Scalar-gain Holt–Winters on the solved steps, with the loop delay.
+    """Holt–Winters on the solved steps (scalar or information gain), with the loop delay.
 
     Parameters
     ----------
@@ -50,6 +58,9 @@ class MotionFilter(wiring.Component):
     records : In(stream.Signature(PoseSource.layout()))
         The solver's pose records (``step``, ``flags``; the other fields are not read),
         one per queried row slot, in order; a flagged record leaves ``L' = L + B``.
+    gains : In(stream.Signature(gain_layout(params))), with ``motion_gain="information"``
+        One per record, taken with it: a solved record's level moves by ``move`` when
+        ``ok`` (:func:`emulator.pose.information_gain.gain_step`), else by ``α``.
     query : In(stream.Signature(unsigned(slot_bits)))
         The row slot whose forecast is wanted, once per row slot, in increasing order.
     motion : Out(ArrayLayout(motion_fmt, 6))
@@ -82,10 +93,6 @@ class MotionFilter(wiring.Component):
     def __init__(self, params, *, slot_bits=DEFAULT_SLOT_BITS):
         if not isinstance(params, ForecastParams):
             raise TypeError(f"params must be a ForecastParams, not {params!r}")
-        if params.motion_gain != "scalar":
-            raise ValueError(f"motion_gain {params.motion_gain!r} is not built in the "
-                             f"gateware yet (the scalar gain is; the information gain is "
-                             f"emulator.pose.information_gain's model)")
         if not isinstance(slot_bits, int) or isinstance(slot_bits, bool) or not 2 <= slot_bits <= 32:
             raise ValueError(f"slot_bits must be an integer from 2 to 32, not {slot_bits!r}")
         self.params, self.slot_bits = params, slot_bits
@@ -93,8 +100,11 @@ class MotionFilter(wiring.Component):
         self.source = solver_source(params.solver)
         motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
         gain = unsigned(params.gain_fmt.width)
+        gains = {"gains": In(stream.Signature(gain_layout(params)))} \
+            if params.motion_gain == "information" else {}
         super().__init__({
             "records": In(stream.Signature(self.source.layout())),
+            **gains,
             "query": In(stream.Signature(unsigned(slot_bits))),
             "motion": Out(motion),
             "motion_valid": Out(1),
@@ -141,9 +151,12 @@ class MotionFilter(wiring.Component):
         running, push = Signal(), Signal()    # an update runs; its state is pushed
         idle = Signal()
         take_record, take_query = Signal(), Signal()
+        information = p.motion_gain == "information"
+        record_ready = ~self.restart & idle & (level != 0)
         m.d.comb += [
             idle.eq(~running & ~push),
-            self.records.ready.eq(~self.restart & idle & (level != 0)),
+            self.records.ready.eq(record_ready & self.gains.valid if information
+                                  else record_ready),
             take_record.eq(self.records.valid & self.records.ready),
             self.query.ready.eq(~self.restart & idle & ~take_record
                                 & (level != depth) & ((level == 0) | ~head_is_old)),
@@ -151,6 +164,9 @@ class MotionFilter(wiring.Component):
             self.busy.eq(~idle),
             self.drained.eq(level == 0),
         ]
+        if information:     # a gain waits for its record, and goes with it
+            m.d.comb += self.gains.ready.eq(~self.restart & idle & (level != 0)
+                                            & self.records.valid)
         with m.If(take_query):
             m.d.sync += [Array(pending)[level].eq(self.query.payload), level.eq(level + 1),
                          queries.eq(queries + 1)]
@@ -200,6 +216,18 @@ class MotionFilter(wiring.Component):
         predicted = Signal(fmt.shape())
         new_level = Signal(fmt.shape())
 
+        if information:     # the level moves by the gain's move when it stands
+            move = Signal(data.ArrayLayout(self.source.step_fmt.shape(), 6))
+            use_move = Signal()
+
+            def increment(gained):
+                moved = hdl_resize(move[axis], self.source.step_fmt, fmt, Rounding.HALF_EVEN,
+                                   Overflow.ERROR)
+                return Mux(use_move, moved, gained)
+        else:
+            def increment(gained):
+                return gained
+
         level_i, trend_i = newest.level[axis], newest.trend[axis]
         y = hdl_resize(step[axis], self.source.step_fmt, fmt, Rounding.HALF_EVEN,
                        Overflow.ERROR)
@@ -221,6 +249,9 @@ class MotionFilter(wiring.Component):
                          update_clamped.eq(0),
                          staged.kind.eq(2), staged.slot.eq(pending[0]),
                          staged.count.eq(updates + 1)]
+            if information:
+                m.d.sync += [move.eq(self.gains.payload.move),
+                             use_move.eq(self.gains.payload.ok & (self.records.payload.flags == 0))]
         with m.Elif(running & ~push):
             m.d.sync += phase.eq(Mux(phase == self.PHASES - 1, 0, phase + 1))
             with m.Switch(phase):
@@ -228,8 +259,8 @@ class MotionFilter(wiring.Component):
                     p_value = clamp(level_i + trend_i, 1)
                     m.d.sync += [predicted.eq(p_value), gain.eq(self.alpha),
                                  operand.eq(Mux(solved, y - p_value, 0))]
-                with m.Case(2):                    # L' = p + α d, e = L' − p
-                    level_new = clamp(predicted + gained, 2)
+                with m.Case(2):                    # L' = p + α d (or + move), e = L' − p
+                    level_new = clamp(predicted + increment(gained), 2)
                     m.d.sync += [new_level.eq(level_new), gain.eq(self.beta),
                                  operand.eq(level_new - predicted)]
                 with m.Case(4):                    # B' = B + β e
