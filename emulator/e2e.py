@@ -217,7 +217,7 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     ``golden`` (the default golden tracker) also ``golden_vs_truth``; and
     ``ratio_to_golden_b.<axis>``, ``share_of_motion.<axis>``, ``solved_fraction`` (rows
     of frames ≥ 1), ``loop_delay_rows`` and ``loop_delay_clocks`` (rows × row period at
-    the pipeline's clock), ``lanes.*`` (:func:`lane_agreement`, ``lanes.worst_at``),
+    the pipeline's clock), ``motion_gain`` (the filter's gain law, golden (b)'s too), ``lanes.*`` (:func:`lane_agreement`, ``lanes.worst_at``),
     ``front_end.trigger_skew_rows``, ``front_end.skew_rows_held`` and
     ``front_end.shortfall`` (:meth:`hdl.pipeline_config.PipelineConfig.alignment_shortfall`:
     ``None`` when the row aligner can form the row sets the pipeline is fed)."""
@@ -229,6 +229,7 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     figures = {"solved_fraction": float(np.mean(np.isfinite(steps[:, 0])))
                if len(steps) else float("nan"),
                "loop_delay_rows": path.loop_delay_rows,
+               "motion_gain": path.forecast.motion_gain,
                "loop_delay_clocks": int(round(path.loop_delay_rows * t_r * config.clk_hz)),
                "emulator_rows_per_s": result.rows_per_s}
     gold_b = golden_trajectory_steps(golden_b, dataset, frames, rows)

@@ -51,6 +51,7 @@ def _positive_int(text):
 def add_arguments(parser):
     from golden.rig import PRESETS
     from golden.trajectory import MOTIONS
+    from hdl.pose.forecast_params import MOTION_GAINS
     source = parser.add_argument_group("input (simulated unless --dataset)")
     source.add_argument("--rig", help=f"preset ({', '.join(PRESETS)}) or a .yaml/.toml rig "
                                       f"file (default: stereo20)")
@@ -84,6 +85,11 @@ def add_arguments(parser):
     cosim.add_argument("--sim", choices=("verilator", "icarus"), default="verilator",
                        help="HDL simulator (default: %(default)s)")
     cosim.add_argument("--waves", action="store_true", help="record waveforms")
+    parser.add_argument("--motion-gain", choices=MOTION_GAINS, default="scalar",
+                        help="the forecast filter's gain law: scalar (the gateware's) or "
+                             "information (the emulator's model of the per-direction gain "
+                             "the board rig needs; no gateware yet, so only with "
+                             "--cosim-rows 0; default: %(default)s)")
     parser.add_argument("-o", "--out", type=Path, default=Path("build/report"),
                         help="report directory (default: %(default)s)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -104,8 +110,8 @@ class Job:
     waves: bool = False
     out: Path = Path("build/report")
     #: Changes to the hardware path's forecast parameters
-    #: (:meth:`hdl.pipeline_config.PipelineConfig.forecast`); none from the command line,
-    #: a test breaks the forecast with them to see the run fail.
+    #: (:meth:`hdl.pipeline_config.PipelineConfig.forecast`): ``motion_gain`` from the
+    #: command line; a test breaks the forecast with them to see the run fail.
     forecast_changes: dict = None
     #: How long each row of the co-simulated slice lasts on the pins (default: the rig's
     #: ``t_r``, as its cameras read rows); a test of a rig cut to a few rows, whose
@@ -250,11 +256,15 @@ def check_inputs(args):
     config = _configure(rig)
     if dataset is None:
         _simulation_inputs(args, rig, frames)
+    if args.motion_gain != "scalar" and args.cosim_rows != 0:
+        raise UsageError(f"--motion-gain {args.motion_gain} is not built in the gateware yet "
+                         f"(docs/pose/information_gain.md): add --cosim-rows 0 to run the "
+                         f"emulator's model alone")
     return Job(rig=rig, config=config, frames=frames, dataset=dataset,
                dataset_path=args.dataset,
                trajectory=args.trajectory or DEFAULT_TRAJECTORY, seed=args.seed,
                cosim=_cosim_slice(args, rig, config, frames), sim=args.sim, waves=args.waves,
-               out=out)
+               out=out, forecast_changes={"motion_gain": args.motion_gain})
 
 
 def run_job(job, progress=True):
@@ -281,7 +291,8 @@ def run_job(job, progress=True):
                                forecast_changes=job.forecast_changes, progress=progress)
     walls["emulator"] = hardware.result.seconds
     start = time.perf_counter()
-    golden_b = track(dataset, hardware_path.golden_b_params(hardware.loop_delay_rows),
+    golden_b = track(dataset, hardware_path.golden_b_params(hardware.loop_delay_rows,
+                                                            hardware.forecast.motion_gain),
                      progress=progress)
     walls["golden_b"] = time.perf_counter() - start
     start = time.perf_counter()

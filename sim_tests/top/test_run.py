@@ -35,7 +35,7 @@ REQUIRED = ("e2e.hdl_mismatches", "e2e.pose_rate_hz", "e2e.pose_capacity_hz",
             "e2e.latency_us",
             "e2e.emulator_rows_per_s", "e2e.hdl_cycles_per_s", "e2e.golden.rms_t_cm.x",
             "e2e.golden.rms_r_deg.z", "e2e.solved_fraction", "e2e.loop_delay_rows",
-            "e2e.loop_delay_clocks", "e2e.emulator_pose_vs_truth.rms.Tx",
+            "e2e.loop_delay_clocks", "e2e.motion_gain", "e2e.emulator_pose_vs_truth.rms.Tx",
             *(f"e2e.{key}.{name}" for key in (
                 "emulator_vs_truth.rms", "emulator_steps_vs_truth.rms",
                 "golden_b_vs_truth.rms", "true_motion.rms", "ratio_to_golden_b",
@@ -433,6 +433,9 @@ BAD_INPUTS = {
     "dataset and rig": (lambda p: ["--dataset", "x.npz", "--rig", "stereo20"],
                         "--rig applies to a simulated run, not to --dataset"),
     "out is a file": (lambda p: ["--out", _bad_dataset(p)], "exists and is not a directory"),
+    "information gain with cosim": (lambda p: ["--motion-gain", "information"],
+                                    "--motion-gain information is not built in the gateware "
+                                    "yet .*add --cosim-rows 0"),
 }
 
 
@@ -447,7 +450,8 @@ def test_bad_input_is_reported_before_long_work(case, tmp_path, monkeypatch, cap
 
 
 @pytest.mark.parametrize("arguments", [["--sim", "ghdl"], ["--frames", "-1"],
-                                       ["--frames", "3", "--duration", "0.1"]])
+                                       ["--frames", "3", "--duration", "0.1"],
+                                       ["--motion-gain", "matrix"]])
 def test_malformed_options_are_argparse_errors(arguments, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["run", *arguments])
@@ -561,3 +565,17 @@ def test_rows_cut_a_rig_with_vertical_blanking():
         assert after.height == 96
         assert after.fps == before.fps and after.t_f == before.t_f
         assert after.t_r * 96 == pytest.approx(before.t_r * before.height, rel=1e-12)
+
+
+def test_the_information_gain_runs_the_emulator_model_beside_golden_b_with_it():
+    """``--motion-gain information --cosim-rows 0``: the hardware path's filter and golden
+    (b) both take the information gain, and the report says so."""
+    job = _job("--motion-gain", "information", "--cosim-rows", "0")
+    informed = run_command.run_job(job, progress=False)
+    m = metrics(informed)
+    assert m["motion_gain"] == "information"
+    assert informed.hardware.forecast.motion_gain == "information"
+    assert informed.golden_b.params["motion_gain"] == "information"
+    assert "information gain" in informed.summary()
+    assert m["solved_fraction"] > 0.9
+    print({k: m[f"emulator_vs_truth.rms.{k}"] for k in UNKNOWNS})
