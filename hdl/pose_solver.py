@@ -16,13 +16,16 @@ The algorithm, formats and error budget are in ``docs/pose/pose_solver.md``; the
 bit-accurate model is :mod:`emulator.pose_solver`.
 """
 
-from amaranth.hdl import Module
+from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import stream, wiring
+from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out, connect
 
 from hdl.pose.coef_store import CoefficientStore, coef_write_signature
-from hdl.pose.accumulator import PAIRS, PoseAccumulator, measurement_layout
-from hdl.pose.engine import PoseEngine, counters_layout, record_layout
+from hdl.pose.accumulator import PAIRS, PoseAccumulator, leading_one, measurement_layout
+from hdl.pose.engine import PoseEngine, counters_layout, prior_exponent_high, record_layout
+from hdl.pose.prior_store import PriorStore, total_fmt
+from hdl.pose.program import UPPER
 from hdl.pose.params import PoseFlag, PoseSolverParams
 
 __all__ = ["PoseSolver", "PoseSolverParams", "PoseFlag",
@@ -78,7 +81,7 @@ class PoseSolver(wiring.Component):
     0; the coefficient store keeps its contents.
     """
 
-    def __init__(self, params=None, coefficients=None):
+    def __init__(self, params=None, coefficients=None, gain=None):
         params = PoseSolverParams() if params is None else params
         if not isinstance(params, PoseSolverParams):
             raise TypeError(f"params must be a PoseSolverParams, not {params!r}")
@@ -86,8 +89,17 @@ class PoseSolver(wiring.Component):
         self._store = CoefficientStore(params, coefficients)
         self.coefficients = self._store.contents
         self._accumulator = PoseAccumulator(params)
-        self._engine = PoseEngine(params)
+        self._engine = PoseEngine(params, gain)
+        self.gain = gain
+        extra = {}
+        if gain is not None:
+            self._prior = PriorStore(gain)
+            members = self._engine.signature.members
+            extra = {"predicted": members["predicted"], "gains": members["gains"],
+                     "prior_weight": self._prior.signature.members["prior_weight"],
+                     "smoothing": self._prior.signature.members["smoothing"]}
         super().__init__({
+            **extra,
             "i": In(stream.Signature(measurement_layout(params))),
             "gated": In(1),
             "o": Out(stream.Signature(record_layout(params))),
@@ -138,4 +150,42 @@ class PoseSolver(wiring.Component):
                      engine.time.eq(acc.time), self.counters.eq(engine.counters),
                      engine.pivot_log2.eq(self.pivot_log2),
                      self.pivot_log2_error.eq(engine.pivot_log2_error)]
+        if self.gain is not None:
+            self._wire_prior(m, acc, engine)
         return m
+
+    def _wire_prior(self, m, acc, engine):
+        """The information gain's prior: the engine's reads of the first 21 sums (N) pass
+        through the prior store, whose ``M = N + Λ'`` fill a buffer the normalizer reads
+        and whose diagonal gives ``M``'s exponents (by cycle 27 of the program, before
+        the normalizer reaches M at cycle 33); the record's flags keep or drop ``Λ'``."""
+        p, g = self.params, self.gain
+        m.submodules.prior = prior = self._prior
+        connect(m, wiring.flipped(self.gains), engine.gains)
+        m.d.comb += [engine.predicted.eq(self.predicted),
+                     prior.prior_weight.eq(self.prior_weight),
+                     prior.smoothing.eq(self.smoothing)]
+        entries = len(UPPER)
+        m.d.comb += [prior.i.valid.eq(engine.reading_normal),
+                     prior.i.payload.value.eq(acc.read_data),
+                     prior.i.payload.last.eq(engine.read_index == entries - 1),
+                     prior.o.ready.eq(1),
+                     prior.keep.valid.eq(engine.o.valid & self.o.ready),
+                     prior.keep.payload.eq(engine.o.payload.flags == 0)]
+        m.submodules.prior_buffer = buffer = Memory(shape=total_fmt(g).shape(), depth=entries,
+                                                    init=[])
+        write, read = buffer.write_port(), buffer.read_port(domain="comb")
+        index = Signal(range(entries))
+        with m.If(prior.o.valid):
+            m.d.sync += index.eq(Mux(prior.o.payload.last, 0, index + 1))
+        m.d.comb += [write.en.eq(prior.o.valid), write.addr.eq(index),
+                     write.data.eq(prior.o.payload.value),
+                     read.addr.eq(engine.m_index), engine.m_data.eq(read.data)]
+        low, high = p.exponent_range[0], prior_exponent_high(g)
+        frac, width = p.normal_fmt.frac_bits, total_fmt(g).width
+        top = leading_one(prior.o.payload.value, width)
+        exponent = -((frac - 1 - top) >> 1)
+        clamped = Mux(exponent < low, low, Mux(exponent > high, high, exponent))
+        for i in range(6):
+            with m.If(prior.o.valid & (index == UPPER.index((i, i)))):
+                m.d.sync += engine.m_exponents[i].eq(clamped)

@@ -31,7 +31,10 @@ from hdl.fixed import SQ, UQ, Overflow, Rounding, hdl_add, hdl_mul, hdl_resize, 
 from hdl.pose.accumulator import PAIRS, exponent_bits, leading_one
 from hdl.pose.params import (DELTA_BITS, MIN_PIVOT_LOG2, SEED_TABLE_FMT, SLOPE_FMT, PoseFlag,
                              PoseSolverParams, solver_source)
-from hdl.pose.program import MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, STATE_NAMES
+from hdl.pose.forecast_filter import gain_layout
+from hdl.pose.forecast_params import ForecastParams
+from hdl.pose.prior_store import total_fmt
+from hdl.pose.program import MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, STATE_NAMES, UPPER
 from hdl.pose.rom import BANKS, ProgramRom, seed_table_contents
 
 __all__ = ["PoseEngine", "record_layout", "counters_layout"]
@@ -48,6 +51,39 @@ def counters_layout(params):
     """Status counters (wrap): rows solved, and rows flagged for each reason."""
     return data.StructLayout({name: params.counter_bits for name in
                               ("solved", "empty", "ill", "saturated", "overrun")})
+
+
+def check_gain(params, gain):
+    """``gain``: None, or the forecast's parameters with ``motion_gain="information"`` of
+    this solver (the information gain's formats); returned as given."""
+    if gain is None:
+        return None
+    if not isinstance(gain, ForecastParams) or gain.motion_gain != "information":
+        raise ValueError(f"gain must be None or a ForecastParams with motion_gain "
+                         f"'information', not {gain!r}")
+    if gain.solver != params:
+        raise ValueError("gain must be the forecast of this solver (gain.solver == params)")
+    return gain
+
+
+def prior_exponent_high(gain):
+    """The largest Jacobi exponent of ``N + Λ`` (its format's top bit)."""
+    return gain.solver.exponent(total_fmt(gain).width - 1)
+
+
+def gain_ports(gain):
+    """The engine's ports of the information gain: whether ``read_index`` reads one of
+    the 21 entries of N this clock, M's entries and exponents in, the filter's prediction
+    in, the moves out."""
+    p = gain.solver
+    low = p.exponent_range[0]
+    bits = max(abs(low), abs(prior_exponent_high(gain))).bit_length() + 1
+    return {"reading_normal": Out(1),
+            "m_index": Out(range(len(UPPER))),
+            "m_data": In(total_fmt(gain).shape()),
+            "m_exponents": In(data.ArrayLayout(signed(bits), 6)),
+            "predicted": In(data.ArrayLayout(gain.motion_fmt.shape(), 6)),
+            "gains": Out(stream.Signature(gain_layout(gain)))}
 
 
 class PoseEngine(wiring.Component):
@@ -80,13 +116,14 @@ class PoseEngine(wiring.Component):
     cleared in the first :attr:`clear_clocks` clocks; a row waits for that), counters 0.
     """
 
-    def __init__(self, params):
+    def __init__(self, params, gain=None):
         if not isinstance(params, PoseSolverParams):
             raise TypeError(f"params must be a PoseSolverParams, not {params!r}")
-        self.params = params
-        self._words = ProgramRom(params)
+        self.params, self.gain = params, check_gain(params, gain)
+        self._words = ProgramRom(params, information=gain is not None)
         eb = exponent_bits(params)
         super().__init__({
+            **({} if gain is None else gain_ports(gain)),
             "row_done": In(1),
             "read_index": Out(range(len(PAIRS))),
             "read_data": In(params.normal_fmt.shape()),
@@ -130,7 +167,8 @@ class PoseEngine(wiring.Component):
         pc = Signal(range(length + 1))
         go = Signal()
         cleared = Signal()
-        m.d.comb += go.eq(self.row_done & ~running & ~self.o.valid & cleared)
+        idle_out = ~self.o.valid if self.gain is None else ~self.o.valid & ~self.gains.valid
+        m.d.comb += go.eq(self.row_done & ~running & idle_out & cleared)
         exps = Signal.like(self.exponents)
         row, time = Signal.like(self.row), Signal.like(self.time)
         empty, overrun, ill, saturated = Signal(), Signal(), Signal(), Signal()
@@ -244,7 +282,13 @@ class PoseEngine(wiring.Component):
                      n_sat.eq(valid2 & Mux(kind2 == 0, norm_sat, Mux(kind2 == 1, rhs_sat, 0))),
                      n_write.eq(valid2), n_waddr.eq(addr2)]
         assert NORMALIZER_LATENCY == 3
-        m.d.comb += [w_in.en.eq(n_write), w_in.addr.eq(n_waddr), w_in.data.eq(n_data)]
+        if self.gain is None:
+            m.d.comb += [w_in.en.eq(n_write), w_in.addr.eq(n_waddr), w_in.data.eq(n_data)]
+        else:
+            g_write, g_waddr, g_data, g_sat = self._gain_inputs(m, pc, running, exps, depth_in)
+            m.d.comb += [w_in.en.eq(n_write | g_write),
+                         w_in.addr.eq(Mux(g_write, g_waddr, n_waddr)),
+                         w_in.data.eq(Mux(g_write, g_data, n_data))]
 
         # --- multiply-accumulate unit -----------------------------------------------------
         # issue t: read; t+1: operands; t+2: multiply; t+3: product aligned to the op's
@@ -294,8 +338,18 @@ class PoseEngine(wiring.Component):
         m.d.sync += threshold.eq(Mux(error, built, one >> self.pivot_log2))
         pivot1, seed1 = Signal(raw), Signal()
         m.d.sync += [pivot1.eq(op_a), seed1.eq(stages[1].issue & stages[1].seed)]
-        with m.If(seed1 & (pivot1 < threshold)):
-            m.d.sync += ill.eq(1)
+        if self.gain is None:
+            with m.If(seed1 & (pivot1 < threshold)):
+                m.d.sync += ill.eq(1)
+        else:                   # a gain op's pivot check is the gain's
+            gain_ill, gain_saturated = Signal(), Signal()
+            with m.If(go):
+                m.d.sync += [gain_ill.eq(0), gain_saturated.eq(0)]
+            with m.If(seed1 & (pivot1 < threshold)):
+                with m.If(stages[2].gain):
+                    m.d.sync += gain_ill.eq(1)
+                with m.Else():
+                    m.d.sync += ill.eq(1)
         # a pivot at or below zero counts as the smallest positive one (the row is ILL);
         # the test runs beside the bit-length tree, not before it
         nonpositive = pivot1[W - 1] | ~pivot1.any()
@@ -353,14 +407,22 @@ class PoseEngine(wiring.Component):
         with m.If(write & wb.dst_state):
             m.d.sync += Array(state)[wb.dst[:3]].eq(Mux(flagged, Array(old)[wb.dst[:3]],
                                                         w_data))
-        with m.If((mac_write & stages[5].checked & mac_sat) | n_sat):
-            m.d.sync += saturated.eq(1)
+        mac_saturated = mac_write & stages[5].checked & mac_sat
+        if self.gain is None:
+            with m.If(mac_saturated | n_sat):
+                m.d.sync += saturated.eq(1)
+        else:
+            with m.If((mac_saturated & ~stages[5].gain) | n_sat):
+                m.d.sync += saturated.eq(1)
+            with m.If((mac_saturated & stages[5].gain) | g_sat):
+                m.d.sync += gain_saturated.eq(1)
         captured = [Signal(raw, name=f"step{k}") for k in range(6)]
+        moves = [] if self.gain is None else [Signal(raw, name=f"move{k}") for k in range(6)]
         with m.If(write):
             with m.Switch(wb.capture):
-                for k in range(6):
+                for k, target in enumerate(captured + moves):
                     with m.Case(k + 1):
-                        m.d.sync += captured[k].eq(w_data)
+                        m.d.sync += target.eq(w_data)
 
         # --- record ------------------------------------------------------------------------
         flags = Signal(len(PoseFlag))
@@ -372,6 +434,13 @@ class PoseEngine(wiring.Component):
         m.d.comb += [rec.q[k].eq(state[k]) for k in range(4)]
         m.d.comb += [rec.p[k].eq(state[4 + k]) for k in range(3)]
         m.d.comb += [rec.step[k].eq(Mux(flags == 0, captured[k], 0)) for k in range(6)]
+        if self.gain is not None:   # the information gain's moves, beside the record
+            with m.If(running & (pc == length - 1)):
+                m.d.sync += self.gains.valid.eq(1)
+            with m.Elif(self.gains.valid & self.gains.ready):
+                m.d.sync += self.gains.valid.eq(0)
+            m.d.comb += [self.gains.payload.ok.eq(~gain_ill & ~gain_saturated)]
+            m.d.comb += [self.gains.payload.move[k].eq(moves[k]) for k in range(6)]
         # counted on the edge that raises o.valid (the flags are final by then)
         with m.If(running & (pc == length - 1)):
             for name, flag in (("empty", PoseFlag.EMPTY), ("ill", PoseFlag.ILL),
@@ -382,6 +451,67 @@ class PoseEngine(wiring.Component):
             with m.If(flags == 0):
                 m.d.sync += self.counters.solved.eq(self.counters.solved + 1)
         return m
+
+    def _gain_inputs(self, m, pc, running, exps, depth_in):
+        """The normalizer's share of the information gain (the model's
+        :func:`emulator.pose.information_gain.gain_inputs`): after the row's 33 inputs,
+        M̂ (21, from ``m_data`` at ``m_index`` with ``m_exponents``), ``f = p·2**e`` (6,
+        ``predicted``), ``2**(e − e_M)`` and ``2**−e_M`` (6 each), one per clock with the
+        row inputs' latency. Returns (write, address, data, saturated) of the input bank
+        write; a saturation is the gain's."""
+        p, g = self.params, self.gain
+        low, high = p.exponent_range
+        high_m = prior_exponent_high(g)
+        total, motion, frac = total_fmt(g), g.motion_fmt, p.scale_fmt.frac_bits
+        first = len(PAIRS) + 6
+        count = len(UPPER) + 18
+        kind = Signal(2)            # 0: M entry, 1: prediction, 2: power of two, 3: zero
+        m_value, p_value = Signal(total.shape()), Signal(motion.shape())
+        m_shift = Signal(range(2 * (high_m - low) + 1))
+        p_shift = Signal(range(high + 1))
+        scale = Signal(range(frac + 1))
+        valid, addr = Signal(), Signal(range(depth_in))
+        index = pc - first
+        m.d.comb += self.m_index.eq(Mux((pc >= first) & (index < len(UPPER)), index, 0))
+        m.d.comb += self.reading_normal.eq(running & (pc < len(UPPER)))
+        m_exps = self.m_exponents
+        with m.Switch(pc):
+            for k, (i, j) in enumerate(UPPER):
+                with m.Case(first + k):
+                    m.d.sync += [m_shift.eq(2 * high_m - m_exps[i] - m_exps[j]), kind.eq(0)]
+            for i in range(6):
+                with m.Case(first + len(UPPER) + i):
+                    m.d.sync += [p_value.eq(self.predicted[i]), p_shift.eq(exps[i]),
+                                 kind.eq(1)]
+                with m.Case(first + len(UPPER) + 6 + i):
+                    diff = m_exps[i] - exps[i]
+                    m.d.sync += [scale.eq(frac - diff), kind.eq(Mux(diff > frac, 3, 2))]
+                with m.Case(first + len(UPPER) + 12 + i):
+                    m.d.sync += [scale.eq(frac - m_exps[i]), kind.eq(2)]
+        m.d.sync += [m_value.eq(self.m_data), valid.eq(running & (pc >= first)
+                                                       & (pc < first + count)),
+                     addr.eq(pc)]
+        # one clock for the shifts, one for the rounding (the row inputs' latency)
+        span = 2 * (high_m - low)
+        shifted_m = Signal(signed(total.width + span + 1))
+        shifted_p = Signal(signed(motion.width + high + 1))
+        kind2, scale2, valid2, addr2 = (Signal.like(kind), Signal.like(scale), Signal(),
+                                        Signal.like(addr))
+        m.d.sync += [shifted_m.eq(m_value << m_shift), shifted_p.eq(p_value << p_shift),
+                     kind2.eq(kind), scale2.eq(scale), valid2.eq(valid), addr2.eq(addr)]
+        wide_m = SQ(max(1, total.int_bits + span - 2 * high_m) + 1, total.frac_bits + 2 * high_m)
+        scaled, scaled_sat = _round_saturating(m, shifted_m[:wide_m.width], wide_m, p.unit_fmt)
+        wide_p = SQ(motion.int_bits + high + 1, motion.frac_bits)
+        shifted, shifted_sat = _round_saturating(m, shifted_p, wide_p, p.solution_fmt)
+        data, saturated = Signal(signed(p.engine_width)), Signal()
+        write, waddr = Signal(), Signal.like(addr)
+        m.d.sync += [data.eq(Mux(kind2 == 0, scaled, Mux(kind2 == 1, shifted,
+                                                          Mux(kind2 == 2, Const(1, 1) << scale2,
+                                                              0)))),
+                     saturated.eq(valid2 & Mux(kind2 == 0, scaled_sat,
+                                               Mux(kind2 == 1, shifted_sat, 0))),
+                     write.eq(valid2), waddr.eq(addr2)]
+        return write, waddr, data, saturated
 
     def _pose_ring(self, m, state, go, cleared):
         """The pose ring (one pose per row slot). Reads the starting row's slot on

@@ -21,7 +21,7 @@ Operands live in
   ops, which take effect only when the row raised no flag.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from hdl.fixed import QFormat
 
@@ -57,7 +57,9 @@ class Op:
     """One instruction of the program (see the module docstring).
 
     ``kind`` "mac" or "seed" (the seed unit: ``dst ≈ source^-1/2`` and the pivot check).
-    ``checked``: a saturation sets the row's SATURATED flag. ``commit``: writes state.
+    ``checked``: a saturation sets the row's SATURATED flag (``group`` "row") or the
+    information gain's own flag (``group`` "gain", :func:`build_gain_program`'s ops, whose
+    seeds' pivot checks are the gain's too). ``commit``: writes state.
     """
     kind: str
     dst: Operand
@@ -66,6 +68,7 @@ class Op:
     scale_log2: int = 0
     checked: bool = False
     source: Operand = None
+    group: str = "row"
 
     @property
     def commit(self):
@@ -113,6 +116,9 @@ class RowProgram:
         Work registers with fixed initial contents.
     step : tuple of Operand
         The six step values (captured into the pose record).
+    gain_step : tuple of Operand
+        The information gain's six moves (``build_row_program(..., information=True)``;
+        empty otherwise).
     aliases : dict name -> Operand
         Values that need no op (a term-less op of an operand into its own format): the
         operand they stand for, so that every value of the algorithm has its name.
@@ -123,6 +129,7 @@ class RowProgram:
     state: dict = field(default_factory=dict)
     constants: dict = field(default_factory=dict)
     step: tuple = ()
+    gain_step: tuple = ()
     aliases: dict = field(default_factory=dict)
 
     def _new(self, table, bank, name, fmt):
@@ -154,9 +161,11 @@ class RowProgram:
         return len(self.work)
 
 
-def build_row_program(params):
+def build_row_program(params, information=False):
     """The op list of one row for ``params`` (a PoseSolverParams): what the engine's ROM
-    is built from and what ``emulator.pose_solver`` executes."""
+    is built from and what ``emulator.pose_solver`` executes. ``information``: the
+    information gain's ops follow (:func:`build_gain_program`; their result is
+    ``gain_step``), for the engine's ROM."""
     prog = RowProgram()
     qf, sf, pf = params.quat_fmt, params.step_fmt, params.position_fmt
     n, rhs, scales = _system_inputs(prog, params)
@@ -207,6 +216,8 @@ def build_row_program(params):
         prog.mac(name + "'", pf, early, [(1, rotation[3 * k], tx)], dst=s[name])
     for name, c in zip(("qw", "qx", "qy", "qz"), q1):
         prog.mac(name + "'", qf, terms=[(1, c, gain)], dst=s[name])
+    if information:
+        prog.gain_step = _gain_ops(prog, params, n, rhs)
     return prog
 
 
@@ -224,23 +235,32 @@ def build_gain_program(params):
     """The op list of the information gain's solve (issue 16, docs/pose/information_gain.md)
     for ``params`` (a PoseSolverParams): the level update ``d = (N + Λ)⁻¹ N (Y − p)`` of
     the motion filter, with ``N`` the row's normal matrix, ``Λ`` the prior information
-    (:mod:`emulator.pose.information_gain`) and ``p`` the filter's prediction.
+    (:mod:`emulator.pose.information_gain`) and ``p`` the filter's prediction; ``step``
+    is ``d``. :func:`build_row_program` with ``information=True`` appends the same ops
+    to the row's (the engine's ROM); the model runs them apart."""
+    prog = RowProgram()
+    n, rhs, _ = _system_inputs(prog, params)
+    prog.constants["three_halves"] = (prog.work_value("three_halves", params.unit_fmt), 1.5)
+    prog.step = _gain_ops(prog, params, n, rhs)
+    return prog
+
+
+def _gain_ops(prog, params, n, rhs):
+    """Append the gain's inputs and ops (group "gain") to ``prog``; returns ``d``.
 
     Inputs, after the row program's own (N̂, b̂, ``s = 2**-e`` from the Jacobi exponents
     ``e`` of N): ``M̂ = S_M (N + Λ) S_M`` with the exponents ``e_M`` of ``N + Λ``, the
     prediction ``f = p·2**e`` in N's scaled unknowns, ``ratio = 2**(e − e_M)`` and
     ``sM = 2**-e_M``. Since ``N Y = r``, ``S_N N (Y − p) = b̂ − N̂ f`` needs no step: the
     solve runs beside the row's own. ``S_M N (Y − p)`` is that times ``ratio``; the
-    Cholesky solve of M̂ gives ``S_M⁻¹ d``, and ``d = sM · S_M⁻¹ d`` (``step``)."""
-    prog = RowProgram()
+    Cholesky solve of M̂ gives ``S_M⁻¹ d``, and ``d = sM · S_M⁻¹ d``."""
     unit, sol = params.unit_fmt, params.solution_fmt
-    n, rhs, _ = _system_inputs(prog, params)
     for (i, j) in UPPER:
         prog._new(prog.inputs, "input", f"M{i}{j}", unit)
     forecast = [prog._new(prog.inputs, "input", f"f{i}", sol) for i in range(6)]
     ratio = [prog._new(prog.inputs, "input", f"ratio{i}", params.scale_fmt) for i in range(6)]
     scales = [prog._new(prog.inputs, "input", f"sM{i}", params.scale_fmt) for i in range(6)]
-    prog.constants["three_halves"] = (prog.work_value("three_halves", unit), 1.5)
+    first = len(prog.ops)
 
     def entry(i, j):
         return n[f"N{min(i, j)}{max(i, j)}"]
@@ -251,9 +271,10 @@ def build_gain_program(params):
     scaled = [prog.mac(f"vM{i}", sol, terms=[(1, v, k)], checked=True)
               for i, (v, k) in enumerate(zip(innovation, ratio))]
     x = cholesky_solve(prog, params, lambda i, j: n[f"M{i}{j}"], scaled, prefix="g")
-    prog.step = tuple(prog.mac(f"d{j}", params.step_fmt, terms=[(1, x[j], scales[j])],
-                               checked=True) for j in range(6))
-    return prog
+    d = tuple(prog.mac(f"d{j}", params.step_fmt, terms=[(1, x[j], scales[j])], checked=True)
+              for j in range(6))
+    prog.ops[first:] = [replace(op, group="gain") for op in prog.ops[first:]]
+    return d
 
 
 def cholesky_solve(prog, params, entry, rhs, prefix=""):
@@ -345,7 +366,8 @@ def schedule(program):
     register file reads are transparent). State values are read as they were at the
     row's start: a commit op writes back no earlier than the last read of the state it
     replaces (a state register samples its old value in that clock), and after every
-    checked op (the row's flags are final by then)."""
+    checked op of the row (the row's flags are final by then; the information gain's
+    checks are its own)."""
     ops = program.ops
     ready = {("input", name): k + NORMALIZER_LATENCY for k, name in enumerate(program.inputs)}
     ready.update({("work", name): 0 for name in program.constants})
@@ -353,7 +375,7 @@ def schedule(program):
     priority = _critical_path(ops)
     readers = {name: [k for k, op in enumerate(ops) if op.dst.name != name and any(
         s.bank == "state" and s.name == name for s in op.sources)] for name in program.state}
-    checked = [k for k, op in enumerate(ops) if op.checked]
+    checked = [k for k, op in enumerate(ops) if op.checked and op.group == "row"]
     issue, writeback = [None] * len(ops), [None] * len(ops)
     busy_issue, busy_write = set(), set()
     pending = set(range(len(ops)))

@@ -22,8 +22,8 @@ def seed_table_contents(params):
 class ProgramRom:
     """The program as ROM words (one per clock) and the static tables the datapath needs."""
 
-    def __init__(self, params):
-        self.program = build_row_program(params)
+    def __init__(self, params, information=False):
+        self.program = build_row_program(params, information)
         self.schedule = schedule(self.program)
         ops = self.program.ops
         self.init_shifts = sorted({op.init_shift for op in ops if op.kind == "mac" and op.init})
@@ -36,21 +36,25 @@ class ProgramRom:
         self.max_terms = max(op.slots for op in ops)
         self.index_bits = max(len(self.program.inputs), self.program.work_depth,
                               len(STATE_NAMES)).bit_length()
-        step_names = {v.name: k for k, v in enumerate(self.program.step)}
+        # capture codes: 1-6 the step, 7-12 the information gain's moves
+        step_names = {v.name: k for k, v in
+                      enumerate(self.program.step + self.program.gain_step)}
         b = self.index_bits
+        gain = {"gain": 1} if information else {}
         self.layout = data.StructLayout({
             "issue": 1, "seed": 1, "first": 1, "last": 1, "negate": 1, "has_init": 1,
             "a_bank": 2, "a": b, "b_bank": 2, "b": b, "c_bank": 2, "c": b,
             "init_code": max(1, len(self.init_shifts).bit_length()),
             "out_code": max(1, len(self.out_shifts).bit_length()),
-            "dst_state": 1, "dst": b, "checked": 1, "capture": 3,
+            "dst_state": 1, "dst": b, "checked": 1,
+            "capture": 4 if information else 3, **gain,
         })
         words = [dict() for _ in range(self.schedule.length)]
         for op, start in zip(ops, self.schedule.issue):
             if op.kind == "seed":
                 words[start] = {"issue": 1, "seed": 1, "first": 1, "last": 1,
                                 "a_bank": BANKS[op.source.bank], "a": op.source.index,
-                                "dst": op.dst.index}
+                                "dst": op.dst.index, "gain": int(op.group == "gain")}
                 continue
             for t, (sign, a, bb) in enumerate(op.terms):
                 word = {"issue": 1, "negate": int(sign < 0), "first": int(t == 0),
@@ -59,7 +63,7 @@ class ProgramRom:
                         "b_bank": BANKS[bb.bank], "b": bb.index,
                         "out_code": self.out_shifts.index(op.out_shift),
                         "dst_state": int(op.commit), "dst": op.dst.index,
-                        "checked": int(op.checked),
+                        "checked": int(op.checked), "gain": int(op.group == "gain"),
                         "capture": step_names.get(op.dst.name, -1) + 1}
                 if t == 0 and op.init is not None:
                     word.update(has_init=1, c_bank=BANKS[op.init.bank], c=op.init.index,
