@@ -202,13 +202,14 @@ class LoopCosimResult:
     uart_packets_match: bool
 
 
-def _config(rig, records):
+def _config(rig, records, motion_gain="scalar"):
     """The board's closed-loop pipeline for ``rig`` (:func:`hdl.top.board_config`) with
-    a PS FIFO deep enough for ``records`` records."""
+    a PS FIFO deep enough for ``records`` records and the filter's ``motion_gain``."""
     from hdl.output.params import PoseOutputParams
     from hdl.top import board_config
     depth = 1 << max(records, 2).bit_length()
-    return board_config(rig, pose_output=PoseOutputParams(fifo_depth=depth))
+    return board_config(rig, pose_output=PoseOutputParams(fifo_depth=depth),
+                        motion_gain=motion_gain)
 
 
 def loop_expected(config, dataset, frames, times, initial_motion=None):
@@ -360,7 +361,7 @@ def _design_key(config):
 
 def closed_loop_cosim(dataset, *, row_period_s, frames=3, initial_motion=None,
                       sim="verilator", waves=False, seed=None, build_dir="build/cosim_loop",
-                      progress=False):
+                      progress=False, motion_gain="scalar"):
     """Co-simulate the first ``frames`` frames of every camera and row of ``dataset``
     (its rig must fit the top's register map, e.g. :func:`cut_rig` of stereo8) through
     the closed-loop HDL top and compare with the emulator; a :class:`LoopCosimResult`.
@@ -372,13 +373,14 @@ def closed_loop_cosim(dataset, *, row_period_s, frames=3, initial_motion=None,
     e.g. :func:`emulator.hardware_path.first_frame_motion`): the PS writes it to
     ``loop.initial`` and strobes ``loop.restart`` right after reset, so that the loop
     tracks frame 1 on from it (the papers' first frame given); None: the loop runs from
-    reset at rest."""
+    reset at rest. ``motion_gain``: the forecast filter's gain law, the top's and the
+    emulator's."""
     from golden.checks import check_int
     from hdl.top import RowtrackTop
     dataset = checked_input(dataset, sim)
     n_frames, height, width = dataset.cameras[0].rows.shape
     check_int("frames", frames, 2, n_frames)
-    config = _config(dataset.rig, frames * height)
+    config = _config(dataset.rig, frames * height, motion_gain)
     params = config.top
     say = print if progress else (lambda *_: None)
     images = np.stack([c.rows[:frames] for c in dataset.cameras])

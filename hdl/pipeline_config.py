@@ -119,7 +119,8 @@ class PipelineConfig:
     def for_rig(cls, rig, *, segments=DEFAULT_SEGMENTS, coef_width=DEFAULT_COEF_WIDTH,
                 coef_degree=DEFAULT_COEF_DEGREE, row_coef_degree=DEFAULT_ROW_COEF_DEGREE,
                 clk_hz=DEFAULT_CLK_HZ,
-                camera=CameraParams(), closed_loop=False, **top_changes):
+                camera=CameraParams(), closed_loop=False, motion_gain="scalar",
+                **top_changes):
         """The pipeline for ``rig``: its cameras (one image size), each in the rectified
         stereo pair :func:`golden.depth.stereo_pairs` finds, temporal lanes of
         ``segments`` segments, a ``coef_width``-bit coefficient store whose formats hold
@@ -129,7 +130,9 @@ class PipelineConfig:
         end's other widths (its count and size come from the rig); ``top_changes`` go to
         :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``). ``closed_loop``:
         the top closes the measurement loop with the default :meth:`forecast` and
-        :meth:`consistency` of the rig (``TopParams.forecast``/``.consistency``).
+        :meth:`consistency` of the rig (``TopParams.forecast``/``.consistency``), the forecast's
+        filter with ``motion_gain`` (``ForecastParams``; the open-loop pipeline takes it
+        in :meth:`forecast`).
 
         Raises
         ------
@@ -175,7 +178,8 @@ class PipelineConfig:
                      trigger_skew_rows=_trigger_skew_rows(rig))
         if not closed_loop:
             return config
-        return replace(config, top=top.closing(config.forecast(), config.consistency()))
+        return replace(config, top=top.closing(config.forecast(motion_gain=motion_gain),
+                                               config.consistency()))
 
     def store_window(self, first_row, rows, store="solver"):
         """The contents of a store for a window of ``rows`` camera rows from

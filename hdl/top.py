@@ -207,3 +207,6 @@ class RowtrackTop(wiring.Component):
             status.settings.eq(state.settings), status.clear.eq(state.clear.stb),
             state.state.eq(status.state),
         ]
+        if p.forecast.motion_gain == "information":
+            m.d.comb += [loop.prior_weight.eq(settings.prior_weight),
+                         loop.smoothing.eq(settings.typical_smoothing)]

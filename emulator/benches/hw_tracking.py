@@ -42,7 +42,7 @@ HEAD_RATIO = 1.5
 #: the emulator's model of the next (:mod:`emulator.pose.information_gain`).
 GAINS = {"scalar": "", "information": "information."}
 GAIN_TITLES = {"scalar": "scalar gain (the gateware as built)",
-               "information": "information gain (emulator model; gateware not yet built)"}
+               "information": "information gain (emulator and gateware; not the board top's build yet)"}
 
 
 def _rms(values):
@@ -205,7 +205,8 @@ forecast; the HDL equals it bit for bit where the gateware exists, see
 sensor noise, the first frame given), against truth and against the golden tracker's
 reference (b) with the same loop delay and gain law. Two gain laws of the forecast's
 motion filter: the scalar α the gateware builds, and the information gain
-`(N + Λ)⁻¹ N` (`emulator.pose.information_gain`, bit-accurate model of hardware not yet
-built; docs/board_rig.md says why the board rig needs it).
+`(N + Λ)⁻¹ N` (`emulator.pose.information_gain`; its gateware is built and bit-exact,
+`TrackingLoop` with `motion_gain="information"`, but the catalog's board top still builds
+the scalar gain; docs/board_rig.md says why the board rig needs it).
 
 {chr(10).join(sections)}"""

@@ -86,10 +86,9 @@ def add_arguments(parser):
                        help="HDL simulator (default: %(default)s)")
     cosim.add_argument("--waves", action="store_true", help="record waveforms")
     parser.add_argument("--motion-gain", choices=MOTION_GAINS, default="scalar",
-                        help="the forecast filter's gain law: scalar (the gateware's) or "
-                             "information (the emulator's model of the per-direction gain "
-                             "the board rig needs; no gateware yet, so only with "
-                             "--cosim-rows 0; default: %(default)s)")
+                        help="the forecast filter's gain law: scalar, or information (the "
+                             "per-direction gain 8-camera rigs such as the board rig need "
+                             "to track; default: %(default)s)")
     parser.add_argument("-o", "--out", type=Path, default=Path("build/report"),
                         help="report directory (default: %(default)s)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -256,10 +255,6 @@ def check_inputs(args):
     config = _configure(rig)
     if dataset is None:
         _simulation_inputs(args, rig, frames)
-    if args.motion_gain != "scalar" and args.cosim_rows != 0:
-        raise UsageError(f"--motion-gain {args.motion_gain} is not built in the gateware yet "
-                         f"(docs/pose/information_gain.md): add --cosim-rows 0 to run the "
-                         f"emulator's model alone")
     return Job(rig=rig, config=config, frames=frames, dataset=dataset,
                dataset_path=args.dataset,
                trajectory=args.trajectory or DEFAULT_TRAJECTORY, seed=args.seed,
@@ -332,7 +327,9 @@ def cosimulate(job, dataset, progress):
                                   initial_motion=first_frame_motion(part),
                                   sim=job.sim, waves=job.waves,
                                   seed=job.seed, build_dir=Path("build/cosim_loop"),
-                                  progress=progress)
+                                  progress=progress,
+                                  motion_gain=(job.forecast_changes or {}).get(
+                                      "motion_gain", "scalar"))
     except AssertionError as exc:      # the cocotb bench itself failed
         failures.append(f"HDL co-simulation: {exc}")
     walls = {"cosim": time.perf_counter() - start}

@@ -247,6 +247,7 @@ def _loop(params):
     from hdl.pose.tracking_loop import loop_counters_layout
     forecast, stage = params.forecast, params.consistency
     motion = forecast.motion_fmt
+    information = forecast.motion_gain == "information"
     return RegisterGroup("loop", GROUP_OFFSETS["loop"], "Closed measurement loop "
                          "(`hdl/pose/tracking_loop.py`, [docs/pose/tracking_loop.md]"
                          "(pose/tracking_loop.md)): the forecast's filter gains and start, "
@@ -285,5 +286,22 @@ def _loop(params):
         Register("counters", loop_counters_layout(forecast), Access.RO, "measurements of "
                  "another row than the forecast's, predicted shifts saturated (wrap); "
                  "`restart_pending`: a `restart` was written and has not taken effect "
-                 "(set from the write until the frame boundary it applies at; live)"),
+                 "(set from the write until the frame boundary it applies at; live)"
+                 + ("; `gain_flagged`: solved rows whose information gain was flagged "
+                    "(the filter moved by α)" if information else "")),
+        *_information_registers(forecast),
     ])
+
+
+def _information_registers(forecast):
+    """The information gain's run-time settings (a top built with it only)."""
+    if forecast.motion_gain != "information":
+        return []
+    return [Register("prior_weight", forecast.prior_fmt.width, Access.RW,
+                     f"the information gain's prior weight (1 − α)/α, raw "
+                     f"{forecast.prior_fmt} (reset {(1 - forecast.alpha) / forecast.alpha:g})",
+                     reset=forecast.prior_raw),
+            Register("typical_smoothing", forecast.gain_fmt.width, Access.RW,
+                     f"weight of each solved row in the typical information, raw "
+                     f"{forecast.gain_fmt} (reset {forecast.typical_smoothing:g})",
+                     reset=forecast.smoothing_raw)]

@@ -71,6 +71,8 @@ class Forecast(wiring.Component):
         Saturations counted (:func:`hdl.pose.forecast_predictor.counters_layout`).
     alpha, beta, initial, restart : In
         The filter's run-time gains and restart (see :class:`MotionFilter`).
+    gains : In, predicted : Out
+        With ``motion_gain="information"``: the filter's (see :class:`MotionFilter`).
     idle : Out(1)
         No request in progress and every request's record taken: a ``restart`` now
         drops nothing (:class:`hdl.pose.tracking_loop.TrackingLoop` restarts only then).
@@ -83,18 +85,15 @@ class Forecast(wiring.Component):
     def __init__(self, params, coefficients, row_coefficients, *, slot_bits=DEFAULT_SLOT_BITS,
                  shared_port=False):
         self._filter = MotionFilter(params, slot_bits=slot_bits)
-        if params.motion_gain != "scalar":
-            raise ValueError(f"motion_gain {params.motion_gain!r} is not built in the "
-                             f"gateware yet: MotionFilter takes the information gain's "
-                             f"moves, the engine program that solves them is not built "
-                             f"(docs/pose/information_gain.md)")
         self._predictor = RowPredictor(params, coefficients, row_coefficients,
                                        shared_port=shared_port)
         self.params, self.slot_bits = params, slot_bits
         f = self._filter.signature.members
         shared = {"coef": self._predictor.signature.members["coef"]} if shared_port else {}
+        information = {"gains": f["gains"], "predicted": f["predicted"]} \
+            if params.motion_gain == "information" else {}
         super().__init__({
-            **shared,
+            **shared, **information,
             "requests": In(stream.Signature(request_layout(params, slot_bits))),
             "records": f["records"],
             "o": Out(stream.Signature(output_layout(params))),
@@ -137,6 +136,9 @@ class Forecast(wiring.Component):
             self.idle.eq(predictor.idle & motion.drained),
         ]
         connect(m, flipped(self.records), motion.records)
+        if self.params.motion_gain == "information":
+            connect(m, flipped(self.gains), motion.gains)
+            m.d.comb += self.predicted.eq(motion.predicted)
         connect(m, predictor.o, flipped(self.o))
         if "coef" in self.signature.members:
             connect(m, flipped(self.coef), predictor.coef)

@@ -61,6 +61,11 @@ class MotionFilter(wiring.Component):
     gains : In(stream.Signature(gain_layout(params))), with ``motion_gain="information"``
         One per record, taken with it: a solved record's level moves by ``move`` when
         ``ok`` (:func:`emulator.pose.information_gain.gain_step`), else by ``α``.
+    predicted : Out(ArrayLayout(motion_fmt, 6)), with ``motion_gain="information"``
+        ``p = L + B`` of the newest state, saturated (the model's
+        :meth:`~emulator.pose.forecast.MotionFilter.predicted`): what the next record's
+        gain is solved against; settled :attr:`update_clocks` clocks after a record is
+        taken.
     query : In(stream.Signature(unsigned(slot_bits)))
         The row slot whose forecast is wanted, once per row slot, in increasing order.
     motion : Out(ArrayLayout(motion_fmt, 6))
@@ -100,8 +105,8 @@ class MotionFilter(wiring.Component):
         self.source = solver_source(params.solver)
         motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
         gain = unsigned(params.gain_fmt.width)
-        gains = {"gains": In(stream.Signature(gain_layout(params)))} \
-            if params.motion_gain == "information" else {}
+        gains = {"gains": In(stream.Signature(gain_layout(params))),
+                 "predicted": Out(motion)} if params.motion_gain == "information" else {}
         super().__init__({
             "records": In(stream.Signature(self.source.layout())),
             **gains,
@@ -227,6 +232,13 @@ class MotionFilter(wiring.Component):
         else:
             def increment(gained):
                 return gained
+
+        if information:
+            for i in range(6):
+                total = newest.level[i] + newest.trend[i]
+                m.d.comb += self.predicted[i].eq(
+                    hdl_resize(total, SQ(fmt.int_bits + 1, fmt.frac_bits), fmt,
+                               Rounding.FLOOR, Overflow.SATURATE))
 
         level_i, trend_i = newest.level[axis], newest.trend[axis]
         y = hdl_resize(step[axis], self.source.step_fmt, fmt, Rounding.HALF_EVEN,

@@ -56,11 +56,14 @@ __all__ = ["TrackingLoop", "loop_counters_layout"]
 
 def loop_counters_layout(params):
     """The loop's own counters (wrapping, ``solver.counter_bits``): measurements whose row
-    was not the forecast row's, predicted shifts saturated; and its status bit
-    ``restart_pending``: a ``restart`` waits for its frame boundary."""
+    was not the forecast row's, predicted shifts saturated, with the information gain
+    solved rows whose gain was flagged (the filter moved by α; the model's
+    ``counts["gain_flagged"]``); and its status bit ``restart_pending``: a ``restart``
+    waits for its frame boundary."""
     bits = params.solver.counter_bits
+    gain = {"gain_flagged": bits} if params.motion_gain == "information" else {}
     return data.StructLayout({"mismatched": bits, "predicted_saturated": bits,
-                              "restart_pending": 1})
+                              "restart_pending": 1, **gain})
 
 
 class TrackingLoop(wiring.Component):
@@ -102,6 +105,8 @@ class TrackingLoop(wiring.Component):
         The solver's conditioning gate (:class:`hdl.pose_solver.PoseSolver`).
     alpha, beta, initial : In
         The forecast's gains and start (:class:`hdl.pose.forecast.Forecast`).
+    prior_weight, smoothing : In, with ``motion_gain="information"``
+        The information gain's prior weight and smoothing (:class:`hdl.pose_solver.PoseSolver`).
     restart : In(1)
         Strobe: restart the filter at ``initial`` (read then) and the requests at row 0,
         slot 0, at the next frame boundary of the requests once every row forecast
@@ -134,10 +139,15 @@ class TrackingLoop(wiring.Component):
                                   shared_port=True)
         self._shift = MeasuredShift(params, stage)
         self._stage = ConsistencyStage(stage, bits_per_clock=bits_per_clock)
-        self._solver = PoseSolver(params.solver, solver_store)
+        information = params.motion_gain == "information"
+        self._solver = PoseSolver(params.solver, solver_store,
+                                  gain=params if information else None)
         s = params.solver
         f = self._forecast.signature.members
+        solver = self._solver.signature.members
         super().__init__({
+            **({"prior_weight": solver["prior_weight"], "smoothing": solver["smoothing"]}
+               if information else {}),
             "i": In(stream.Signature(measurement_layout(s))),
             "o": Out(stream.Signature(output_layout(params))),
             "records": Out(stream.Signature(record_layout(s))),
@@ -246,6 +256,20 @@ class TrackingLoop(wiring.Component):
         m.submodules.record_fork = record_fork = StreamFork(solver.o.payload.shape(), 2)
         connect(m, solver.o, record_fork.i)
         connect(m, record_fork.o[0], forecast.records)
+        if p.motion_gain == "information":
+            # the moves go straight to the filter, which takes them with the record; the
+            # solver starts its next row only once they are taken, so the filter's
+            # prediction is settled (update_clocks) before the row's program reads it
+            # (cycle 54 of the program)
+            assert forecast.record_clocks < 54
+            connect(m, solver.gains, forecast.gains)
+            taken = record_fork.o[0]
+            with m.If(taken.valid & taken.ready & (taken.payload.flags == 0)
+                      & ~forecast.gains.payload.ok):
+                m.d.sync += self.counters.gain_flagged.eq(self.counters.gain_flagged + 1)
+            m.d.comb += [solver.predicted.eq(forecast.predicted),
+                         solver.prior_weight.eq(self.prior_weight),
+                         solver.smoothing.eq(self.smoothing)]
         connect(m, record_fork.o[1], flipped(self.records))
         m.d.comb += [solver.gated.eq(stage.gated), stage.settings.eq(self.settings),
                      self.counts.eq(stage.counts), self.solver_counters.eq(solver.counters),

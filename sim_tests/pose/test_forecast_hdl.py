@@ -294,9 +294,6 @@ def test_a_diverging_loop_saturates_the_motion_and_counts_it(sign, restarted):
     (lambda c: Forecast(small_params(solver=PoseSolverParams(slots=6, rows=8), segments=3),
                         np.zeros((6, 8, 9), dtype=int), np.zeros((6, 8, 9), dtype=int)),
      ValueError, "segments must be a power of two in the gateware .*, not 3"),
-    (lambda c: Forecast(c["params"].replace(motion_gain="information"), c["coefficients"],
-                        c["row_coefficients"]),
-     ValueError, "motion_gain 'information' is not built in the gateware yet"),
 ])
 def test_bad_parameters_are_named(build, error, message):
     case = random_case(SEED, rows=2)

@@ -433,9 +433,6 @@ BAD_INPUTS = {
     "dataset and rig": (lambda p: ["--dataset", "x.npz", "--rig", "stereo20"],
                         "--rig applies to a simulated run, not to --dataset"),
     "out is a file": (lambda p: ["--out", _bad_dataset(p)], "exists and is not a directory"),
-    "information gain with cosim": (lambda p: ["--motion-gain", "information"],
-                                    "--motion-gain information is not built in the gateware "
-                                    "yet .*add --cosim-rows 0"),
 }
 
 

@@ -44,17 +44,20 @@ def cut_rig(rows, pairs=PAIRS):
 
 
 @lru_cache(maxsize=None)
-def closed_loop_case(rows=32, frames=3, seed=1, pairs=PAIRS, delay=1, restart=None):
+def closed_loop_case(rows=32, frames=3, seed=1, pairs=PAIRS, delay=1, restart=None,
+                     gain="scalar"):
     """The closed loop on ``cut_rig(rows, pairs)``, ``frames`` frames of the papers'
-    motion (seed ``seed``), loop delay ``delay`` rows, started at the true motion of
-    frame 1's first row (as the benchmark); with ``restart`` (a frame) started at 0 (as
-    after reset) and restarted before that frame at the true motion of its first row.
-    Cached under build/."""
-    tail = "" if restart is None else f"_restart{restart}"
+    motion (seed ``seed``), loop delay ``delay`` rows, the filter's ``gain`` law
+    (``ForecastParams.motion_gain``), started at the true motion of frame 1's first row
+    (as the benchmark); with ``restart`` (a frame) started at 0 (as after reset) and
+    restarted before that frame at the true motion of its first row. Cached under
+    build/."""
+    tail = ("" if restart is None else f"_restart{restart}") + \
+        ("" if gain == "scalar" else f"_{gain}")
     name = (f"stereo20_p{''.join(map(str, pairs))}_r{rows}_f{frames}_s{seed}_d{delay}"
             f"{tail}_{VERSION}.pkl")
     return cached(CACHE / name, lambda: _closed_loop(rows, frames, seed, pairs, delay,
-                                                     restart))
+                                                     restart, gain))
 
 
 def restart_after(case):
@@ -69,7 +72,7 @@ def restart_after(case):
     return ((restart[0] - 1) * params.height + 2) * params.cameras
 
 
-def _closed_loop(rows, frames, seed, pairs, delay, restart):
+def _closed_loop(rows, frames, seed, pairs, delay, restart, gain):
     from emulator.e2e import true_steps
     from emulator.pipeline import run
     from golden.scene import default_scene_spec
@@ -82,7 +85,7 @@ def _closed_loop(rows, frames, seed, pairs, delay, restart):
                        seed=seed)
     config = PipelineConfig.for_rig(rig, segments=4, stereo_segments=4)
     # rows compared up to half a frame off (the default 16 with 32 rows and more)
-    params = config.forecast(loop_delay_rows=delay)
+    params = config.forecast(loop_delay_rows=delay, motion_gain=gain)
     stage = config.consistency(max_row_offset=min(16, rows // 2))
     inputs, expected = [], []
     request, close = TrackingLoopModel.request, TrackingLoopModel.close
@@ -116,6 +119,7 @@ def _closed_loop(rows, frames, seed, pairs, delay, restart):
             "initial": params.motion_fmt.quantize(initial), "inputs": inputs,
             "expected": expected, "records": records,
             "slots": [int(v) for v in out.loop["slot"]], "rows": [int(v) for v in out.loop["row"]],
-            "counts": out.loop["counts"],
+            "counts": {k: v for k, v in out.loop["counts"].items() if k != "gain_flagged"},
+            "gain_flagged": out.loop["counts"].get("gain_flagged"),
             "restart": None if restart is None else
             (restart, params.motion_fmt.quantize(restarted[1]))}

@@ -1,7 +1,8 @@
 """Runs the tracking loop's cocotb bench on a real closed loop (stereo20 cut to pairs 0, 1
 and 4): on Verilator 32 rows, three frames (96 rows, 2,304 measurements); on Icarus 8
 rows, two frames, and 8 rows, three frames with a restart strobed in frame 0 (the model
-restarted before frame 1); with RUN_SLOW=1 also 64 rows, three frames at loop delay 2.
+restarted before frame 1); the information gain on both (32 rows × 3 frames, 8 rows × 2
+frames); with RUN_SLOW=1 also 64 rows, three frames at loop delay 2.
 The case is built once (a few seconds) and kept under build/."""
 
 import os
@@ -39,6 +40,16 @@ def test_tracking_loop_icarus_small():
 
 def test_tracking_loop_icarus_restart():
     _run("icarus", closed_loop_case(rows=8, frames=3, restart=1), "p014_r8_f3_restart1")
+
+
+def test_tracking_loop_verilator_information_gain():
+    _run("verilator", closed_loop_case(rows=32, frames=3, gain="information"),
+         "p014_r32_f3_information")
+
+
+def test_tracking_loop_icarus_information_gain():
+    _run("icarus", closed_loop_case(rows=8, frames=2, gain="information"),
+         "p014_r8_f2_information")
 
 
 @pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="the longer loop runs with RUN_SLOW=1")

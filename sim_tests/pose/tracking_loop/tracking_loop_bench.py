@@ -62,6 +62,8 @@ async def loop_matches_model(dut, traffic):
     clock = start_clock(dut)
     dut.settings.value = pack(settings_layout(stage), settings_init(stage))
     dut.alpha.value, dut.beta.value = params.alpha_raw, params.beta_raw
+    if params.motion_gain == "information":
+        dut.prior_weight.value, dut.smoothing.value = params.prior_raw, params.smoothing_raw
     dut.pivot_log2.value = s.pivot_log2
     dut.frame_rows.value = int(stage.frame_rows)
     motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
@@ -103,6 +105,8 @@ async def loop_matches_model(dut, traffic):
     assert counts == case["counts"], counts
     counters = unpack(loop_counters_layout(params), dut.counters.value)
     assert counters["mismatched"] == 0, counters
+    if params.motion_gain == "information":
+        assert counters["gain_flagged"] == case["gain_flagged"], counters
     solved = sum(r["flags"] == 0 for r in case["records"])
     dut._log.info(f"{traffic}: {len(case['inputs'])} measurements, {len(flat)} forecast "
                   f"transfers, {len(records.received)} records ({solved} solved) bit-exact, "
