@@ -59,7 +59,7 @@ class Outcome:
         m = metrics(self)
         lines = [f"{m['rig']}: {m['cameras']} cameras × {m['frames']} frames × {m['rows']} "
                  f"rows in {m['wall_s.total']:.1f} s",
-                 f"hardware path (closed loop, {m['motion_gain']} gain, delay "
+                 f"hardware path (closed loop, {m.get('motion_gain', 'scalar')} gain, delay "
                  f"{m['loop_delay_rows']} row = "
                  f"{m['loop_delay_clocks']} clocks) vs truth, per-row Y RMS (m, rad): "
                  f"filter level {_six(m, 'emulator_vs_truth.rms')}; solved steps "
@@ -298,7 +298,7 @@ def accuracy_section(m):
         f"Per-row one-frame motion Y = [Tx Ty Tz θx θy θz] (m, rad) against truth, RMS "
         f"per axis (`emulator.e2e.compare_closed_loop`); the hardware path's closed loop "
         f"with a loop delay of {m['loop_delay_rows']} row(s) = {m['loop_delay_clocks']} "
-        f"clocks and the {m['motion_gain']} gain, golden (b) with the same delay and "
+        f"clocks and the {m.get('motion_gain', 'scalar')} gain, golden (b) with the same delay and "
         f"gain:", "",
         table([(name, _axes_row(m, key, UNKNOWNS)) for name, key in (
             ("hardware path ↔ truth (filter level: the estimate judged)",

@@ -32,7 +32,7 @@ from hdl.output.link import PoseLink
 from hdl.pose.row_counter import RowCounter
 from hdl.pose.status_params import top_status_params
 from hdl.pose.status_unit import StatusUnit
-from hdl.pose.tracking_loop import TrackingLoop
+from hdl.pose.tracking_loop import TrackingLoop, information_settings
 from hdl.pose_solver import PoseSolver
 from hdl.bus.axi4lite import AXI4LiteSignature
 from hdl.bus.register_file import RegisterFile
@@ -207,6 +207,4 @@ class RowtrackTop(wiring.Component):
             status.settings.eq(state.settings), status.clear.eq(state.clear.stb),
             state.state.eq(status.state),
         ]
-        if p.forecast.motion_gain == "information":
-            m.d.comb += [loop.prior_weight.eq(settings.prior_weight),
-                         loop.smoothing.eq(settings.typical_smoothing)]
+        m.d.comb += information_settings(loop, settings)

@@ -51,7 +51,7 @@ from hdl.pose.row_counter import verdict_layout
 from hdl.pose_solver import PoseSolver, measurement_layout, record_layout
 from hdl.stream_fork import StreamFork
 
-__all__ = ["TrackingLoop", "loop_counters_layout"]
+__all__ = ["TrackingLoop", "loop_counters_layout", "information_settings"]
 
 
 def loop_counters_layout(params):
@@ -64,6 +64,16 @@ def loop_counters_layout(params):
     gain = {"gain_flagged": bits} if params.motion_gain == "information" else {}
     return data.StructLayout({"mismatched": bits, "predicted_saturated": bits,
                               "restart_pending": 1, **gain})
+
+
+def information_settings(loop, settings):
+    """The assignments of the information gain's registers (``settings.prior_weight``,
+    ``.typical_smoothing``, :mod:`hdl.bus.regmap`) to ``loop``: none for a scalar-gain
+    build."""
+    if loop.params.motion_gain != "information":
+        return []
+    return [loop.prior_weight.eq(settings.prior_weight),
+            loop.smoothing.eq(settings.typical_smoothing)]
 
 
 class TrackingLoop(wiring.Component):
