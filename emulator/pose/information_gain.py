@@ -1,8 +1,9 @@
 """Bit-accurate model of the motion filter's information gain (issue 16,
 ``ForecastParams.motion_gain = "information"``): the golden tracker's
-:func:`golden.temporal_filter.information_gain` in the solver's fixed point. Not yet in
-the gateware: this is the specification its normalizer, prior store and engine program
-will be checked against.
+:func:`golden.temporal_filter.information_gain` in the solver's fixed point, the
+specification of its gateware (:class:`hdl.pose.prior_store.PriorStore`, the engine's
+gain program and normalizer inputs, :class:`hdl.pose.forecast_filter.MotionFilter`'s
+``gains``), bit-exact with it.
 
 With a solved row's normal matrix ``N`` (the accumulator's, exact), the prior
 information ``Λ = (1 − α)/α · N_typical`` and the filter's prediction ``p``, the level
@@ -29,6 +30,8 @@ it at the prediction.
 import numpy as np
 
 from hdl.fixed import SQ, QFormat, Rounding, Overflow, mul, resize
+from hdl.pose.engine import prior_exponent_high
+from hdl.pose.prior_store import total_fmt
 from hdl.pose.program import UPPER, build_gain_program
 from emulator.pose.program import Value, batches, execute, operand_key, round_half_even
 from emulator.pose_solver import (diagonal, flags_from_checks, jacobi_exponents, scale_matrix,
@@ -86,11 +89,10 @@ def gain_inputs(params, normal, rhs, prior, predicted):
                          f"exponents; the gain's prediction p·2**e needs e >= 0")
     scaled, scaled_rhs, scales, _, saturated = scale_system(solver, normal, rhs)
     exponents = jacobi_exponents(solver, diagonal(normal), solver.exponent_range)
-    total_fmt = SQ(params.information_fmt.int_bits + 1, params.information_fmt.frac_bits)
     prior = np.asarray(prior, dtype=object)
-    total = [Value(np.asarray(v.raw, dtype=object) + prior[:, k], total_fmt)
+    total = [Value(np.asarray(v.raw, dtype=object) + prior[:, k], total_fmt(params))
              for k, v in enumerate(normal)]
-    total_range = (solver.exponent_range[0], solver.exponent(total_fmt.width - 1))
+    total_range = (solver.exponent_range[0], prior_exponent_high(params))
     total_exponents = jacobi_exponents(solver, diagonal(total), total_range)
     scaled_total, sat = scale_matrix(solver, total, total_exponents, total_range)
     saturated = saturated | sat
