@@ -34,6 +34,7 @@ import numpy as np
 from emulator.cosim import (camera_stimulus, checked_input, compare_records, latency_clocks,
                             pin_latencies, record_arrays, row_sets_from_columns, run_bench,
                             slice_rig)
+from golden.tracker_params import DEFAULT_MOTION_GAIN
 from hdl.descriptor.params import DEFAULT_SEGMENTS
 
 __all__ = ["SOLVER_FIELDS", "FORECAST_FIELDS", "LoopCosimResult", "cut_rig", "cut_slice",
@@ -202,7 +203,7 @@ class LoopCosimResult:
     uart_packets_match: bool
 
 
-def _config(rig, records, motion_gain="scalar"):
+def _config(rig, records, motion_gain=DEFAULT_MOTION_GAIN):
     """The board's closed-loop pipeline for ``rig`` (:func:`hdl.top.board_config`) with
     a PS FIFO deep enough for ``records`` records and the filter's ``motion_gain``."""
     from hdl.output.params import PoseOutputParams
@@ -361,7 +362,7 @@ def _design_key(config):
 
 def closed_loop_cosim(dataset, *, row_period_s, frames=3, initial_motion=None,
                       sim="verilator", waves=False, seed=None, build_dir="build/cosim_loop",
-                      progress=False, motion_gain="scalar"):
+                      progress=False, motion_gain=DEFAULT_MOTION_GAIN):
     """Co-simulate the first ``frames`` frames of every camera and row of ``dataset``
     (its rig must fit the top's register map, e.g. :func:`cut_rig` of stereo8) through
     the closed-loop HDL top and compare with the emulator; a :class:`LoopCosimResult`.

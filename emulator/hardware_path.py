@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from emulator.e2e import true_steps
+from golden.tracker_params import DEFAULT_MOTION_GAIN
 
 __all__ = ["first_frame_motion", "hardware_config", "golden_b_params", "HardwarePath",
            "closed_loop"]
@@ -45,10 +46,9 @@ def hardware_config(rig):
     return PipelineConfig.for_rig(rig, stereo_segments=DEFAULT_SEGMENTS)
 
 
-def golden_b_params(loop_delay_rows, motion_gain="scalar"):
-    """Golden reference (b) with the hardware's loop delay and gain law (the gateware's is
-    ``"scalar"``; ``"information"`` is the emulator's model of the next one,
-    :mod:`emulator.pose.information_gain`)."""
+def golden_b_params(loop_delay_rows, motion_gain=DEFAULT_MOTION_GAIN):
+    """Golden reference (b) with the hardware's loop delay and gain law
+    (:class:`hdl.pose.forecast_params.ForecastParams`' ``motion_gain``)."""
     from golden.tracker import TrackerParams
     return TrackerParams(reference="previous", follow_rows=True, motion_gain=motion_gain,
                          loop_delay_rows=loop_delay_rows)
@@ -73,14 +73,16 @@ class HardwarePath:
     def loop_delay_rows(self):
         return self.forecast.loop_delay_rows
 
-    def levels(self):
+    def levels(self, name="level"):
         """``(frame, row, level)`` of the loop's rows of frames ≥ 1: the forecast
         filter's level after each row's step (n, 6; m, rad), the hardware path's
-        estimate of the one-frame motion."""
+        estimate of the one-frame motion; ``name="track"``: the motion track's ``Y``
+        instead (:mod:`emulator.pose.motion_track`; KeyError where the frame is not a
+        whole number of row periods)."""
         loop = self.result.loop
         scored = loop["frame"] > 0
         return (loop["frame"][scored], loop["row"][scored],
-                self.forecast.motion_fmt.to_float(loop["level"][scored]))
+                self.forecast.motion_fmt.to_float(loop[name][scored]))
 
     def steps(self):
         """``(frame, row, step)`` of the solver's records of frames ≥ 1: the raw solved

@@ -8,13 +8,19 @@ from .checks import check_int, check_number
 from .descriptor import DescriptorParams, MatchParams
 from .temporal_filter import SCALE_CEILING
 
-__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "BOUNDARIES", "TrackerParams",
-           "TrackResult"]
+__all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "DEFAULT_MOTION_GAIN", "POSE_ALPHA",
+           "BOUNDARIES", "TrackerParams", "TrackResult"]
 
 REFERENCES = ("homography", "previous")
 DEPTHS = ("auto", "stereo", "overlap", "oracle")
 SOLVERS = ("linear", "nonlinear")
 MOTION_GAINS = ("information", "scalar")
+#: The gain law of the golden tracker and of the hardware's forecast unless told otherwise:
+#: with the scalar gain 8-camera rigs such as the board rig diverge (docs/board_rig.md).
+DEFAULT_MOTION_GAIN = "information"
+#: The pose track's pull towards each measured pose (``TrackerParams.pose_alpha``; the
+#: hardware's motion track takes the same default).
+POSE_ALPHA = 0.02
 BOUNDARIES = ("partial", "none")
 
 
@@ -149,9 +155,9 @@ class TrackerParams:
     min_depth_fraction: float = 0.5
     alpha: float = 0.1
     beta: float = 0.01
-    motion_gain: str = "information"
+    motion_gain: str = DEFAULT_MOTION_GAIN
     loop_delay_rows: int = 0
-    pose_alpha: float = 0.02
+    pose_alpha: float = POSE_ALPHA
     huber_k: float = 2.0
     scale_initial: float = 0.5
     scale_floor: float = 0.1

@@ -20,6 +20,7 @@ from golden.checks import check_int
 from golden.depth import stereo_pairs
 from golden.descriptor import segment_bounds
 from golden.pose_lsq import shift_coefficients
+from golden.tracker_params import DEFAULT_MOTION_GAIN
 
 from hdl.front_end.params import CameraParams
 from hdl.measurement.consistency_params import ConsistencyParams
@@ -119,7 +120,7 @@ class PipelineConfig:
     def for_rig(cls, rig, *, segments=DEFAULT_SEGMENTS, coef_width=DEFAULT_COEF_WIDTH,
                 coef_degree=DEFAULT_COEF_DEGREE, row_coef_degree=DEFAULT_ROW_COEF_DEGREE,
                 clk_hz=DEFAULT_CLK_HZ,
-                camera=CameraParams(), closed_loop=False, motion_gain="scalar",
+                camera=CameraParams(), closed_loop=False, motion_gain=DEFAULT_MOTION_GAIN,
                 **top_changes):
         """The pipeline for ``rig``: its cameras (one image size), each in the rectified
         stereo pair :func:`golden.depth.stereo_pairs` finds, temporal lanes of

@@ -51,7 +51,7 @@ def _positive_int(text):
 def add_arguments(parser):
     from golden.rig import PRESETS
     from golden.trajectory import MOTIONS
-    from hdl.pose.forecast_params import MOTION_GAINS
+    from golden.tracker_params import DEFAULT_MOTION_GAIN, MOTION_GAINS
     source = parser.add_argument_group("input (simulated unless --dataset)")
     source.add_argument("--rig", help=f"preset ({', '.join(PRESETS)}) or a .yaml/.toml rig "
                                       f"file (default: stereo20)")
@@ -85,7 +85,7 @@ def add_arguments(parser):
     cosim.add_argument("--sim", choices=("verilator", "icarus"), default="verilator",
                        help="HDL simulator (default: %(default)s)")
     cosim.add_argument("--waves", action="store_true", help="record waveforms")
-    parser.add_argument("--motion-gain", choices=MOTION_GAINS, default="scalar",
+    parser.add_argument("--motion-gain", choices=MOTION_GAINS, default=DEFAULT_MOTION_GAIN,
                         help="the forecast filter's gain law: scalar, or information (the "
                              "per-direction gain 8-camera rigs such as the board rig need "
                              "to track; default: %(default)s)")
@@ -316,6 +316,7 @@ def cosimulate(job, dataset, progress):
         return None, [], {}
     from emulator.cosim_loop import closed_loop_cosim, slice_dataset
     from emulator.hardware_path import first_frame_motion
+    from golden.tracker_params import DEFAULT_MOTION_GAIN
     start = time.perf_counter()
     cosim, failures = None, []
     part, _, _ = slice_dataset(dataset, job.cosim["cameras"], job.cosim["rows"],
@@ -329,7 +330,7 @@ def cosimulate(job, dataset, progress):
                                   seed=job.seed, build_dir=Path("build/cosim_loop"),
                                   progress=progress,
                                   motion_gain=(job.forecast_changes or {}).get(
-                                      "motion_gain", "scalar"))
+                                      "motion_gain", DEFAULT_MOTION_GAIN))
     except AssertionError as exc:      # the cocotb bench itself failed
         failures.append(f"HDL co-simulation: {exc}")
     walls = {"cosim": time.perf_counter() - start}

@@ -17,6 +17,7 @@ HELP = "track a dataset with the golden per-row tracker; print the accuracy, wri
 
 def add_arguments(parser):
     from golden.tracker import DEPTHS, MOTION_GAINS, REFERENCES, SOLVERS
+    from golden.tracker_params import DEFAULT_MOTION_GAIN
     parser.add_argument("data", type=Path, help="dataset .npz written by `rowtrack simulate`")
     parser.add_argument("--reference", choices=REFERENCES, default="homography",
                         help="reference rows: (a) the rotation-compensated previous frame or "
@@ -30,7 +31,7 @@ def add_arguments(parser):
                         help="per-row solve; 'nonlinear' refines every row on the exact "
                              "model (slow; default: %(default)s)")
     parser.add_argument("--segments", type=int, help="segments per camera row (default: 8)")
-    parser.add_argument("--motion-gain", choices=MOTION_GAINS, default="information",
+    parser.add_argument("--motion-gain", choices=MOTION_GAINS, default=DEFAULT_MOTION_GAIN,
                         help="motion filter gain: the information-weighted matrix or the "
                              "hardware forecast's scalar α (default: %(default)s)")
     parser.add_argument("--loop-delay-rows", type=int, default=0,

@@ -159,7 +159,7 @@ def test_the_filter_takes_a_gain_only_with_the_information_gain(config):
     """A scalar-gain filter refuses a gain; the information gain's is a move (6,), not
     golden's matrix."""
     zero = np.zeros(6, dtype=np.int64)
-    for params, gain in ((config.forecast(), zero),
+    for params, gain in ((config.forecast(motion_gain="scalar"), zero),
                          (config.forecast(motion_gain="information"), np.eye(6))):
         with pytest.raises(ValueError, match="gain must be None"):
             MotionFilter(params, zero).update(zero, gain)

@@ -63,10 +63,17 @@ def test_forecast_stores_go_with_the_closed_loop_only(config):
 
 
 def test_the_loop_registers_are_in_the_map(config):
+    """The default (information gain) build adds the prior's two settings to the scalar
+    build's loop registers."""
+    scalar = ["alpha", "beta", "initial", "restart", "frame_rows", "consistency", "counts",
+              "forecast_counters", "counters"]
     groups = {g.name: g for g in config.top.regmap().groups}
-    assert [r.name for r in groups["loop"].registers] == [
-        "alpha", "beta", "initial", "restart", "frame_rows", "consistency", "counts",
-        "forecast_counters", "counters"]
+    assert [r.name for r in groups["loop"].registers] == scalar + [
+        "prior_weight", "typical_smoothing"]
+    scalar_top = replace(config.top, forecast=replace(config.top.forecast,
+                                                      motion_gain="scalar"))
+    assert [r.name for r in {g.name: g for g in scalar_top.regmap().groups}["loop"]
+            .registers] == scalar
     frame_rows = next(r for r in groups["loop"].registers if r.name == "frame_rows")
     assert frame_rows.reset == int(config.frame_rows)
     assert "loop" not in {g.name for g in PipelineConfig.for_rig(preset("stereo8"))

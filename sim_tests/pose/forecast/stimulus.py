@@ -185,7 +185,7 @@ def _closed_loop(rows, frames, seed, delay):
     dataset = simulate(rig, default_scene_spec(seed), make_trajectory("paper"), frames / 120,
                        seed=seed)
     config = PipelineConfig.for_rig(rig)
-    params = config.forecast(loop_delay_rows=delay)
+    params = config.forecast(loop_delay_rows=delay, motion_gain="scalar")   # the scalar bench
     initial = true_steps(dataset, [1], [0])[0]
     out = run(config, dataset, forecast=params, initial_motion=initial)
     loop, rec = out.loop, out.records
