@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from emulator.measurement.router import pose_rows, route_row, usable_cues
+from emulator.pose.motion_track import MotionTrackModel
 from emulator.pose.tracking_loop import TrackingLoopModel
 from emulator.pose_solver import pose_solver_model
 from emulator.descriptor.framer import FramedRow
@@ -190,8 +191,14 @@ class _Loop:
                                        params.motion_fmt.quantize(initial_motion),
                                        consistency)
         self.time, self.t0 = dataset.cameras[0].time, t0
-        self.t_r = dataset.rig.cameras[0].t_r
+        camera = dataset.rig.cameras[0]
+        self.t_r = camera.t_r
         self.log, self.row_counts = [], []
+        # the motion track (its block is not in the gateware loop yet) needs a whole
+        # frame of row periods
+        frame_rows = 1.0 / (camera.fps * camera.t_r)
+        self.track = None if abs(frame_rows - round(frame_rows)) > 1e-6 else \
+            MotionTrackModel(params, round(frame_rows), params.motion_fmt.quantize(initial_motion))
 
     def slot(self, frame, row):
         return int(round((self.time[frame, row] - self.t0) / self.t_r))
@@ -200,6 +207,8 @@ class _Loop:
         """The loop restarted at ``motion`` (float (6,)) before ``frame``'s first row,
         which becomes row slot 0."""
         self.model.restart(self.params.motion_fmt.quantize(motion))
+        if self.track is not None:
+            self.track.restart(self.params.motion_fmt.quantize(motion))
         self.t0 = float(self.time[frame, 0])
 
     def measure(self, lanes, rows, frame):
@@ -216,19 +225,27 @@ class _Loop:
         the next frame and feed its step (if solved) to the forecast; returns the
         transfers the solver takes."""
         slot = self.slot(frame, row)
+        motion = self.model.forecast.filter
+        before = motion.level.copy(), motion.trend.copy()
         transfers, level = self.model.close(transfers, slot, row)
         p = self.model.prediction
+        tracked = None if self.track is None else \
+            self.track.update(slot, *before, self.model.step)
         self.log.append((frame, row, slot, p["centre"], p["centre_saturated"],
-                         p["source_row"], p["row_saturated"], level))
+                         p["source_row"], p["row_saturated"], level, tracked))
         if self.model.row_counts is not None:
             self.row_counts.append(self.model.row_counts)
         return transfers
 
     def history(self):
         names = ("frame", "row", "slot", "centre", "centre_saturated", "source_row",
-                 "row_saturated", "level")
+                 "row_saturated", "level", "track")
         out = {name: np.array([entry[k] for entry in self.log])
                for k, name in enumerate(names)}
+        if self.track is None:
+            del out["track"]
+        else:
+            out["track_saturated"] = self.track.saturated
         if self.model.consistency is not None:
             out["counts"] = self.model.counts
             out["row_counts"] = np.array(self.row_counts, dtype=np.int64).reshape(-1, 4)

@@ -26,6 +26,7 @@ BLOCKS = {
     "forecast": "hdl.pose.forecast:default_forecast",
     "status_unit": "hdl.pose.status_unit:default_status_unit",
     "prior_store": "hdl.pose.prior_store:default_prior_store",
+    "motion_track": "hdl.pose.motion_track:default_motion_track",
     "row_counter": "hdl.pose.row_counter:default_row_counter",
     "row_descriptor": "hdl.row_descriptor:RowDescriptor",
     "stereo_row_descriptor": "hdl.row_descriptor:StereoRowDescriptor",

@@ -326,31 +326,36 @@ def hardware(dataset, frames, *, config=None, consistency=True, forecast_changes
             (loop["frame"], loop["row"], level))
 
 
-def trajectory_steps(dataset, run, levels_all, pose_alpha=0.02):
+def trajectory_steps(dataset, run, levels_all, pose_alpha=0.02, trends=None):
     """Y of each scored row from a pose track built like golden (b)'s from the hardware
     path's own outputs (float; the golden's ``Tracker._step`` pose logic with a scalar
-    pull, no trend term): the first frame's poses given, each row's pose carried on
-    from the previous row's at the filter's current rate (level before the row / frame
-    period) and pulled by ``pose_alpha`` towards the pose the row's solved step gives
-    from the same row one frame earlier. ``levels_all``: (frame, row, level) of every
-    loop row in order, frame 0 included."""
+    pull; the trend term only with ``trends``): the first frame's poses given, each
+    row's pose carried on from the previous row's at the filter's current rate (level
+    before the row, plus half a frame of the row's trend, / frame period) and pulled by
+    ``pose_alpha`` towards the pose the row's solved step gives from the same row one
+    frame earlier. ``levels_all``: (frame, row, level) of every loop row in order,
+    frame 0 included; ``trends`` the filter's trend (per update) after each of them."""
     from golden.pose_lsq import body_step
     from golden.tracker_motion import compose
     rec = dataset.cameras[0]
     period = 1.0 / dataset.rig.cameras[0].fps
+    half = 0.5 * period / dataset.rig.cameras[0].t_r
     frames_all, rows_all, level_all = levels_all
+    if trends is None:
+        trends = np.zeros_like(level_all)
     (sf, sr, st) = run[3]
     step_of = {(int(f), int(r)): s for f, r, s in zip(sf, sr, st)}
     poses = {}
     last = None
     current = None
-    for f, r, lev in zip(frames_all, rows_all, level_all):
+    for f, r, lev, trend in zip(frames_all, rows_all, level_all, trends):
         f, r = int(f), int(r)
         t = rec.time[f, r]
         if f == 0:
             poses[(f, r)] = (rec.rotation[f, r], rec.position[f, r])
         else:
-            rotation, position = compose(*last[:2], current / period * (t - last[2]))
+            rate = (current + half * trend) / period
+            rotation, position = compose(*last[:2], rate * (t - last[2]))
             step = step_of.get((f, r))
             if step is not None and np.all(np.isfinite(step)) and (f - 1, r) in poses:
                 target = compose(*poses[(f - 1, r)], step)

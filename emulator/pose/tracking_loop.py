@@ -64,6 +64,8 @@ class TrackingLoopModel:
         #: unit's row counts (:func:`emulator.pose.tracking_status.row_counts`); None
         #: without a consistency stage or for a row without transfers.
         self.row_counts = None
+        #: The last closed row's solved step (raw ``solver.step_fmt``; None if flagged).
+        self.step = None
 
     @property
     def counts(self):
@@ -113,6 +115,7 @@ class TrackingLoopModel:
                 step = result.step[0]
                 if self.prior is not None:
                     gain = self._gain(normal, rhs)
+        self.step = step
         return transfers, self.forecast.take(slot, step, gain)
 
     def _gain(self, normal, rhs):

@@ -13,6 +13,7 @@ the shift along the row, a second one of the same layout for the displacement ac
 from dataclasses import dataclass, replace
 
 from golden.checks import check_int, check_number
+from golden.tracker_params import DEFAULT_MOTION_GAIN, MOTION_GAINS, POSE_ALPHA
 from golden.tracker_solve import TYPICAL_SMOOTHING
 
 from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding
@@ -20,8 +21,6 @@ from hdl.pose.params import PoseSolverParams
 
 __all__ = ["ForecastParams", "MOTION_GAINS"]
 
-#: The level's gain laws (``golden.tracker.TrackerParams.motion_gain``'s).
-MOTION_GAINS = ("scalar", "information")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -64,13 +63,20 @@ class ForecastParams:
     motion_gain : str
         ``"scalar"``: the level moves by ``alpha`` of the innovation; ``"information"``:
         by ``(N + Λ)⁻¹ N`` of it, with ``Λ = (1 − α)/α · N_typical``
-        (``golden.tracker``'s parameter of the same name; the emulator's model,
-        :mod:`emulator.pose.information_gain`; not yet in the gateware).
+        (``golden.tracker``'s parameter of the same name and default; the emulator's
+        model, :mod:`emulator.pose.information_gain`; the gateware,
+        :mod:`hdl.pose.prior_store` and the engine's gain program).
     typical_smoothing : float
         Weight of each solved row's normal matrix in the running typical information
         (``motion_gain="information"``); quantized to ``gain_fmt``.
     prior_fmt : QFormat
         Unsigned format of the prior's weight ``(1 − α)/α`` (half-even).
+    track_alpha : float
+        The motion track's pull towards each solved step (golden's ``pose_alpha``,
+        :mod:`emulator.pose.motion_track`); quantized to ``gain_fmt``.
+    reciprocal_fmt : QFormat
+        Unsigned format of ``1 / frame_rows``, the motion track's rate per row period
+        (half-even).
     """
     solver: PoseSolverParams
     row_coef_t_fmt: QFormat
@@ -86,9 +92,11 @@ class ForecastParams:
     motion_fmt: QFormat = SQ(1, 39)
     displacement_fmt: QFormat = SQ(10, 8)
     loop_delay_rows: int = 1
-    motion_gain: str = "scalar"
+    motion_gain: str = DEFAULT_MOTION_GAIN
     typical_smoothing: float = TYPICAL_SMOOTHING
     prior_fmt: QFormat = UQ(8, 16)
+    track_alpha: float = POSE_ALPHA
+    reciprocal_fmt: QFormat = UQ(1, 31)
 
     def __post_init__(self):
         if not isinstance(self.solver, PoseSolverParams):
@@ -126,6 +134,14 @@ class ForecastParams:
         if prior > self.prior_fmt.max_value:
             raise ValueError(f"alpha {self.alpha} gives a prior weight (1 - alpha)/alpha = "
                              f"{prior:.4g} beyond prior_fmt {self.prior_fmt}")
+        check_number("track_alpha", self.track_alpha, 0, 1, low_open=True)
+        if self.track_alpha_raw == 0:
+            raise ValueError(f"track_alpha {self.track_alpha} rounds to 0 in gain_fmt "
+                             f"{self.gain_fmt}")
+        if not isinstance(self.reciprocal_fmt, QFormat) or self.reciprocal_fmt.signed \
+                or self.reciprocal_fmt.max_value < 1:
+            raise ValueError(f"reciprocal_fmt must be an unsigned QFormat holding 1, not "
+                             f"{self.reciprocal_fmt!r}")
         self.row_store   # the across-rows store must be a valid store of the solver's kind
 
     replace = replace
@@ -157,6 +173,17 @@ class ForecastParams:
     @property
     def smoothing_raw(self):
         return self._gain_raw(self.typical_smoothing)
+
+    @property
+    def track_alpha_raw(self):
+        return self._gain_raw(self.track_alpha)
+
+    def reciprocal_raw(self, frame_rows):
+        """``1 / frame_rows`` raw in ``reciprocal_fmt``, rounded to nearest: ``⌊(⌊2^(F+1) /
+        P⌋ + 1) / 2⌋``, what the gateware's divider computes (``2^F / P`` is never a tie
+        for ``P`` below ``2^(F+1)``)."""
+        check_int("frame_rows", frame_rows, 1)
+        return (2 ** (self.reciprocal_fmt.frac_bits + 1) // frame_rows + 1) // 2
 
     @property
     def prior_raw(self):

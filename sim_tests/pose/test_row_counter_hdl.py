@@ -15,6 +15,7 @@ from emulator.pose.tracking_status import count_rows, measurement_verdicts
 from hdl.pose.row_counter import RowCounter, verdict_layout
 from hdl.pose.status_params import ROW_INPUTS
 
+from sim_tests.common.sim_streams import drain
 from sim_tests.pose.status_stimulus import SMALL, random_verdicts
 
 SEED = int(os.environ.get("SEED", "1"))
@@ -37,15 +38,9 @@ def run_counter(params, verdicts, *, seed, gaps):
             ctx.set(dut.i.valid, 0)
 
     async def sink(ctx):
-        cycles = 0
-        while len(got) < rows:
-            ready = sink_rng.random() < prob
-            ctx.set(dut.o.ready, ready)
-            *_, valid, payload = await ctx.tick().sample(dut.o.valid, dut.o.payload)
-            if valid and ready:
-                got.append(tuple(int(getattr(payload, n)) for n in ROW_INPUTS))
-            cycles += 1
-            assert cycles < 10 * len(verdicts) + 100, "counter hung"
+        await drain(ctx, dut.o, rows, rng=sink_rng, prob=prob, out=got,
+                    convert=lambda payload: tuple(int(getattr(payload, n)) for n in ROW_INPUTS),
+                    limit=10 * len(verdicts) + 100)
         await ctx.tick().repeat(4)
         assert not ctx.get(dut.o.valid)
 

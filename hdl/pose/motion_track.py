@@ -1,0 +1,268 @@
+"""The motion track in gateware: :class:`emulator.pose.motion_track.MotionTrackModel` bit
+for bit (``sim_tests/pose/test_motion_track_hdl.py``; docs/pose/motion_track.md).
+
+Per row: the carry ``c = L/P + B/2`` (six products on one multiplier), then each row
+period since the last row through the ring (read, ``u = Y − v``, write ``v``, ``Y = u +
+v``; the six axes side by side in one wide word), the row's own period with the pull
+``v = c + a·(m − u − c)`` (six more products on the same multiplier), and ``Y`` out.
+A restart latches ``frame_rows``, divides ``1/P`` (one bit per clock) and fills the
+ring with the carry of ``initial``; reset leaves the built ``P``, its reciprocal, and a
+ring of zeros (the restart from ``initial`` = 0).
+"""
+
+from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from golden.checks import check_int
+from hdl.fixed import SQ, Overflow, Rounding, hdl_mul, hdl_resize
+from hdl.pose.forecast_filter import DEFAULT_SLOT_BITS, outside
+from hdl.pose.forecast_params import ForecastParams
+
+__all__ = ["MotionTrack", "row_layout", "default_motion_track"]
+
+
+def row_layout(params, slot_bits=DEFAULT_SLOT_BITS):
+    """One row for the track: its ``slot``, the filter's ``level`` and ``trend`` before
+    the row's update (``motion_fmt``), the solved ``step`` (``solver.step_fmt``) and
+    ``solved`` (0: the row gave the filter no step)."""
+    motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
+    return data.StructLayout({"slot": unsigned(slot_bits), "level": motion, "trend": motion,
+                              "step": data.ArrayLayout(params.solver.step_fmt.shape(), 6),
+                              "solved": 1})
+
+
+class MotionTrack(wiring.Component):
+    """``Y`` of every row, read like golden (b)'s pose track.
+
+    Parameters
+    ----------
+    params : ForecastParams
+    frame_rows : int
+        The ring's length: the largest ``P`` it can hold, and ``P`` after reset.
+    slot_bits : int
+        Width of a row slot (slots compared modulo ``2**slot_bits``).
+
+    Members
+    -------
+    i : In(stream.Signature(row_layout(params, slot_bits)))
+        One per row, slots increasing; the row periods since the previous row's slot are
+        carried first (at most ``P``; a difference of 0 counts as ``2**slot_bits``).
+    o : Out(stream.Signature(ArrayLayout(motion_fmt, 6)))
+        ``Y`` after each row, in order.
+    frame_rows : In(unsigned(slot_bits)), reset ``frame_rows``
+        ``P``, read at ``restart``. 0 or beyond the ring's length: ``overrange``, and the
+        ring's length is used.
+    alpha : In(unsigned(gain_fmt.width)), reset ``params.track_alpha_raw``
+        The pull ``a``, raw ``gain_fmt``; a change applies from the next row.
+    initial : In(ArrayLayout(motion_fmt, 6))
+        The motion a restart starts from.
+    restart : In(1)
+        A strobe: every increment the carry of ``initial``, ``Y`` their sum, the next
+        row's period the first. Held until taken between rows (a row in progress
+        finishes first; ``initial`` is read then); rows wait meanwhile.
+    overrange : Out(1)
+        The last restart's ``frame_rows`` was 0 or beyond the ring's length.
+    saturated : Out(16)
+        Rows (and restarts) in which a value saturated into ``motion_fmt`` (wraps).
+    """
+
+    #: Clocks of a product: operands, product, result.
+    PRODUCT_CLOCKS = 3
+
+    def __init__(self, params, frame_rows, *, slot_bits=DEFAULT_SLOT_BITS):
+        if not isinstance(params, ForecastParams):
+            raise TypeError(f"params must be a ForecastParams, not {params!r}")
+        check_int("slot_bits", slot_bits, 2, 32)
+        check_int("frame_rows", frame_rows, 1, 2 ** slot_bits - 1)
+        self.params, self.depth, self.slot_bits = params, frame_rows, slot_bits
+        motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
+        super().__init__({
+            "i": In(stream.Signature(row_layout(params, slot_bits))),
+            "o": Out(stream.Signature(motion)),
+            "frame_rows": In(unsigned(slot_bits), init=frame_rows),
+            "alpha": In(unsigned(params.gain_fmt.width), init=params.track_alpha_raw),
+            "initial": In(motion),
+            "restart": In(1),
+            "overrange": Out(1),
+            "saturated": Out(16),
+        })
+
+    def elaborate(self, platform):
+        p = self.params
+        m = Module()
+        fmt, bits, rfmt = p.motion_fmt, self.slot_bits, p.reciprocal_fmt
+        word = data.ArrayLayout(fmt.shape(), 6)
+        rest_fmt = SQ(fmt.int_bits + 1, fmt.frac_bits)                 # u = Y − v
+        diff_fmt = SQ(fmt.int_bits + 3, fmt.frac_bits)                 # m − u − c
+        pull_fmt = SQ(fmt.int_bits + 4, fmt.frac_bits)                 # a·(m − u − c)
+        fill_fmt = SQ(fmt.int_bits + bits, fmt.frac_bits)              # P·c of a restart
+
+        m.submodules.ring = ring = Memory(shape=word, depth=self.depth, init=[])
+        read, write = ring.read_port(), ring.write_port()
+
+        length = Signal(range(self.depth + 1), init=self.depth)       # P
+        reciprocal = Signal(rfmt.shape(), init=p.reciprocal_raw(self.depth))
+        index = Signal(range(self.depth))
+        motion = Signal(word)                                          # Y
+        carry = Signal(word)                                           # c
+        increment = Signal(word)                                       # v
+        rest = Signal(data.ArrayLayout(rest_fmt.shape(), 6))           # u
+        fill = Signal(data.ArrayLayout(fill_fmt.shape(), 6))
+        row = Signal(row_layout(p, bits))
+        last_slot = Signal(bits)
+        first = Signal(init=1)                     # no row since the last restart
+        restarting = Signal()
+        periods = Signal(range(self.depth + 1))    # row periods still to carry
+        clamped = Signal()                         # a value of this row saturated
+        axis = Signal(range(6))
+
+        # one multiplier for 1/P · L and a · (m − u − c): a's raw value aligned to the
+        # reciprocal's fraction bits (exact), L widened to the difference's format
+        a_operand = Signal(rfmt.shape())
+        b_operand = Signal(diff_fmt.shape())
+        product_value, product_fmt = hdl_mul(a_operand, rfmt, b_operand, diff_fmt)
+        product = Signal(product_fmt.shape())
+        m.d.sync += product.eq(product_value)
+        alpha = self.alpha << (rfmt.frac_bits - p.gain_fmt.frac_bits)
+        rate = hdl_resize(product, product_fmt, fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+        pull = hdl_resize(product, product_fmt, pull_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+        step = hdl_resize(row.step[axis], p.solver.step_fmt, fmt, Rounding.HALF_EVEN,
+                          Overflow.ERROR)
+        trend = row.trend[axis]
+        half_trend = (trend >> 1) + (trend[0] & trend[1])    # B/2, ties to even
+
+        def saturate(*values):
+            """``(value, extra)`` pairs (``extra`` integer bits wider than motion_fmt) into
+            motion_fmt; any that saturates is noted (once per state: one assignment)."""
+            m.d.sync += clamped.eq(clamped | Cat(*(outside(v, fmt) for v, _ in values)).any())
+            return [hdl_resize(v, SQ(fmt.int_bits + extra, fmt.frac_bits), fmt,
+                               Rounding.FLOOR, Overflow.SATURATE) for v, extra in values]
+
+        # the restart's divider: q = ⌊2^(F+1) / P⌋ one bit per clock, then (q + 1) >> 1
+        q_bits = rfmt.frac_bits + 2
+        quotient = Signal(q_bits)
+        remainder = Signal(bits + 1)
+        bit = Signal(range(q_bits + 1))
+        elapsed = Signal(bits)
+        m.d.comb += [elapsed.eq(self.i.payload.slot - last_slot),
+                     read.addr.eq(index), write.addr.eq(index), write.data.eq(increment),
+                     self.o.payload.eq(motion)]
+        wrap = Mux(index == length - 1, 0, index + 1)
+
+        requested = Signal()                       # a restart strobed, not yet taken
+        restart = self.restart | requested
+        with m.If(self.restart):
+            m.d.sync += requested.eq(1)
+        with m.FSM():
+            with m.State("IDLE"):
+                m.d.comb += self.i.ready.eq(~restart)
+                with m.If(restart):
+                    m.d.sync += requested.eq(0)
+                    bad = (self.frame_rows == 0) | (self.frame_rows > self.depth)
+                    m.d.sync += [self.overrange.eq(bad),
+                                 length.eq(Mux(bad, self.depth, self.frame_rows)),
+                                 quotient.eq(0), remainder.eq(0), bit.eq(q_bits),
+                                 row.level.eq(self.initial), row.trend.eq(0),
+                                 restarting.eq(1), clamped.eq(0)]
+                    m.next = "DIVIDE"
+                with m.Elif(self.i.valid):
+                    long = (elapsed == 0) | (elapsed >= length)
+                    m.d.sync += [row.eq(self.i.payload), axis.eq(0), clamped.eq(0),
+                                 periods.eq(Mux(first, 1, Mux(long, length, elapsed))),
+                                 last_slot.eq(self.i.payload.slot), first.eq(0)]
+                    m.next = "CARRY"
+
+            with m.State("DIVIDE"):                # 2^(F+1): its one 1 bit comes first
+                shifted = (remainder << 1) | (bit == q_bits)
+                fits = shifted >= length
+                m.d.sync += [remainder.eq(Mux(fits, shifted - length, shifted)),
+                             quotient.eq((quotient << 1) | fits), bit.eq(bit - 1)]
+                with m.If(bit == 1):
+                    m.next = "RECIPROCAL"
+            with m.State("RECIPROCAL"):
+                m.d.sync += [reciprocal.eq((quotient + 1) >> 1), axis.eq(0)]
+                m.next = "CARRY"
+
+            with m.State("CARRY"):                 # c = L/P + B/2, axis by axis
+                m.d.sync += [a_operand.eq(reciprocal), b_operand.eq(row.level[axis])]
+                m.next = "CARRY_PRODUCT"
+            with m.State("CARRY_PRODUCT"):
+                m.next = "CARRY_SUM"
+            with m.State("CARRY_SUM"):
+                value, = saturate((rate + half_trend, 1))
+                m.d.sync += [carry[axis].eq(value), axis.eq(axis + 1)]
+                with m.If(axis != 5):
+                    m.next = "CARRY"
+                with m.Elif(restarting):
+                    m.d.sync += [index.eq(0), fill.eq(0)]
+                    m.next = "FILL"
+                with m.Else():
+                    m.next = "READ"
+
+            with m.State("FILL"):                  # every increment c, Y their sum
+                m.d.comb += [write.en.eq(1), write.data.eq(carry)]
+                m.d.sync += [fill[k].eq(fill[k] + carry[k]) for k in range(6)]
+                m.d.sync += index.eq(wrap)
+                with m.If(index == length - 1):
+                    m.d.sync += [index.eq(0), first.eq(1), restarting.eq(0)]
+                    m.next = "FILL_SUM"
+            with m.State("FILL_SUM"):
+                values = saturate(*((fill[k], bits) for k in range(6)))
+                m.d.sync += [motion[k].eq(v) for k, v in enumerate(values)]
+                m.next = "COUNT"
+
+            with m.State("READ"):                  # the ring's word of this period
+                m.next = "PERIOD"
+            with m.State("PERIOD"):
+                old = read.data
+                m.d.sync += [rest[k].eq(motion[k] - old[k]) for k in range(6)]
+                m.d.sync += [increment.eq(carry), axis.eq(0)]
+                with m.If((periods == 1) & row.solved):
+                    m.next = "PULL"
+                with m.Else():
+                    m.next = "WRITE"
+
+            with m.State("PULL"):                  # v = c + a·(m − u − c), axis by axis
+                m.d.sync += [a_operand.eq(alpha),
+                             b_operand.eq(step - rest[axis] - carry[axis])]
+                m.next = "PULL_PRODUCT"
+            with m.State("PULL_PRODUCT"):
+                m.next = "PULL_SUM"
+            with m.State("PULL_SUM"):
+                value, = saturate((carry[axis] + pull, 5))
+                m.d.sync += [increment[axis].eq(value), axis.eq(axis + 1)]
+                with m.If(axis == 5):
+                    m.next = "WRITE"
+                with m.Else():
+                    m.next = "PULL"
+
+            with m.State("WRITE"):                 # v into the ring, Y = u + v
+                m.d.comb += write.en.eq(1)
+                values = saturate(*((rest[k] + increment[k], 2) for k in range(6)))
+                m.d.sync += [motion[k].eq(v) for k, v in enumerate(values)]
+                m.d.sync += [index.eq(wrap), periods.eq(periods - 1)]
+                with m.If(periods == 1):
+                    m.next = "OUT"
+                with m.Else():
+                    m.next = "READ"
+
+            with m.State("OUT"):
+                m.d.comb += self.o.valid.eq(1)
+                with m.If(self.o.ready):
+                    m.next = "COUNT"
+            with m.State("COUNT"):                 # a row or restart that saturated
+                with m.If(clamped):
+                    m.d.sync += self.saturated.eq(self.saturated + 1)
+                m.next = "IDLE"
+        return m
+
+
+def default_motion_track():
+    """The motion track of the board rig (``stereo8-board``: its forecast's formats, a
+    frame of 600 row periods): the catalog's build, for Verilog and synthesis."""
+    from golden.rig import preset
+    from hdl.pipeline_config import PipelineConfig
+    config = PipelineConfig.for_rig(preset("stereo8-board"))
+    return MotionTrack(config.forecast(), round(config.frame_rows))
