@@ -211,7 +211,9 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     :func:`golden_trajectory_steps`: the figure of :func:`golden.metrics.evaluate` and of
     ``rowtrack bench --only hw_tracking``, the judge's reference),
     ``golden_b_motion_vs_truth`` (its filter's motion, :func:`golden_steps`, reported),
-    ``emulator_vs_golden_b``, ``true_motion`` (the truth
+    ``emulator_vs_golden_b``, ``emulator_track_vs_truth`` (the motion track's Y,
+    :mod:`emulator.pose.motion_track`, where the frame is a whole number of row periods;
+    reported, not judged: its block is not in the loop yet), ``true_motion`` (the truth
     against zero: the motion's own RMS), ``emulator_vs_float`` (level 2: the solver
     against float64 on the same routed measurements), ``emulator_pose_vs_truth``, with
     ``golden`` (the default golden tracker) also ``golden_vs_truth``; and
@@ -248,6 +250,8 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     if golden is not None:
         pairs["golden_vs_truth"] = (golden_trajectory_steps(golden, dataset, frames, rows),
                                     truth)
+    if "track" in result.loop:
+        pairs["emulator_track_vs_truth"] = (path.levels("track")[2], truth)
     for name, (a, b) in pairs.items():
         figures.update({f"{name}.{key}": value for key, value in agreement(a, b).items()})
     error = pose_errors(config, result, dataset)

@@ -304,6 +304,10 @@ def accuracy_section(m):
             ("hardware path ↔ truth (filter level: the estimate judged)",
              "emulator_vs_truth.rms"),
             ("hardware path's solved steps ↔ truth", "emulator_steps_vs_truth.rms"),
+            *([("hardware path's motion track ↔ truth (Y read like golden (b)'s; its "
+                "block is not in the loop yet: reported, not judged)",
+                "emulator_track_vs_truth.rms")]
+              if "emulator_track_vs_truth.rms.Tx" in m else []),
             ("golden (b), same delay ↔ truth (Y from its trajectory: the judge's "
              "reference)", "golden_b_vs_truth.rms"),
             ("golden (b)'s filter motion ↔ truth (reported)", "golden_b_motion_vs_truth.rms"),

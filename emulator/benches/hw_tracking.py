@@ -155,6 +155,12 @@ def verdicts(f, rig, prefix="", estimate=""):
                         f"{hw / gold:.2f} ×" + (f" (golden (b) {gold / true:.3g} × the motion)"
                                                 if lost else ""),
                         None if lost else hw <= GOLDEN_RATIO * gold))
+        base = f"{rig}.paper.{prefix}{estimate}"
+        if motion == "head" and base + "rms_t_cm.x" in f:
+            for unit, a, name in axes:
+                hw, on_paper = f[f"{key}{estimate}rms_{unit}.{a}"], f[f"{base}rms_{unit}.{a}"]
+                out.append((f"head: {name} ≤ {HEAD_RATIO} × the paper motion's",
+                            f"{hw / on_paper:.2f} ×", hw <= HEAD_RATIO * on_paper))
         if motion == "paper" and paper is not None:
             bounds = list(paper["t_cm"]) + list(paper["r_rad"])
             values = [f[f"{key}{estimate}rms_t_cm.{a}"] for a in "xyz"] + \

@@ -526,6 +526,28 @@ def test_the_benchmark_does_not_judge_against_a_golden_b_that_lost_the_motion():
     assert ratio["head: θz ≤ 1.5 × golden (b)"] is None
 
 
+def test_the_benchmark_judges_head_motion_against_paper_motion_and_each_estimate():
+    """Issue 16's "head motion within 1.5 × of the paper-motion figures", per axis and per
+    estimate: the filter level's keys, or the motion track's (``track_``)."""
+    from emulator.benches.hw_tracking import verdicts
+    f = {}
+    for motion, level, track in (("paper", 1.0, 1.0), ("head", 1.6, 1.2)):
+        key = f"board.{motion}."
+        f[key + "solved_fraction"] = 1.0
+        for unit in ("t_cm", "r_rad"):
+            for a in "xyz":
+                f[f"{key}motion_rms_{unit}.{a}"] = 100.0
+                f[f"{key}golden_b_rms_{unit}.{a}"] = 1.0
+                f[f"{key}rms_{unit}.{a}"] = level
+                f[f"{key}track_rms_{unit}.{a}"] = track
+    head = {estimate: {target: met for target, _, met in verdicts(f, "board", "", estimate)
+                       if "paper motion's" in target}
+            for estimate in ("", "track_")}
+    assert len(head[""]) == 6
+    assert head[""]["head: Tx ≤ 1.5 × the paper motion's"] is False      # 1.6 ×
+    assert head["track_"]["head: θz ≤ 1.5 × the paper motion's"] is True  # 1.2 ×
+
+
 def test_the_lanes_in_the_loop_equal_the_float_matcher_and_can_fail(outcome):
     """Level 2 of the lanes inside the closed loop: on the tiny run within the stated
     tolerances (measured 99.5 % of 2,241 well-textured shifts within 1/16 px, worst

@@ -30,8 +30,9 @@ __all__ = ["random_case", "closed_loop_case", "expected_outputs", "record", "sat
 CACHE = Path(__file__).resolve().parents[3] / "build" / "forecast_stimulus"
 #: Part of the cached cases' names: bumped when a case's keys or the models behind it
 #: change (v2: the stores' contents and the model's tables apart; v3: the consistency
-#: stage's scale ceiling).
-VERSION = "v3"
+#: stage's scale ceiling; v4: the forecast bench asks for the scalar gain, the default is
+#: the information gain).
+VERSION = "v4"
 
 
 def record(params, step=None, row=0, time=0, flags=0):
@@ -89,10 +90,11 @@ def model_table(store, contents):
 
 
 def small_params(**changes):
-    """Two cameras of two segments, eight rows; ``changes`` to any field."""
+    """Two cameras of two segments, eight rows, the scalar gain (the scalar filter's
+    benches); ``changes`` to any field."""
     fields = dict(solver=PoseSolverParams(slots=4, rows=8), row_coef_t_fmt=SQ(4, 14),
                   row_coef_c_fmt=SQ(2, 16), row_coef_r_fmt=SQ(9, 9), segments=2, height=8,
-                  centre_range=6)
+                  centre_range=6, motion_gain="scalar")
     return ForecastParams(**{**fields, **changes})
 
 
