@@ -2,15 +2,16 @@
 for bit (``sim_tests/pose/test_motion_track_hdl.py``; docs/pose/motion_track.md).
 
 Per row: the carry ``c = L/P + B/2`` (six products on one multiplier), then each row
-period since the last row through the ring (read, ``u = Y − v``, write ``v``, ``Y = u +
-v``; the six axes side by side in one wide word), the row's own period with the pull
-``v = c + a·(m − u − c)`` (six more products on the same multiplier), and ``Y`` out.
-A restart latches ``frame_rows``, divides ``1/P`` (one bit per clock) and fills the
-ring with the carry of ``initial``; reset leaves the built ``P``, its reciprocal, and a
-ring of zeros (the restart from ``initial`` = 0).
+period since the last row through the ring: one read of the period's word (the six
+axes side by side), ``u = Y − v`` and ``Y = u + v`` axis by axis on one adder (one
+clock per axis), one write; the row's own period with the pull ``v = c + a·(m − u −
+c)`` (six more products on the same multiplier); ``Y`` out. A restart latches
+``frame_rows``, divides ``1/P`` (one bit per clock), fills the ring with the carry of
+``initial`` and sets ``Y = P·c`` on the multiplier; reset leaves the built ``P``, its
+reciprocal, and a ring of zeros (the restart from ``initial`` = 0).
 """
 
-from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
+from amaranth.hdl import Module, Mux, Signal, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
@@ -97,7 +98,6 @@ class MotionTrack(wiring.Component):
         rest_fmt = SQ(fmt.int_bits + 1, fmt.frac_bits)                 # u = Y − v
         diff_fmt = SQ(fmt.int_bits + 3, fmt.frac_bits)                 # m − u − c
         pull_fmt = SQ(fmt.int_bits + 4, fmt.frac_bits)                 # a·(m − u − c)
-        fill_fmt = SQ(fmt.int_bits + bits, fmt.frac_bits)              # P·c of a restart
 
         m.submodules.ring = ring = Memory(shape=word, depth=self.depth, init=[])
         read, write = ring.read_port(), ring.write_port()
@@ -107,9 +107,9 @@ class MotionTrack(wiring.Component):
         index = Signal(range(self.depth))
         motion = Signal(word)                                          # Y
         carry = Signal(word)                                           # c
-        increment = Signal(word)                                       # v
-        rest = Signal(data.ArrayLayout(rest_fmt.shape(), 6))           # u
-        fill = Signal(data.ArrayLayout(fill_fmt.shape(), 6))
+        old = Signal(word)                                             # v(j − P)
+        increment = Signal(word)                                       # v(j)
+        rest = Signal(rest_fmt.shape())                                # u of one axis
         row = Signal(row_layout(p, bits))
         last_slot = Signal(bits)
         first = Signal(init=1)                     # no row since the last restart
@@ -118,8 +118,8 @@ class MotionTrack(wiring.Component):
         clamped = Signal()                         # a value of this row saturated
         axis = Signal(range(6))
 
-        # one multiplier for 1/P · L and a · (m − u − c): a's raw value aligned to the
-        # reciprocal's fraction bits (exact), L widened to the difference's format
+        # one multiplier for 1/P · L, a · (m − u − c) and P · c: a's raw value aligned to
+        # the reciprocal's fraction bits (exact), L and c widened to the difference's format
         a_operand = Signal(rfmt.shape())
         b_operand = Signal(diff_fmt.shape())
         product_value, product_fmt = hdl_mul(a_operand, rfmt, b_operand, diff_fmt)
@@ -128,17 +128,21 @@ class MotionTrack(wiring.Component):
         alpha = self.alpha << (rfmt.frac_bits - p.gain_fmt.frac_bits)
         rate = hdl_resize(product, product_fmt, fmt, Rounding.HALF_EVEN, Overflow.ERROR)
         pull = hdl_resize(product, product_fmt, pull_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+        # P · c: the integer P times c's raw value, a raw value of motion_fmt's fraction
+        filled_fmt = SQ(product_fmt.width - fmt.frac_bits, fmt.frac_bits)
         step = hdl_resize(row.step[axis], p.solver.step_fmt, fmt, Rounding.HALF_EVEN,
                           Overflow.ERROR)
         trend = row.trend[axis]
         half_trend = (trend >> 1) + (trend[0] & trend[1])    # B/2, ties to even
 
-        def saturate(*values):
-            """``(value, extra)`` pairs (``extra`` integer bits wider than motion_fmt) into
-            motion_fmt; any that saturates is noted (once per state: one assignment)."""
-            m.d.sync += clamped.eq(clamped | Cat(*(outside(v, fmt) for v, _ in values)).any())
-            return [hdl_resize(v, SQ(fmt.int_bits + extra, fmt.frac_bits), fmt,
-                               Rounding.FLOOR, Overflow.SATURATE) for v, extra in values]
+        def limit(value, value_fmt):
+            """``value`` (raw ``value_fmt``, motion_fmt's fraction) saturated into
+            motion_fmt, and whether it was out of range."""
+            return (hdl_resize(value, value_fmt, fmt, Rounding.FLOOR, Overflow.SATURATE),
+                    outside(value, fmt))
+
+        def wider(extra):
+            return SQ(fmt.int_bits + extra, fmt.frac_bits)
 
         # the restart's divider: q = ⌊2^(F+1) / P⌋ one bit per clock, then (q + 1) >> 1
         q_bits = rfmt.frac_bits + 2
@@ -191,57 +195,71 @@ class MotionTrack(wiring.Component):
             with m.State("CARRY_PRODUCT"):
                 m.next = "CARRY_SUM"
             with m.State("CARRY_SUM"):
-                value, = saturate((rate + half_trend, 1))
-                m.d.sync += [carry[axis].eq(value), axis.eq(axis + 1)]
+                value, out = limit(rate + half_trend, wider(1))
+                m.d.sync += [carry[axis].eq(value), clamped.eq(clamped | out),
+                             axis.eq(axis + 1)]
                 with m.If(axis != 5):
                     m.next = "CARRY"
                 with m.Elif(restarting):
-                    m.d.sync += [index.eq(0), fill.eq(0)]
+                    m.d.sync += [index.eq(0), increment.eq(carry), increment[5].eq(value)]
                     m.next = "FILL"
                 with m.Else():
                     m.next = "READ"
 
-            with m.State("FILL"):                  # every increment c, Y their sum
-                m.d.comb += [write.en.eq(1), write.data.eq(carry)]
-                m.d.sync += [fill[k].eq(fill[k] + carry[k]) for k in range(6)]
+            with m.State("FILL"):                  # every increment c ...
+                m.d.comb += write.en.eq(1)
                 m.d.sync += index.eq(wrap)
                 with m.If(index == length - 1):
-                    m.d.sync += [index.eq(0), first.eq(1), restarting.eq(0)]
-                    m.next = "FILL_SUM"
+                    m.d.sync += [index.eq(0), axis.eq(0)]
+                    m.next = "FILL_PRODUCT"
+            with m.State("FILL_PRODUCT"):          # ... and Y = P·c, axis by axis
+                m.d.sync += [a_operand.eq(length), b_operand.eq(carry[axis])]
+                m.next = "FILL_WAIT"
+            with m.State("FILL_WAIT"):
+                m.next = "FILL_SUM"
             with m.State("FILL_SUM"):
-                values = saturate(*((fill[k], bits) for k in range(6)))
-                m.d.sync += [motion[k].eq(v) for k, v in enumerate(values)]
-                m.next = "COUNT"
+                value, out = limit(product, filled_fmt)
+                m.d.sync += [motion[axis].eq(value), clamped.eq(clamped | out),
+                             axis.eq(axis + 1)]
+                with m.If(axis == 5):
+                    m.d.sync += [first.eq(1), restarting.eq(0)]
+                    m.next = "COUNT"
+                with m.Else():
+                    m.next = "FILL_PRODUCT"
 
             with m.State("READ"):                  # the ring's word of this period
                 m.next = "PERIOD"
             with m.State("PERIOD"):
-                old = read.data
-                m.d.sync += [rest[k].eq(motion[k] - old[k]) for k in range(6)]
-                m.d.sync += [increment.eq(carry), axis.eq(0)]
+                m.d.sync += [old.eq(read.data), axis.eq(0)]
+                m.next = "AXIS"
+            with m.State("AXIS"):                  # u = Y − v(j − P); v = c, Y = u + v
+                difference = motion[axis] - old[axis]
                 with m.If((periods == 1) & row.solved):
+                    m.d.sync += rest.eq(difference)
                     m.next = "PULL"
                 with m.Else():
-                    m.next = "WRITE"
-
-            with m.State("PULL"):                  # v = c + a·(m − u − c), axis by axis
-                m.d.sync += [a_operand.eq(alpha),
-                             b_operand.eq(step - rest[axis] - carry[axis])]
+                    value, out = limit(difference + carry[axis], wider(2))
+                    m.d.sync += [increment[axis].eq(carry[axis]), motion[axis].eq(value),
+                                 clamped.eq(clamped | out), axis.eq(axis + 1)]
+                    with m.If(axis == 5):
+                        m.next = "WRITE"
+            with m.State("PULL"):                  # v = c + a·(m − u − c)
+                m.d.sync += [a_operand.eq(alpha), b_operand.eq(step - rest - carry[axis])]
                 m.next = "PULL_PRODUCT"
             with m.State("PULL_PRODUCT"):
                 m.next = "PULL_SUM"
             with m.State("PULL_SUM"):
-                value, = saturate((carry[axis] + pull, 5))
-                m.d.sync += [increment[axis].eq(value), axis.eq(axis + 1)]
+                moved, moved_out = limit(carry[axis] + pull, wider(5))
+                value, out = limit(rest + moved, wider(2))
+                m.d.sync += [increment[axis].eq(moved), motion[axis].eq(value),
+                             clamped.eq(clamped | moved_out | out), axis.eq(axis + 1)]
                 with m.If(axis == 5):
                     m.next = "WRITE"
                 with m.Else():
-                    m.next = "PULL"
+                    m.next = "AXIS"
 
-            with m.State("WRITE"):                 # v into the ring, Y = u + v
+            with m.State("WRITE"):                 # v(j) into the ring
                 m.d.comb += write.en.eq(1)
-                values = saturate(*((rest[k] + increment[k], 2) for k in range(6)))
-                m.d.sync += [motion[k].eq(v) for k, v in enumerate(values)]
                 m.d.sync += [index.eq(wrap), periods.eq(periods - 1)]
                 with m.If(periods == 1):
                     m.next = "OUT"
