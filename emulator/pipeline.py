@@ -230,7 +230,7 @@ class _Loop:
         transfers, level = self.model.close(transfers, slot, row)
         p = self.model.prediction
         tracked = None if self.track is None else \
-            self.track.update(slot, *before, self.model.step)
+            self.track.update(slot, *before, None if self.model.step is None else level)
         self.log.append((frame, row, slot, p["centre"], p["centre_saturated"],
                          p["source_row"], p["row_saturated"], level, tracked))
         if self.model.row_counts is not None:

@@ -3,17 +3,21 @@ golden (b)'s pose track instead of from the forecast filter's level (issue 16;
 docs/pose/motion_track.md).
 
 Golden (``golden.tracker.Tracker._step``) carries its pose from one row to the next at
-the filter's rate and pulls it by ``pose_alpha`` towards the previous frame's pose
-composed with the row's measured step; its ``Y`` is the step between its poses one frame
-apart, which averages the filter over the last frame. The same recursion in ``Y``
-space, with the track's per-row-period increments ``v`` (the last ``P = frame_rows``
-of them in a ring; ``Y`` is their sum), per row period ``j``:
+the filter's rate and pulls it by ``pose_alpha`` — weighted per direction by the row's
+information — towards the previous frame's pose composed with the row's measured step;
+its ``Y`` is the step between its poses one frame apart, which averages the filter over
+the last frame. The same recursion in ``Y`` space, with the track's per-row-period
+increments ``v`` (the last ``P = frame_rows`` of them in a ring; ``Y`` is their sum), per
+row period ``j``:
 
 * ``u = Y − v(j − P)`` — the motion over the other ``P − 1`` row periods;
 * ``c = L/P + B/2`` — the carry at the filter's rate (its level ``L`` and trend ``B``
   before the row's update, the trend brought up half a frame as golden's);
-* ``v(j) = c + a·(m − u − c)`` for the row period of a solved row (``m`` its step, ``a``
-  = ``track_alpha``), ``c`` for any other (an unsolved row, the readout gap);
+* ``v(j) = c + a·(m − u − c)`` for the row period of a solved row, ``c`` for any other
+  (an unsolved row, the readout gap); ``a`` = ``track_alpha`` and ``m`` the filter's
+  level after the row's update: the measured step as the filter took it, moved by the
+  information gain, so that directions the row hardly determines pull as little as in
+  golden (the raw step with a scalar pull lets them in: docs/pose/motion_track.md);
 * ``Y = u + v(j)``.
 
 Row periods skipped since the last row (the gap between frames) are carried first; only
@@ -77,10 +81,11 @@ class MotionTrackModel:
         half = resize(half, half_fmt, fmt, Rounding.HALF_EVEN, Overflow.ERROR)
         return clamp(fmt, rate + half, clamps)
 
-    def update(self, slot, level, trend, step=None):
+    def update(self, slot, level, trend, target=None):
         """Row slot ``slot`` (increasing) with the filter's ``level`` and ``trend`` before
-        its update (raw ``motion_fmt``) and its solved step (raw ``solver.step_fmt``,
-        None if the row was not solved); returns ``Y`` after it (raw ``motion_fmt``)."""
+        its update (raw ``motion_fmt``) and the pull's target ``m``, the level after it
+        (raw ``motion_fmt``; None if the row was not solved); returns ``Y`` after it (raw
+        ``motion_fmt``)."""
         p = self.params
         fmt = p.motion_fmt
         # m − u − c of values within (−2, 2), (−4, 4), (−2, 2); a·that with a < 2
@@ -96,9 +101,8 @@ class MotionTrackModel:
             self.index = (index + 1) % self.frame_rows
             rest = motion - self.ring[index]
             increment = carry
-            if k == periods - 1 and step is not None:
-                m = resize(p.solver.step_fmt.raw(np.asarray(step, dtype=np.int64)),
-                           p.solver.step_fmt, fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+            if k == periods - 1 and target is not None:
+                m = fmt.raw(np.asarray(target, dtype=np.int64))
                 pull, product_fmt = mul(p.track_alpha_raw, p.gain_fmt, m - rest - carry,
                                         diff_fmt)
                 increment = clamp(fmt, carry + resize(pull, product_fmt, pull_fmt,
@@ -113,18 +117,18 @@ class MotionTrackModel:
 
 def track_float(frame_rows, track_alpha, level0, rows):
     """The recursion in float (m, rad): ``rows`` is an iterable of ``(slot, level, trend,
-    step or None)`` as :meth:`MotionTrackModel.update` takes them; returns ``Y`` after
+    target or None)`` as :meth:`MotionTrackModel.update` takes them; returns ``Y`` after
     each (n, 6). The reference of the fixed-point model."""
     ring = np.tile(np.asarray(level0, dtype=float) / frame_rows, (frame_rows, 1))
     motion, last, out = ring.sum(axis=0), None, []
-    for slot, level, trend, step in rows:
+    for slot, level, trend, target in rows:
         carry = np.asarray(level, dtype=float) / frame_rows + 0.5 * np.asarray(trend, float)
         first = slot if last is None else max(last + 1, slot - frame_rows + 1)
         for j in range(first, slot + 1):      # the ring indexed by the slot: the same sums
             rest = motion - ring[j % frame_rows]
             increment = carry
-            if j == slot and step is not None:
-                increment = carry + track_alpha * (np.asarray(step, float) - rest - carry)
+            if j == slot and target is not None:
+                increment = carry + track_alpha * (np.asarray(target, float) - rest - carry)
             ring[j % frame_rows] = increment
             motion = rest + increment
         last = slot

@@ -26,12 +26,11 @@ __all__ = ["MotionTrack", "row_layout", "default_motion_track"]
 
 def row_layout(params, slot_bits=DEFAULT_SLOT_BITS):
     """One row for the track: its ``slot``, the filter's ``level`` and ``trend`` before
-    the row's update (``motion_fmt``), the solved ``step`` (``solver.step_fmt``) and
-    ``solved`` (0: the row gave the filter no step)."""
+    the row's update, the pull's ``target`` (the level after it; all ``motion_fmt``) and
+    ``solved`` (0: the row gave the filter no step, no pull)."""
     motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
     return data.StructLayout({"slot": unsigned(slot_bits), "level": motion, "trend": motion,
-                              "step": data.ArrayLayout(params.solver.step_fmt.shape(), 6),
-                              "solved": 1})
+                              "target": motion, "solved": 1})
 
 
 class MotionTrack(wiring.Component):
@@ -130,8 +129,6 @@ class MotionTrack(wiring.Component):
         pull = hdl_resize(product, product_fmt, pull_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
         # P · c: the integer P times c's raw value, a raw value of motion_fmt's fraction
         filled_fmt = SQ(product_fmt.width - fmt.frac_bits, fmt.frac_bits)
-        step = hdl_resize(row.step[axis], p.solver.step_fmt, fmt, Rounding.HALF_EVEN,
-                          Overflow.ERROR)
         trend = row.trend[axis]
         half_trend = (trend >> 1) + (trend[0] & trend[1])    # B/2, ties to even
 
@@ -244,7 +241,7 @@ class MotionTrack(wiring.Component):
                     with m.If(axis == 5):
                         m.next = "WRITE"
             with m.State("PULL"):                  # v = c + a·(m − u − c)
-                m.d.sync += [a_operand.eq(alpha), b_operand.eq(step - rest - carry[axis])]
+                m.d.sync += [a_operand.eq(alpha), b_operand.eq(row.target[axis] - rest - carry[axis])]
                 m.next = "PULL_PRODUCT"
             with m.State("PULL_PRODUCT"):
                 m.next = "PULL_SUM"

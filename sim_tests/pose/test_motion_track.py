@@ -18,18 +18,18 @@ def params():
 
 
 def _stream(params, rng, frame_rows, rows, skip_every=50, skip=7):
-    """(slot, level, trend, step or None) raw, and the same in float."""
-    fmt, step_fmt = params.motion_fmt, params.solver.step_fmt
+    """(slot, level, trend, target or None) raw, and the same in float."""
+    fmt = params.motion_fmt
     motion = np.array([0.01, -0.002, 0.005, 0.004, -0.016, 0.006])
     raw, real, slot = [], [], 0
     for i in range(rows):
         slot += skip if i and i % skip_every == 0 else 1
         level = fmt.quantize(motion + rng.normal(0, 1e-4, 6))
         trend = fmt.quantize(rng.normal(0, 1e-6, 6))
-        step = None if rng.random() < 0.2 else step_fmt.quantize(motion + rng.normal(0, 5e-4, 6))
-        raw.append((slot, level, trend, step))
+        target = None if rng.random() < 0.2 else fmt.quantize(motion + rng.normal(0, 5e-4, 6))
+        raw.append((slot, level, trend, target))
         real.append((slot, fmt.to_float(level), fmt.to_float(trend),
-                     None if step is None else step_fmt.to_float(step)))
+                     None if target is None else fmt.to_float(target)))
     return motion, raw, real
 
 
@@ -52,16 +52,16 @@ def test_the_model_is_its_float_recursion_in_fixed_point(params, frame_rows):
 
 
 def test_a_constant_motion_stays_put(params):
-    """Level, steps and the start all at Y, no trend: Y stays within P/2 ulp of Y (the
+    """Level, targets and the start all at Y, no trend: Y stays within P/2 ulp of Y (the
     rounding of Y/P) over frames, solved rows or not."""
-    fmt, step_fmt = params.motion_fmt, params.solver.step_fmt
+    fmt = params.motion_fmt
     y = np.array([0.012, 0.003, -0.004, 0.002, 0.015, -0.006])
     frame_rows = 480
     model = MotionTrackModel(params, frame_rows, fmt.quantize(y))
     zero = np.zeros(6, dtype=np.int64)
     for slot in range(3 * frame_rows):
-        step = step_fmt.quantize(y) if slot % 3 else None
-        out = model.update(slot, fmt.quantize(y), zero, step)
+        target = fmt.quantize(y) if slot % 3 else None
+        out = model.update(slot, fmt.quantize(y), zero, target)
     assert np.abs(fmt.to_float(out) - y).max() <= frame_rows * 2.0 ** -fmt.frac_bits
 
 
@@ -73,8 +73,8 @@ def test_a_gap_longer_than_a_frame_leaves_only_the_carry(params):
     model = MotionTrackModel(params, frame_rows, fmt.quantize(np.full(6, 0.01)))
     level = fmt.quantize(np.full(6, 0.02))
     zero = np.zeros(6, dtype=np.int64)
-    model.update(0, level, zero, params.solver.step_fmt.quantize(np.full(6, 0.05)))
-    model.update(5, level, zero, params.solver.step_fmt.quantize(np.full(6, 0.03)))
+    model.update(0, level, zero, fmt.quantize(np.full(6, 0.05)))
+    model.update(5, level, zero, fmt.quantize(np.full(6, 0.03)))
     out = model.update(3 * frame_rows, level, zero)
     carry = int(np.round(level[0] * params.reciprocal_raw(frame_rows)
                          / 2 ** params.reciprocal_fmt.frac_bits))
@@ -85,10 +85,10 @@ def test_a_gap_longer_than_a_frame_leaves_only_the_carry(params):
 def test_saturation_is_counted_never_silent(params):
     """Steps at the format's ends drive Y out of motion_fmt: it saturates and the row is
     counted."""
-    fmt, step_fmt = params.motion_fmt, params.solver.step_fmt
+    fmt = params.motion_fmt
     frame_rows = 4
     model = MotionTrackModel(params, frame_rows, fmt.quantize(np.full(6, fmt.max_value / 2)))
-    top = step_fmt.quantize(np.full(6, fmt.max_value))
+    top = np.full(6, fmt.max_raw, dtype=np.int64)
     level = np.full(6, fmt.max_raw, dtype=np.int64)
     trend = np.full(6, fmt.max_raw, dtype=np.int64)
     for slot in range(8):

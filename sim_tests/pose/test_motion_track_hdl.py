@@ -41,10 +41,10 @@ def loop_rows():
         made.append((params, frame_rows, np.array(level)))
         init(self, params, frame_rows, level)
 
-    def recording_update(self, slot, level, trend, step=None):
+    def recording_update(self, slot, level, trend, target=None):
         rows.append((slot, np.array(level), np.array(trend),
-                     None if step is None else np.array(step)))
-        outputs.append(update(self, slot, level, trend, step))
+                     None if target is None else np.array(target)))
+        outputs.append(update(self, slot, level, trend, target))
         return outputs[-1]
 
     try:
@@ -60,9 +60,9 @@ def loop_rows():
 
 
 def random_rows(params, rng, count, gap_every, extreme=False, slot=0):
-    """(slot, level, trend, step or None) raw rows after slot ``slot``, with a readout gap
-    every ``gap_every`` rows (some longer than a frame of 8 row periods)."""
-    fmt, step_fmt = params.motion_fmt, params.solver.step_fmt
+    """(slot, level, trend, target or None) raw rows after slot ``slot``, with a readout
+    gap every ``gap_every`` rows (some longer than a frame of 8 row periods)."""
+    fmt = params.motion_fmt
     rows = []
     base = rng.uniform(-0.02, 0.02, 6)
     for i in range(count):
@@ -70,12 +70,12 @@ def random_rows(params, rng, count, gap_every, extreme=False, slot=0):
         if extreme:
             level = np.array([rng.choice([fmt.min_raw, fmt.max_raw]) for _ in range(6)])
             trend = np.array([rng.choice([fmt.min_raw, fmt.max_raw]) for _ in range(6)])
-            step = step_fmt.quantize(np.array([rng.choice([-0.999, 0.999]) for _ in range(6)]))
+            target = np.array([rng.choice([fmt.min_raw, fmt.max_raw]) for _ in range(6)])
         else:
             level = fmt.quantize(base + rng.normal(0, 1e-3, 6))
             trend = fmt.quantize(rng.normal(0, 1e-5, 6))
-            step = step_fmt.quantize(base + rng.normal(0, 2e-3, 6))
-        rows.append((slot, level, trend, None if rng.random() < 0.2 else step))
+            target = fmt.quantize(base + rng.normal(0, 2e-3, 6))
+        rows.append((slot, level, trend, None if rng.random() < 0.2 else target))
     return rows
 
 
@@ -100,15 +100,15 @@ def simulate_track(params, depth, segments, *, seed, gaps):
                 ctx.set(dut.restart, 1)
                 await ctx.tick()
                 ctx.set(dut.restart, 0)
-            for slot, level, trend, step in rows:
+            for slot, level, trend, target in rows:
                 while rng.random() >= prob:
                     await ctx.tick()
                 ctx.set(dut.i.payload.slot, int(slot) % 2 ** SLOT_BITS)
                 for k in range(6):
                     ctx.set(dut.i.payload.level[k], int(level[k]))
                     ctx.set(dut.i.payload.trend[k], int(trend[k]))
-                    ctx.set(dut.i.payload.step[k], 0 if step is None else int(step[k]))
-                ctx.set(dut.i.payload.solved, step is not None)
+                    ctx.set(dut.i.payload.target[k], 0 if target is None else int(target[k]))
+                ctx.set(dut.i.payload.solved, target is not None)
                 ctx.set(dut.i.valid, 1)
                 await ctx.tick().until(dut.i.ready)
                 ctx.set(dut.i.valid, 0)
