@@ -191,12 +191,11 @@ class _Loop:
                                        params.motion_fmt.quantize(initial_motion),
                                        consistency)
         self.time, self.t0 = dataset.cameras[0].time, t0
-        camera = dataset.rig.cameras[0]
-        self.t_r = camera.t_r
+        self.t_r = dataset.rig.cameras[0].t_r
         self.log, self.row_counts = [], []
         # the motion track (its block is not in the gateware loop yet) needs a whole
         # frame of row periods
-        frame_rows = 1.0 / (camera.fps * camera.t_r)
+        frame_rows = config.frame_rows
         self.track = None if abs(frame_rows - round(frame_rows)) > 1e-6 else \
             MotionTrackModel(params, round(frame_rows), params.motion_fmt.quantize(initial_motion))
 

@@ -14,7 +14,10 @@ docs/results/figures.json:
   scalar ``pose_alpha`` towards the previous frame's pose composed with the solved step;
 * ``linear``: the same recursion in Y space, the hardware-friendly form: a ring of the
   last P per-slot increments ``v``, ``Y`` their sum; per slot ``u = Y − v(s − P)``,
-  ``c = rate``, ``v = c + a (m − u − c)`` (``c`` without a step), ``Y = u + v``.
+  ``c = rate``, ``v = c + a (m − u − c)`` (``c`` without a step), ``Y = u + v``, ``m``
+  the solved step (:func:`emulator.pose.motion_track.track_float`);
+* ``linear_level``: the same with ``m`` the filter's level after the row (the hardware
+  model's law, :mod:`emulator.pose.motion_track`).
 
 Run from the checkout: ``PYTHONPATH=. .venv/bin/python scripts/pose_track_study.py
 [--rig stereo20] [--motion paper] [--gain information]``; the loop log is cached in
@@ -65,32 +68,24 @@ def run_loop(rig, motion, gain, cache):
     return log
 
 
-def linear_track(log, pose_alpha, period):
-    """Y of every loop row from the Y-space pose track (module docstring)."""
+def linear_track(log, pose_alpha, period, target="step"):
+    """Y of every loop row from the Y-space recursion
+    (:func:`emulator.pose.motion_track.track_float`) on the logged values: the rate from
+    the level before each row and the trend after it, the pull towards the row's solved
+    step (``target="step"``) or the filter's level after it (``"level"``, the hardware's
+    law)."""
+    from emulator.pose.motion_track import track_float
     steps = {(int(f), int(r)): s for f, r, s in zip(log["step_frame"], log["step_row"],
                                                    log["step"])}
-    half = 0.5 * period
-    ring = {}
-    level0 = log["level"][0]
-    y = level0.copy()
-    for j in range(int(log["slot"][0]) - period + 1, int(log["slot"][0]) + 1):
-        ring[j] = level0 / period
-    out, previous_slot, current = [], int(log["slot"][0]), level0
-    for f, r, s, level, trend in zip(log["frame"], log["row"], log["slot"], log["level"],
-                                     log["trend"]):
-        s = int(s)
-        rate = (current + half * trend) / period
-        for j in range(previous_slot + 1, s + 1):
-            u = y - ring.pop(j - period, np.zeros(6))
-            v = rate
-            step = steps.get((int(f), int(r))) if j == s else None
-            if step is not None and np.all(np.isfinite(step)):
-                v = rate + pose_alpha * (step - u - rate)
-            ring[j] = v
-            y = u + v
-        previous_slot, current = s, level
-        out.append(y.copy())
-    return np.array(out)
+    before = np.vstack([log["level"][:1], log["level"][:-1]])
+    rows = []
+    for f, r, s, current, level, trend in zip(log["frame"], log["row"], log["slot"], before,
+                                              log["level"], log["trend"]):
+        step = steps.get((int(f), int(r)))
+        solved = step is not None and np.all(np.isfinite(step))
+        rows.append((int(s), current, trend,
+                     (step if target == "step" else level) if solved else None))
+    return track_float(period, pose_alpha, log["level"][0], rows)
 
 
 def pose_track(dataset, log, pose_alpha):
@@ -130,6 +125,7 @@ def main():
     truth = true_steps(dataset, log["frame"][scored], log["row"][scored])
     estimates = {"level": log["level"][scored],
                  "linear": linear_track(log, args.pose_alpha, period)[scored],
+                 "linear_level": linear_track(log, args.pose_alpha, period, "level")[scored],
                  "pose": pose_track(dataset, log, args.pose_alpha)}
     print(f"{args.rig} {args.motion} {args.gain}: P = {period} slots, "
           f"pose_alpha {args.pose_alpha}; ratio to golden (b) {prefix}")

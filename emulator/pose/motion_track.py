@@ -88,7 +88,8 @@ class MotionTrackModel:
         ``motion_fmt``)."""
         p = self.params
         fmt = p.motion_fmt
-        # m − u − c of values within (−2, 2), (−4, 4), (−2, 2); a·that with a < 2
+        # m − u − c of values within (−1, 1), (−2, 2), (−1, 1); a·that with a < 2 (the
+        # formats hold ±8 and ±16)
         diff_fmt, pull_fmt = sum_format(fmt, 3), sum_format(fmt, 4)
         check_int("slot", slot, 0 if self.slot is None else self.slot + 1)
         clamps = []

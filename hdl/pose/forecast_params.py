@@ -72,8 +72,9 @@ class ForecastParams:
     prior_fmt : QFormat
         Unsigned format of the prior's weight ``(1 − α)/α`` (half-even).
     track_alpha : float
-        The motion track's pull towards each solved step (golden's ``pose_alpha``,
-        :mod:`emulator.pose.motion_track`); quantized to ``gain_fmt``.
+        The motion track's pull towards the filter's level after each solved row
+        (golden's ``pose_alpha``, :mod:`emulator.pose.motion_track`); quantized to
+        ``gain_fmt``.
     reciprocal_fmt : QFormat
         Unsigned format of ``1 / frame_rows``, the motion track's rate per row period
         (half-even).

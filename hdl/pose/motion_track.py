@@ -68,9 +68,6 @@ class MotionTrack(wiring.Component):
         Rows (and restarts) in which a value saturated into ``motion_fmt`` (wraps).
     """
 
-    #: Clocks of a product: operands, product, result.
-    PRODUCT_CLOCKS = 3
-
     def __init__(self, params, frame_rows, *, slot_bits=DEFAULT_SLOT_BITS):
         if not isinstance(params, ForecastParams):
             raise TypeError(f"params must be a ForecastParams, not {params!r}")
