@@ -4,8 +4,8 @@
 ``PipelineConfig.for_rig(rig, closed_loop=True)`` for a dataset's rig, plays every row of
 the dataset's first frames on its DVP pins (:mod:`emulator.hdl_sim.cosim_bench`, the
 open-loop co-simulation's bench), and compares, record by record, what the PS reads from
-the FIFO, what the tracking loop's solver emitted (with its step) and every forecast row
-the engine took (each camera's window centre and source row) with
+the FIFO, what the tracking loop's solver emitted (with its step), its motion track's ``Y``
+of every row and every forecast row the engine took (each camera's window centre and source row) with
 :func:`emulator.pipeline.run`'s closed loop on the same rows, the flags annotated by
 :class:`emulator.pose.tracking_status.StatusUnitModel` as the gateware's status unit
 does. Forecast → lane centre and row address → measurement → solver → forecast all run
@@ -37,7 +37,7 @@ from emulator.cosim import (camera_stimulus, checked_input, compare_records, lat
 from golden.tracker_params import DEFAULT_MOTION_GAIN
 from hdl.descriptor.params import DEFAULT_SEGMENTS
 
-__all__ = ["SOLVER_FIELDS", "FORECAST_FIELDS", "LoopCosimResult", "cut_rig", "cut_slice",
+__all__ = ["SOLVER_FIELDS", "FORECAST_FIELDS", "TRACK_FIELDS", "LoopCosimResult", "cut_rig", "cut_slice",
            "slice_dataset", "loop_expected", "judge", "closed_loop_cosim"]
 
 #: Fields of the tracking loop's solver records compared (the solver's formats, before
@@ -46,6 +46,8 @@ SOLVER_FIELDS = ("row", "time", "flags", "q", "p", "step")
 #: Fields of the forecast rows the engine takes compared: the camera row, and per camera
 #: its lane's window centre and the previous frame's row it reads (``source_row``).
 FORECAST_FIELDS = ("row", "centre", "source_row")
+#: Fields of the motion track's rows compared: ``Y`` (raw ``motion_fmt``, six axes).
+TRACK_FIELDS = ("y",)
 
 
 def cut_rig(rig, rows):
@@ -134,8 +136,11 @@ class LoopCosimResult:
         Forecast rows the engine took beyond the played rows (at most
         ``loop_delay_rows + 1``, left out of ``forecasts``; more are compared, and count
         as mismatches).
-    mismatches, solver_mismatches, forecast_mismatches : int
-        Differing fields of the three comparisons (:func:`emulator.cosim.compare_records`).
+    track, track_expected : dict
+        The motion track's ``Y`` of every row (HDL) and the emulator's,
+        :data:`TRACK_FIELDS` (``y``: (rows, 6)).
+    mismatches, solver_mismatches, forecast_mismatches, track_mismatches : int
+        Differing fields of the four comparisons (:func:`emulator.cosim.compare_records`).
     first_mismatch : str or None
         The first difference of any.
     solved : int
@@ -179,9 +184,12 @@ class LoopCosimResult:
     forecasts: dict
     forecasts_expected: dict
     forecasts_ahead: int
+    track: dict
+    track_expected: dict
     mismatches: int
     solver_mismatches: int
     forecast_mismatches: int
+    track_mismatches: int
     first_mismatch: str | None
     solved: int
     frames: int
@@ -202,6 +210,12 @@ class LoopCosimResult:
     clk_hz: float
     uart_packets_match: bool
 
+    @property
+    def all_mismatches(self):
+        """Differing fields of all four comparisons."""
+        return (self.mismatches + self.solver_mismatches + self.forecast_mismatches
+                + self.track_mismatches)
+
 
 def _config(rig, records, motion_gain=DEFAULT_MOTION_GAIN):
     """The board's closed-loop pipeline for ``rig`` (:func:`hdl.top.board_config`) with
@@ -215,9 +229,9 @@ def _config(rig, records, motion_gain=DEFAULT_MOTION_GAIN):
 
 def loop_expected(config, dataset, frames, times, initial_motion=None):
     """The emulator's closed loop on the first ``frames`` frames of ``dataset``, as the
-    HDL must give it: ``(FIFO records, solver records, forecast rows, slots, packets)``
-    (:data:`emulator.cosim.RECORD_FIELDS`, :data:`SOLVER_FIELDS`,
-    :data:`FORECAST_FIELDS`). ``times``: the time stamp of each record (the HDL row sets',
+    HDL must give it: ``(FIFO records, solver records, forecast rows, track rows, slots,
+    packets)`` (:data:`emulator.cosim.RECORD_FIELDS`, :data:`SOLVER_FIELDS`,
+    :data:`FORECAST_FIELDS`, :data:`TRACK_FIELDS`). ``times``: the time stamp of each record (the HDL row sets',
     router rule; the emulator's own where the HDL has fewer). Started as the gateware
     after reset: the forecast filter at rest (initial motion 0); with ``initial_motion``
     the loop restarted at it from frame 1 (``run``'s ``restart``: where the gateware's
@@ -259,7 +273,9 @@ def loop_expected(config, dataset, frames, times, initial_motion=None):
     forecasts = {"row": np.asarray(loop["row"], dtype=np.int64),
                  **{name: np.array(loop[name], dtype=np.int64).reshape(len(slots), -1)
                     for name in ("centre", "source_row")}}
-    return record_arrays(packet, kept), solver, forecasts, slots, uart
+    track = {"row": forecasts["row"],
+             "y": np.asarray(loop["track"], dtype=np.int64).reshape(len(slots), 6)}
+    return record_arrays(packet, kept), solver, forecasts, track, slots, uart
 
 
 def _solver_arrays(layout, columns):
@@ -270,6 +286,19 @@ def _solver_arrays(layout, columns):
                                 (len(rows), -1) if rows and isinstance(rows[0][name], dict)
                                 else (len(rows),))
             for name in SOLVER_FIELDS}
+
+
+def _track_arrays(forecast, columns, rows):
+    """The motion track's rows (:class:`ColumnMonitor` columns of ``Y``) as
+    :data:`TRACK_FIELDS` arrays, each with the ``row`` of the solver record it follows
+    (-1 beyond them)."""
+    from amaranth.lib import data
+    from emulator.hdl_sim.payload import unpack
+    layout = data.ArrayLayout(forecast.motion_fmt.shape(), 6)
+    y = np.array([[axis for _, axis in sorted(unpack(layout, raw).items())]
+                  for _, raw in columns], dtype=np.int64).reshape(-1, 6)
+    return {"row": np.array([rows[k] if k < len(rows) else -1 for k in range(len(y))],
+                            dtype=np.int64), "y": y}
 
 
 def _first_offers(columns, stalls):
@@ -400,7 +429,7 @@ def closed_loop_cosim(dataset, *, row_period_s, frames=3, initial_motion=None,
     result = judge(config, dataset, frames, out, timings, initial_motion)
     say(f"[cosim-loop] {result.row_sets} row sets, {len(result.records['row'])} records, "
         f"{result.mismatches} + {result.solver_mismatches} + {result.forecast_mismatches} "
-        f"mismatches; counters {result.status}")
+        f"+ {result.track_mismatches} mismatches; counters {result.status}")
     return result
 
 
@@ -417,7 +446,7 @@ def judge(config, dataset, frames, out, timings=None, initial_motion=None):
     sets, spans = row_sets_from_columns(params.camera.aligned_layout(), out["columns"])
     time_mask = (1 << params.solver.time_bits) - 1
     times = [s[min(s)][0]["t_first"] & time_mask for s in sets]
-    expected, solver_expected, forecasts_expected, slots, uart = \
+    expected, solver_expected, forecasts_expected, track_expected, slots, uart = \
         loop_expected(config, dataset, frames, times, initial_motion)
     records = record_arrays(params.pose_output.packet, out["fifo_records"])
     solver = _solver_arrays(record_layout(params.solver), out["loop_records"])
@@ -427,12 +456,15 @@ def judge(config, dataset, frames, out, timings=None, initial_motion=None):
     ahead = min(max(len(forecasts["row"]) - len(forecasts_expected["row"]), 0),
                 params.forecast.loop_delay_rows + 1)
     forecasts = {name: value[:len(value) - ahead] for name, value in forecasts.items()}
+    track = _track_arrays(params.forecast, out["track"], solver["row"])
     frames_of_sets = [k // height for k in range(len(sets))]
     mismatches, first = compare_records(records, expected, frames_of_sets)
     solver_mismatches, solver_first = compare_records(solver, solver_expected,
                                                       frames_of_sets, SOLVER_FIELDS)
     forecast_mismatches, forecast_first = compare_records(
         forecasts, forecasts_expected, frames_of_sets, FORECAST_FIELDS)
+    track_mismatches, track_first = compare_records(track, track_expected, frames_of_sets,
+                                                    TRACK_FIELDS)
     same_count = len(sets) == len(out["fifo_clocks"])
     record_clocks = [clock for clock, _ in out["loop_records"]]
     column_offers = dict(zip((clock for clock, _ in out["columns"]),
@@ -441,10 +473,12 @@ def judge(config, dataset, frames, out, timings=None, initial_motion=None):
     return LoopCosimResult(
         records=records, expected=expected, solver=solver, solver_expected=solver_expected,
         forecasts=forecasts, forecasts_expected=forecasts_expected, forecasts_ahead=ahead,
+        track=track, track_expected=track_expected,
         mismatches=mismatches, solver_mismatches=solver_mismatches,
-        forecast_mismatches=forecast_mismatches,
+        forecast_mismatches=forecast_mismatches, track_mismatches=track_mismatches,
         first_mismatch=first or (solver_first and f"solver {solver_first}")
-        or (forecast_first and f"forecast {forecast_first}"),
+        or (forecast_first and f"forecast {forecast_first}")
+        or (track_first and f"track {track_first}"),
         solved=int(np.count_nonzero(solver_expected["flags"] == 0)), frames=frames,
         row_sets=len(sets),
         rows_match=_rows_match(sets, images, params.camera.frame_bits), slots=slots,

@@ -4,13 +4,14 @@ against the golden tracker's reference (b) with the same loop delay, and against
 on its own measurements.
 
 The quantity compared is the one-frame motion ``Y = [T θ]`` of each row (the papers'
-Table 1 quantity). The hardware path's estimate is the forecast filter's level after each
-row's step (as golden (b) reports its filter's motion); the solver's raw steps are
-compared beside it. The truth is the exact body-frame step from the pose of the same row
+Table 1 quantity). The hardware path's estimate is its motion track's ``Y`` (golden (b)'s
+pose track read in ``Y``: :meth:`emulator.hardware_path.HardwarePath.estimate`); the
+forecast filter's level after each row's step and the solver's raw steps are compared
+beside it. The truth is the exact body-frame step from the pose of the same row
 one frame earlier (:func:`true_steps`).
 
-Tolerances (:func:`check_closed_loop`, from issue 16's targets): per axis, the filter
-level's RMS against truth at most :data:`GOLDEN_B_RATIO` × golden (b)'s and at most
+Tolerances (:func:`check_closed_loop`, from issue 16's targets): per axis, the
+estimate's RMS against truth at most :data:`GOLDEN_B_RATIO` × golden (b)'s and at most
 :data:`SHARE_OF_MOTION` × the true motion's RMS; at least :data:`SOLVED_FRACTION` of the
 rows of frames ≥ 1 solved; level 2: the fixed-point solver within :data:`FLOAT_TOLERANCE`
 of a float64 solve of the same routed measurements, and the lanes' measurements in the
@@ -206,14 +207,13 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     :func:`emulator.hardware_path.golden_b_params` on ``dataset``), each
     ``<a>_vs_<b>.{rms,median_abs,max_abs}.<axis>`` over the rows where both are defined:
 
-    ``emulator_vs_truth`` (the filter level), ``emulator_steps_vs_truth`` (the raw solved
-    steps), ``golden_b_vs_truth`` (golden (b)'s Y from its trajectory,
+    ``emulator_vs_truth`` (the estimate, :meth:`HardwarePath.estimate`; ``estimate``
+    names it), ``emulator_level_vs_truth`` (the filter's level, reported),
+    ``emulator_steps_vs_truth`` (the raw solved steps), ``golden_b_vs_truth`` (golden (b)'s Y from its trajectory,
     :func:`golden_trajectory_steps`: the figure of :func:`golden.metrics.evaluate` and of
     ``rowtrack bench --only hw_tracking``, the judge's reference),
     ``golden_b_motion_vs_truth`` (its filter's motion, :func:`golden_steps`, reported),
-    ``emulator_vs_golden_b``, ``emulator_track_vs_truth`` (the motion track's Y,
-    :mod:`emulator.pose.motion_track`, where the frame is a whole number of row periods;
-    reported, not judged: its block is not in the loop yet), ``true_motion`` (the truth
+    ``emulator_vs_golden_b`` (the estimate), ``true_motion`` (the truth
     against zero: the motion's own RMS), ``emulator_vs_float`` (level 2: the solver
     against float64 on the same routed measurements), ``emulator_pose_vs_truth``, with
     ``golden`` (the default golden tracker) also ``golden_vs_truth``; and
@@ -223,7 +223,8 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     ``front_end.trigger_skew_rows``, ``front_end.skew_rows_held`` and
     ``front_end.shortfall`` (:meth:`hdl.pipeline_config.PipelineConfig.alignment_shortfall`:
     ``None`` when the row aligner can form the row sets the pipeline is fed)."""
-    frames, rows, level = path.levels()
+    frames, rows, estimate, label = path.estimate()
+    level = path.levels()[2]
     truth = true_steps(dataset, frames, rows)
     step_frames, step_rows, steps = path.steps()
     result, config = path.result, path.config
@@ -231,16 +232,18 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     figures = {"solved_fraction": float(np.mean(np.isfinite(steps[:, 0])))
                if len(steps) else float("nan"),
                "loop_delay_rows": path.loop_delay_rows,
+               "estimate": label,
                "motion_gain": path.forecast.motion_gain,
                "loop_delay_clocks": int(round(path.loop_delay_rows * t_r * config.clk_hz)),
                "emulator_rows_per_s": result.rows_per_s}
     gold_b = golden_trajectory_steps(golden_b, dataset, frames, rows)
-    pairs = {"emulator_vs_truth": (level, truth),
+    pairs = {"emulator_vs_truth": (estimate, truth),
+             "emulator_level_vs_truth": (level, truth),
              "emulator_steps_vs_truth": (steps, true_steps(dataset, step_frames, step_rows)),
              "golden_b_vs_truth": (gold_b, truth),
              "golden_b_motion_vs_truth": (golden_steps(golden_b, dataset, frames, rows),
                                           truth),
-             "emulator_vs_golden_b": (level, gold_b),
+             "emulator_vs_golden_b": (estimate, gold_b),
              "true_motion": (truth, np.zeros_like(truth)),
              "emulator_vs_float": (result.steps(config), float_steps(config, result.rows))}
     figures.update({"front_end.trigger_skew_rows": config.trigger_skew_rows,
@@ -250,8 +253,6 @@ def compare_closed_loop(path, dataset, golden_b, golden=None):
     if golden is not None:
         pairs["golden_vs_truth"] = (golden_trajectory_steps(golden, dataset, frames, rows),
                                     truth)
-    if "track" in result.loop:
-        pairs["emulator_track_vs_truth"] = (path.levels("track")[2], truth)
     for name, (a, b) in pairs.items():
         figures.update({f"{name}.{key}": value for key, value in agreement(a, b).items()})
     error = pose_errors(config, result, dataset)

@@ -6,8 +6,10 @@ disparity per temporal segment), :func:`emulator.pipeline.run` closed through th
 configuration's forecast, with the consistency stage and the stereo cue fallback,
 started at the true one-frame motion of the first tracked row (the papers' "first frame
 given", :func:`first_frame_motion`). Its estimate of each row's one-frame motion is the
-forecast filter's level after the row's step (:meth:`HardwarePath.levels`); the solver's
-raw steps are beside it (:meth:`HardwarePath.steps`). Golden (b) with the same loop delay
+motion track's ``Y`` (:meth:`HardwarePath.estimate`, :mod:`emulator.pose.motion_track`,
+the gateware loop's ``track`` output); the forecast filter's level after each row's step
+and the solver's raw steps are beside it (:meth:`HardwarePath.levels`,
+:meth:`HardwarePath.steps`). Golden (b) with the same loop delay
 and gain law is :func:`golden_b_params`. The comparisons and tolerances are
 :mod:`emulator.e2e`'s.
 """
@@ -83,6 +85,16 @@ class HardwarePath:
         scored = loop["frame"] > 0
         return (loop["frame"][scored], loop["row"][scored],
                 self.forecast.motion_fmt.to_float(loop[name][scored]))
+
+    def estimate(self):
+        """``(frame, row, Y, label)`` of the loop's rows of frames ≥ 1: the hardware
+        path's estimate of the one-frame motion, the motion track's ``Y`` (``label``
+        "motion track"), or the filter's level ("filter level") where the rig's frame is
+        not a whole number of row periods (no track: the gateware loop cannot be built
+        for it)."""
+        if "track" in self.result.loop:
+            return (*self.levels("track"), "motion track")
+        return (*self.levels(), "filter level")
 
     def steps(self):
         """``(frame, row, step)`` of the solver's records of frames ≥ 1: the raw solved

@@ -193,8 +193,7 @@ class _Loop:
         self.time, self.t0 = dataset.cameras[0].time, t0
         self.t_r = dataset.rig.cameras[0].t_r
         self.log, self.row_counts = [], []
-        # the motion track (its block is not in the gateware loop yet) needs a whole
-        # frame of row periods
+        # the motion track (the gateware loop's track) needs a whole frame of row periods
         frame_rows = config.frame_rows
         self.track = None if abs(frame_rows - round(frame_rows)) > 1e-6 else \
             MotionTrackModel(params, round(frame_rows), params.motion_fmt.quantize(initial_motion))

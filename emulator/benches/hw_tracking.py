@@ -11,12 +11,13 @@ the consistency stage, a disparity per temporal segment and the stereo cue fallb
 (docs/e2e.md, "Closed loop"). The
 quantity is the papers' Table 1 one: each row's one-frame motion ``Y`` against the true
 one from the poses at the same two times, RMS per axis over the rows of frames 1…11: the
-hardware path's estimate is the forecast filter's level after each row (its smoothed
-``Y``, ``rms_*``); the solver's raw steps are reported beside it (``step_rms_*``, NaN rows
-unsolved), the motion track's ``Y`` (``track_rms_*``, :mod:`emulator.pose.motion_track`,
-golden (b)'s pose track in ``Y`` space: its block is built but not yet in the loop,
-judged in a table of its own), and the true motion's own RMS (``motion_rms_*``) against which an estimate
-that tracks must stay within :data:`emulator.e2e.SHARE_OF_MOTION`. The golden (b) run is
+hardware path's estimate is its motion track's ``Y`` (``rms_*``,
+:meth:`emulator.hardware_path.HardwarePath.estimate`, golden (b)'s pose track in ``Y``
+space, the gateware loop's ``track``); reported beside it: the forecast filter's level
+after each row (``level_rms_*``, judged in a table of its own), the solver's raw steps
+(``step_rms_*``, NaN rows unsolved) and the true motion's own RMS (``motion_rms_*``)
+against which an estimate that tracks must stay within
+:data:`emulator.e2e.SHARE_OF_MOTION`. The golden (b) run is
 ``TrackerParams(reference="previous", follow_rows=True, motion_gain=<the same gain law>,
 loop_delay_rows=<the same delay>)`` on the same sequence.
 """
@@ -46,9 +47,8 @@ HEAD_RATIO = 1.5
 GAINS = {DEFAULT_MOTION_GAIN: "", "scalar": "scalar."}
 GAIN_TITLES = {DEFAULT_MOTION_GAIN: f"{DEFAULT_MOTION_GAIN} gain (the default, the tops' build)",
                "scalar": "scalar gain (the simplification, `motion_gain=\"scalar\"`)"}
-TRACK_TITLE = (f"{DEFAULT_MOTION_GAIN} gain, Y read from the motion track "
-               f"(`emulator.pose.motion_track`; its block `hdl.pose.motion_track` is built "
-               f"but not yet wired into the loop)")
+LEVEL_TITLE = (f"{DEFAULT_MOTION_GAIN} gain, Y read from the forecast filter's level "
+               f"(reported beside the motion track, the estimate judged above)")
 
 
 def _rms(values):
@@ -70,18 +70,17 @@ def hardware_path(dataset, progress=False, motion_gain=DEFAULT_MOTION_GAIN):
     start = time.perf_counter()
     path = closed_loop(dataset, progress=progress,
                        forecast_changes={"motion_gain": motion_gain})
-    frames, rows, level = path.levels()
+    frames, rows, estimate, _ = path.estimate()
     truth = true_steps(dataset, frames, rows)
-    error = _rms(level - truth)
+    error = _rms(estimate - truth)
     figures = _axes("", error[:3], error[3:])
     motion = _rms(truth)
     figures.update(_axes("motion_", motion[:3], motion[3:]))
     frames_s, rows_s, steps = path.steps()
     error = _rms(steps - true_steps(dataset, frames_s, rows_s))
     figures.update(_axes("step_", error[:3], error[3:]))
-    _, _, track = path.levels("track")
-    error = _rms(track - truth)
-    figures.update(_axes("track_", error[:3], error[3:]))
+    error = _rms(path.levels()[2] - truth)
+    figures.update(_axes("level_", error[:3], error[3:]))
     figures["track_saturated"] = int(path.result.loop["track_saturated"])
     figures["solved_fraction"] = float(np.mean(np.isfinite(steps[:, 0])))
     figures["rows"] = int(len(frames))
@@ -127,8 +126,8 @@ def _row(f, key, label, scale=1.0, digits=4):
 
 def verdicts(f, rig, prefix="", estimate=""):
     """The issue's targets for ``rig`` with the gain law of key prefix ``prefix``
-    (:data:`GAINS`) and the estimate of key prefix ``estimate`` (``""`` the filter's
-    level, ``"track_"`` the motion track), each as (target, measured, met); ``met`` is None
+    (:data:`GAINS`) and the estimate of key prefix ``estimate`` (``""`` the motion
+    track, ``"level_"`` the filter's level), each as (target, measured, met); ``met`` is None
     (not judged) for a ratio to golden (b) on an axis where golden (b) has lost the
     motion: its error exceeds the true motion itself (taking the motion as zero would do
     better), so any hardware error under 1.5 × it would read as met."""
@@ -190,16 +189,16 @@ def report(figures):
                 if key + "rows" not in f:
                     continue
                 rows.append(_row(f, key, f"{motion}, hardware path (emulator), {gain} gain, "
-                                         f"filter level"))
+                                         f"motion track"))
+                rows.append(_row(f, key + "level_", f"{motion}, hardware path, {gain} gain, "
+                                                    f"filter level"))
                 rows.append(_row(f, key + "step_", f"{motion}, hardware path, {gain} gain, "
                                                    f"solved steps"))
-                rows.append(_row(f, key + "track_", f"{motion}, hardware path, {gain} gain, "
-                                                    f"motion track (model only)"))
                 rows.append(_row(f, key + "golden_b_", f"{motion}, golden (b), same delay, "
                                                        f"{gain} gain"))
             rows.append(_row(f, base + "motion_", f"{motion}, the true motion itself"))
         judged = [(gain, prefix, "", GAIN_TITLES[gain]) for gain, prefix in GAINS.items()]
-        judged.append((DEFAULT_MOTION_GAIN, "", "track_", TRACK_TITLE))
+        judged.append((DEFAULT_MOTION_GAIN, "", "level_", LEVEL_TITLE))
         for gain, prefix, estimate, title in judged:
             checks = "\n".join(f"| {target} | {value} | {_verdict(met)} |"
                                for target, value, met in verdicts(f, rig, prefix, estimate))
@@ -228,10 +227,10 @@ reference (b) with the same loop delay and gain law. Two gain laws of the foreca
 motion filter: the information gain `(N + Λ)⁻¹ N` (`emulator.pose.information_gain`,
 `hdl.pose.prior_store` and the engine's gain program; the default, what the closed-loop
 tops and `rowtrack build` build), and the scalar α (`motion_gain="scalar"`), with which
-the board rig diverges (docs/board_rig.md says why). The hardware path's `Y` is the
-filter's level after each row; beside it, the **motion track**
-([docs/pose/motion_track.md](../pose/motion_track.md)): golden (b)'s pose track in `Y`
-space on the same loop's outputs, so that both figures are read the same way (its
-gateware block is built and bit-exact, but not yet wired into the loop).
+the board rig diverges (docs/board_rig.md says why). The hardware path's `Y` is its
+**motion track** ([docs/pose/motion_track.md](../pose/motion_track.md)): golden (b)'s
+pose track in `Y` space on the loop's own outputs, so that both figures are read the
+same way (the gateware loop's `track`, bit-exact with this model); beside it, the
+forecast filter's level after each row.
 
 {chr(10).join(sections)}"""

@@ -133,8 +133,7 @@ def _slice_timing(rig_name):
     result = closed_loop_cosim(dataset, row_period_s=rig.cameras[0].t_r,
                                frames=SLICE_FRAMES, sim="verilator", seed=SLICE_SEED,
                                build_dir=f"build/bench_top_{rig_name}", progress=True)
-    differing = result.mismatches + result.solver_mismatches + result.forecast_mismatches
-    if differing or not result.rows_match:
+    if result.all_mismatches or not result.rows_match:
         raise AssertionError(f"the {rig_name} slice differs from the emulator: "
                              f"{result.first_mismatch}")
     return result

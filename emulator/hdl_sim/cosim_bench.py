@@ -12,8 +12,8 @@ A closed-loop top (:func:`emulator.cosim_loop.closed_loop_cosim`, stimulus key `
 has its coefficients built in and runs its loop from reset (the filter at rest, the
 registers' reset ``frame_rows``), or, given an ``initial`` motion (raw), writes it and
 strobes ``loop.restart`` before the cameras start; the bench also records, from reset
-on, the tracking loop's records (with their steps, in the solver's formats) and the
-forecast transfers the engine takes, and the clocks a row set or a forecast waited at
+on, the tracking loop's records (with their steps, in the solver's formats), its motion
+track's ``Y`` of every row, the forecast transfers the engine takes, and the clocks a row set or a forecast waited at
 the engine's input.
 """
 
@@ -28,7 +28,7 @@ from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
 from emulator.hdl_sim.clocking import CLOCK_PERIOD_NS
 from emulator.hdl_sim.dvp import DvpPlayer, DvpTiming, drive_cocotb
 from emulator.hdl_sim.payload import unpack
-from emulator.hdl_sim.top_harness import engine_input, start_top, stream_monitor
+from emulator.hdl_sim.top_harness import child, engine_input, start_top, stream_monitor
 from emulator.hdl_sim.uart_line import UartMonitor, wait_idle
 
 #: Clocks without a new pose record, once the cameras are done, that end the run.
@@ -124,6 +124,7 @@ async def cosim_slice(dut):
     if loop:     # the loop forecasts its first rows right after reset
         loop_records = stream_monitor(dut, dut.loop, "records", clock)
         forecasts = stream_monitor(dut, dut.engine, "forecast", clock)
+        track = stream_monitor(dut, child(dut.loop, "track"), "o", clock)
     cam, po = params.camera, params.pose_output
     images = stim["images"]                         # (cameras, frames, rows, width)
     n_cams, n_frames, height, width = images.shape
@@ -178,7 +179,7 @@ async def cosim_slice(dut):
            "status": status, "engine_stalls": engine_in.stalls}
     if loop:
         out.update(loop_records=loop_records.columns, forecasts=forecasts.columns,
-                   forecast_stalls=forecasts.stalls)
+                   forecast_stalls=forecasts.stalls, track=track.columns)
     with open(os.environ["ROWTRACK_COSIM_OUT"], "wb") as f:
         pickle.dump(out, f)
     dut._log.info(f"{len(engine_in.columns)} columns into the engine, {len(records)} pose "

@@ -283,10 +283,21 @@ def _loop(params):
                  "forecast saturations (centres, rows, displacements; `motion`: filter "
                  "updates and forecasts saturated into the motion format, a diverging "
                  "loop)"),
+        Register("track_alpha", forecast.gain_fmt.width, Access.RW, f"the motion track's "
+                 f"pull towards the filter's level, raw {forecast.gain_fmt} (reset "
+                 f"{forecast.track_alpha:g}; [docs/pose/motion_track.md]"
+                 f"(pose/motion_track.md))", reset=forecast.track_alpha_raw),
+        Register("track", data.ArrayLayout(motion.shape(), 6), Access.RO,
+                 f"the motion track's Y = [T θ] after the last row, raw {motion} (metres, "
+                 f"radians per frame period; live: read it between rows, it changes "
+                 f"once per row)"),
         Register("counters", loop_counters_layout(forecast), Access.RO, "measurements of "
-                 "another row than the forecast's, predicted shifts saturated (wrap); "
-                 "`restart_pending`: a `restart` was written and has not taken effect "
-                 "(set from the write until the frame boundary it applies at; live)"
+                 "another row than the forecast's, predicted shifts saturated, motion "
+                 "track rows with a value saturated (wrap); `restart_pending`: a "
+                 "`restart` was written and has not taken effect (set from the write "
+                 "until the frame boundary it applies at; live); `track_overrange`: "
+                 "`frame_rows` at the last restart was 0 or beyond the track's ring, "
+                 "which runs with its built length"
                  + ("; `gain_flagged`: solved rows whose information gain was flagged "
                     "(the filter moved by α)" if information else "")),
         *_information_registers(forecast),

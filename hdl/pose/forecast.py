@@ -54,6 +54,8 @@ class Forecast(wiring.Component):
     shared_port : bool
         Expose a second read port of the solver's store: ``coef`` (see
         :class:`RowPredictor`).
+    track : bool
+        Hand the filter's updates to a motion track: ``track`` (see :class:`MotionFilter`).
 
     Members
     -------
@@ -73,9 +75,11 @@ class Forecast(wiring.Component):
         The filter's run-time gains and restart (see :class:`MotionFilter`).
     gains : In, predicted : Out
         With ``motion_gain="information"``: the filter's (see :class:`MotionFilter`).
+    track : Out, with ``track=True``
+        The filter's updates (see :class:`MotionFilter`).
     idle : Out(1)
-        No request in progress and every request's record taken: a ``restart`` now
-        drops nothing (:class:`hdl.pose.tracking_loop.TrackingLoop` restarts only then).
+        No request in progress and every request's record taken (and handed to the
+        track): a ``restart`` now drops nothing (:class:`hdl.pose.tracking_loop.TrackingLoop` restarts only then).
 
     Latency: :attr:`latency` clocks from a request's transfer to its first output
     when idle; the row's last output :attr:`row_clocks` clocks after the request when
@@ -83,8 +87,8 @@ class Forecast(wiring.Component):
     """
 
     def __init__(self, params, coefficients, row_coefficients, *, slot_bits=DEFAULT_SLOT_BITS,
-                 shared_port=False):
-        self._filter = MotionFilter(params, slot_bits=slot_bits)
+                 shared_port=False, track=False):
+        self._filter = MotionFilter(params, slot_bits=slot_bits, track=track)
         self._predictor = RowPredictor(params, coefficients, row_coefficients,
                                        shared_port=shared_port)
         self.params, self.slot_bits = params, slot_bits
@@ -92,8 +96,9 @@ class Forecast(wiring.Component):
         shared = {"coef": self._predictor.signature.members["coef"]} if shared_port else {}
         information = {"gains": f["gains"], "predicted": f["predicted"]} \
             if params.motion_gain == "information" else {}
+        tracked = {"track": f["track"]} if track else {}
         super().__init__({
-            **shared, **information,
+            **shared, **information, **tracked,
             "requests": In(stream.Signature(request_layout(params, slot_bits))),
             "records": f["records"],
             "o": Out(stream.Signature(output_layout(params))),
@@ -139,6 +144,8 @@ class Forecast(wiring.Component):
         if self.params.motion_gain == "information":
             connect(m, flipped(self.gains), motion.gains)
             m.d.comb += self.predicted.eq(motion.predicted)
+        if "track" in self.signature.members:
+            connect(m, motion.track, flipped(self.track))
         connect(m, predictor.o, flipped(self.o))
         if "coef" in self.signature.members:
             connect(m, flipped(self.coef), predictor.coef)

@@ -24,7 +24,7 @@ from hdl.fixed import SQ, UQ, Overflow, Rounding, hdl_mul, hdl_resize
 from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import solver_source
 
-__all__ = ["MotionFilter", "DEFAULT_SLOT_BITS", "gain_layout"]
+__all__ = ["MotionFilter", "DEFAULT_SLOT_BITS", "gain_layout", "track_layout"]
 
 #: Width of the row slot counter (wraps; slots are compared modulo ``2**slot_bits``).
 DEFAULT_SLOT_BITS = 16
@@ -43,6 +43,16 @@ def gain_layout(params):
                               "ok": 1})
 
 
+def track_layout(params, slot_bits=DEFAULT_SLOT_BITS):
+    """One updated row for the motion track (:class:`hdl.pose.motion_track.MotionTrack`):
+    its ``slot``, the filter's ``level`` and ``trend`` before the row's update, the pull's
+    ``target`` (the level after it; all ``motion_fmt``) and ``solved`` (0: the row gave
+    the filter no step, no pull)."""
+    motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
+    return data.StructLayout({"slot": unsigned(slot_bits), "level": motion, "trend": motion,
+                              "target": motion, "solved": 1})
+
+
 class MotionFilter(wiring.Component):
     """Holt–Winters on the solved steps (scalar or information gain), with the loop delay.
 
@@ -52,6 +62,8 @@ class MotionFilter(wiring.Component):
     slot_bits : int
         Width of a row slot (the slots of rows in flight must differ by less than
         ``2**(slot_bits − 1)``).
+    track : bool
+        Hand every update to a motion track (the ``track`` stream).
 
     Members
     -------
@@ -80,11 +92,15 @@ class MotionFilter(wiring.Component):
     restart : In(1)
         Level ← ``initial``, trend 0, no record outstanding, no state but this one (the
         model's construction). Reset does the same with ``initial`` = 0.
+    track : Out(stream.Signature(track_layout(params, slot_bits))), with ``track=True``
+        Every update, offered once its state is the newest: the row's slot, the state
+        before it, the level after it and whether it was solved. The next record waits
+        until it is taken.
     busy : Out(1)
         A record's update is in progress.
     drained : Out(1)
-        Every query's record is taken (none outstanding): a ``restart`` now drops no
-        record.
+        Every query's record is taken (none outstanding), its update done and handed
+        to the track: a ``restart`` now drops no record and no update.
 
     Timing: a record takes :attr:`update_clocks` clocks (one multiplier, shared by the
     six axes and both gains); queries wait while an update runs.
@@ -95,11 +111,13 @@ class MotionFilter(wiring.Component):
     #: Clocks from a query's transfer to ``motion_valid``: state selection, L + k·B.
     query_latency = 2
 
-    def __init__(self, params, *, slot_bits=DEFAULT_SLOT_BITS):
+    def __init__(self, params, *, slot_bits=DEFAULT_SLOT_BITS, track=False):
         if not isinstance(params, ForecastParams):
             raise TypeError(f"params must be a ForecastParams, not {params!r}")
         if not isinstance(slot_bits, int) or isinstance(slot_bits, bool) or not 2 <= slot_bits <= 32:
             raise ValueError(f"slot_bits must be an integer from 2 to 32, not {slot_bits!r}")
+        if not isinstance(track, bool):
+            raise TypeError(f"track must be a bool, not {track!r}")
         self.params, self.slot_bits = params, slot_bits
         self.depth = params.loop_delay_rows + 1
         self.source = solver_source(params.solver)
@@ -107,9 +125,11 @@ class MotionFilter(wiring.Component):
         gain = unsigned(params.gain_fmt.width)
         gains = {"gains": In(stream.Signature(gain_layout(params))),
                  "predicted": Out(motion)} if params.motion_gain == "information" else {}
+        tracked = {"track": Out(stream.Signature(track_layout(params, slot_bits)))} \
+            if track else {}
         super().__init__({
             "records": In(stream.Signature(self.source.layout())),
-            **gains,
+            **gains, **tracked,
             "query": In(stream.Signature(unsigned(slot_bits))),
             "motion": Out(motion),
             "motion_valid": Out(1),
@@ -157,7 +177,9 @@ class MotionFilter(wiring.Component):
         idle = Signal()
         take_record, take_query = Signal(), Signal()
         information = p.motion_gain == "information"
-        record_ready = ~self.restart & idle & (level != 0)
+        tracked = "track" in self.signature.members
+        handed = ~self.track.valid if tracked else 1       # the last update is with the track
+        record_ready = ~self.restart & idle & (level != 0) & handed
         m.d.comb += [
             idle.eq(~running & ~push),
             self.records.ready.eq(record_ready & self.gains.valid if information
@@ -167,10 +189,10 @@ class MotionFilter(wiring.Component):
                                 & (level != depth) & ((level == 0) | ~head_is_old)),
             take_query.eq(self.query.valid & self.query.ready),
             self.busy.eq(~idle),
-            self.drained.eq(level == 0),
+            self.drained.eq((level == 0) & idle & handed),
         ]
         if information:     # a gain waits for its record, and goes with it
-            m.d.comb += self.gains.ready.eq(~self.restart & idle & (level != 0)
+            m.d.comb += self.gains.ready.eq(~self.restart & idle & (level != 0) & handed
                                             & self.records.valid)
         with m.If(take_query):
             m.d.sync += [Array(pending)[level].eq(self.query.payload), level.eq(level + 1),
@@ -291,10 +313,21 @@ class MotionFilter(wiring.Component):
             m.d.sync += running.eq(0)
             m.d.sync += [states[k].eq(states[k + 1]) for k in range(depth - 1)]
             m.d.sync += states[-1].eq(staged)
+        if tracked:
+            out = self.track
+            with m.If(out.valid & out.ready):
+                m.d.sync += out.valid.eq(0)
+            with m.If(push):
+                m.d.sync += [out.valid.eq(1), out.payload.slot.eq(staged.slot),
+                             out.payload.level.eq(newest.level),
+                             out.payload.trend.eq(newest.trend),
+                             out.payload.target.eq(staged.level), out.payload.solved.eq(solved)]
 
         with m.If(self.restart):
             m.d.sync += [level.eq(0), running.eq(0), push.eq(0), updates.eq(0),
                          queries.eq(0), selected.eq(0)]
+            if tracked:
+                m.d.sync += self.track.valid.eq(0)
             m.d.sync += [states[k].kind.eq(0) for k in range(depth - 1)]
             m.d.sync += [newest.kind.eq(1), newest.count.eq(0), newest.level.eq(self.initial),
                          newest.trend.eq(0)]

@@ -18,19 +18,10 @@ from amaranth.lib.wiring import In, Out
 
 from golden.checks import check_int
 from hdl.fixed import SQ, Overflow, Rounding, hdl_mul, hdl_resize
-from hdl.pose.forecast_filter import DEFAULT_SLOT_BITS, outside
+from hdl.pose.forecast_filter import DEFAULT_SLOT_BITS, outside, track_layout
 from hdl.pose.forecast_params import ForecastParams
 
-__all__ = ["MotionTrack", "row_layout", "default_motion_track"]
-
-
-def row_layout(params, slot_bits=DEFAULT_SLOT_BITS):
-    """One row for the track: its ``slot``, the filter's ``level`` and ``trend`` before
-    the row's update, the pull's ``target`` (the level after it; all ``motion_fmt``) and
-    ``solved`` (0: the row gave the filter no step, no pull)."""
-    motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
-    return data.StructLayout({"slot": unsigned(slot_bits), "level": motion, "trend": motion,
-                              "target": motion, "solved": 1})
+__all__ = ["MotionTrack", "default_motion_track"]
 
 
 class MotionTrack(wiring.Component):
@@ -46,7 +37,7 @@ class MotionTrack(wiring.Component):
 
     Members
     -------
-    i : In(stream.Signature(row_layout(params, slot_bits)))
+    i : In(stream.Signature(track_layout(params, slot_bits)))
         One per row, slots increasing; the row periods since the previous row's slot are
         carried first (at most ``P``; a difference of 0 counts as ``2**slot_bits``).
     o : Out(stream.Signature(ArrayLayout(motion_fmt, 6)))
@@ -64,7 +55,7 @@ class MotionTrack(wiring.Component):
         finishes first; ``initial`` is read then); rows wait meanwhile.
     overrange : Out(1)
         The last restart's ``frame_rows`` was 0 or beyond the ring's length.
-    saturated : Out(16)
+    saturated : Out(solver.counter_bits)
         Rows (and restarts) in which a value saturated into ``motion_fmt`` (wraps).
     """
 
@@ -76,14 +67,14 @@ class MotionTrack(wiring.Component):
         self.params, self.depth, self.slot_bits = params, frame_rows, slot_bits
         motion = data.ArrayLayout(params.motion_fmt.shape(), 6)
         super().__init__({
-            "i": In(stream.Signature(row_layout(params, slot_bits))),
+            "i": In(stream.Signature(track_layout(params, slot_bits))),
             "o": Out(stream.Signature(motion)),
             "frame_rows": In(unsigned(slot_bits), init=frame_rows),
             "alpha": In(unsigned(params.gain_fmt.width), init=params.track_alpha_raw),
             "initial": In(motion),
             "restart": In(1),
             "overrange": Out(1),
-            "saturated": Out(16),
+            "saturated": Out(params.solver.counter_bits),
         })
 
     def elaborate(self, platform):
@@ -106,7 +97,7 @@ class MotionTrack(wiring.Component):
         old = Signal(word)                                             # v(j − P)
         increment = Signal(word)                                       # v(j)
         rest = Signal(rest_fmt.shape())                                # u of one axis
-        row = Signal(row_layout(p, bits))
+        row = Signal(track_layout(p, bits))
         last_slot = Signal(bits)
         first = Signal(init=1)                     # no row since the last restart
         restarting = Signal()

@@ -8,11 +8,16 @@ Only wiring of blocks with their own modules and tests::
             ▲   (cue store write)                     gated ───────►          │ records
             │                                                                  ▼
       row contexts ◄── o ◄── Forecast (filter, predictor) ◄── RequestGenerator (cue store)
+                                   │ updates
+                                   ▼
+                              MotionTrack ──► track (Y of every row)
 
 * :class:`hdl.pose.loop_requests.RequestGenerator`: one request per row slot with the
   previous frame's cues of the row;
 * :class:`hdl.pose.forecast.Forecast`: per request one transfer per camera on ``o``
-  (with its ``row``); the solver's records update its filter;
+  (with its ``row``); the solver's records update its filter, whose every update goes
+  on to :class:`hdl.pose.motion_track.MotionTrack`: ``Y`` of every row, the loop's
+  estimate of the one-frame motion (``docs/pose/motion_track.md``);
 * the *row contexts*, a FIFO of ``loop_delay_rows + 1`` entries written at a row's last
   forecast transfer: its row, ``Ŷ`` and each camera's ``source − row``. A request can
   only be taken once the record of the row ``loop_delay_rows + 1`` before it is in, so no
@@ -47,6 +52,7 @@ from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.forecast_predictor import output_layout
 from hdl.pose.loop_requests import RequestGenerator
 from hdl.pose.measured_shift import MeasuredShift
+from hdl.pose.motion_track import MotionTrack
 from hdl.pose.row_counter import verdict_layout
 from hdl.pose_solver import PoseSolver, measurement_layout, record_layout
 from hdl.stream_fork import StreamFork
@@ -56,14 +62,17 @@ __all__ = ["TrackingLoop", "loop_counters_layout", "information_settings"]
 
 def loop_counters_layout(params):
     """The loop's own counters (wrapping, ``solver.counter_bits``): measurements whose row
-    was not the forecast row's, predicted shifts saturated, with the information gain
-    solved rows whose gain was flagged (the filter moved by α; the model's
-    ``counts["gain_flagged"]``); and its status bit ``restart_pending``: a ``restart``
-    waits for its frame boundary."""
+    was not the forecast row's, predicted shifts saturated, rows of the motion track in
+    which a value saturated, with the information gain solved rows whose gain was
+    flagged (the filter moved by α; the model's ``counts["gain_flagged"]``); and its
+    status bits ``restart_pending`` (a ``restart`` waits for its frame boundary) and
+    ``track_overrange`` (the track's ring is shorter than ``frame_rows``, or it is 0: the
+    track runs with the ring's length)."""
     bits = params.solver.counter_bits
     gain = {"gain_flagged": bits} if params.motion_gain == "information" else {}
     return data.StructLayout({"mismatched": bits, "predicted_saturated": bits,
-                              "restart_pending": 1, **gain})
+                              "track_saturated": bits, "restart_pending": 1,
+                              "track_overrange": 1, **gain})
 
 
 def information_settings(loop, settings):
@@ -101,6 +110,15 @@ class TrackingLoop(wiring.Component):
         The engine's measurements, a row's slots distinct, ``last`` on its final one.
     o : Out(stream.Signature(output_layout(params)))
         The forecast: per row ``cameras`` transfers with the ``row`` they are for.
+    track : Out(stream.Signature(ArrayLayout(motion_fmt, 6), always_ready=True))
+        ``Y`` after each row (raw ``motion_fmt``), the model's
+        :class:`~emulator.pose.motion_track.MotionTrackModel`; restarted with the filter
+        at ``initial``, its frame the built ``stage.frame_rows`` (the ring's length) or
+        the run-time ``frame_rows`` read then.
+    track_y : Out(ArrayLayout(motion_fmt, 6))
+        The last ``Y`` on ``track``, held (0 after reset).
+    track_alpha : In(unsigned(gain_fmt.width)), reset ``params.track_alpha_raw``
+        The track's pull (:class:`~hdl.pose.motion_track.MotionTrack`).
     records : Out(stream.Signature(record_layout(solver)))
         Every pose record (the forecast takes each too; a record leaves the solver once
         both have: a stalled ``records`` stalls the loop).
@@ -146,7 +164,8 @@ class TrackingLoop(wiring.Component):
         self.params, self.stage = params, stage
         self._requests = RequestGenerator(params, int(stage.frame_rows), slot_bits=slot_bits)
         self._forecast = Forecast(params, coefficients, row_coefficients, slot_bits=slot_bits,
-                                  shared_port=True)
+                                  shared_port=True, track=True)
+        self._track = MotionTrack(params, int(stage.frame_rows), slot_bits=slot_bits)
         self._shift = MeasuredShift(params, stage)
         self._stage = ConsistencyStage(stage, bits_per_clock=bits_per_clock)
         information = params.motion_gain == "information"
@@ -160,6 +179,10 @@ class TrackingLoop(wiring.Component):
                if information else {}),
             "i": In(stream.Signature(measurement_layout(s))),
             "o": Out(stream.Signature(output_layout(params))),
+            "track": Out(stream.Signature(data.ArrayLayout(params.motion_fmt.shape(), 6),
+                                          always_ready=True)),
+            "track_y": Out(data.ArrayLayout(params.motion_fmt.shape(), 6)),
+            "track_alpha": self._track.signature.members["alpha"],
             "records": Out(stream.Signature(record_layout(s))),
             "verdicts": Out(stream.Signature(verdict_layout())),
             "coef_write": self._solver.signature.members["coef_write"],
@@ -190,6 +213,7 @@ class TrackingLoop(wiring.Component):
         m.submodules.shift = shift = self._shift
         m.submodules.stage = stage = self._stage
         m.submodules.solver = solver = self._solver
+        m.submodules.track = track = self._track
         layout = self.context_layout()
         m.submodules.contexts = contexts = SyncFIFO(width=layout.size,
                                                     depth=p.loop_delay_rows + 1)
@@ -216,6 +240,17 @@ class TrackingLoop(wiring.Component):
                      contexts.w_en.eq(self.o.valid & self.o.ready & out.last)]
         with m.If(self.o.valid & self.o.ready):
             m.d.sync += deltas[out.camera].eq(offset)
+
+        # --- the filter's updates → the motion track → Y, restarted with the filter
+        connect(m, forecast.track, track.i)
+        m.d.comb += [track.frame_rows.eq(self.frame_rows), track.alpha.eq(self.track_alpha),
+                     track.initial.eq(self.initial), track.restart.eq(requests.restarting),
+                     self.track.valid.eq(track.o.valid), self.track.payload.eq(track.o.payload),
+                     track.o.ready.eq(1),
+                     self.counters.track_saturated.eq(track.saturated),
+                     self.counters.track_overrange.eq(track.overrange)]
+        with m.If(track.o.valid):
+            m.d.sync += self.track_y.eq(track.o.payload)
 
         # --- i joined with the oldest context → predicted shift, cue store
         context = data.View(layout, contexts.r_data)

@@ -1,7 +1,8 @@
 """The back half of the closed loop in gateware (hdl/pose/tracking_loop.py) in the Amaranth
 simulator, bit-exact with the loop's model: fed the measurement stream of a real
 closed-loop run (stereo20 cut to three pairs and 8 rows, three frames, loop delay 1 and
-2), every forecast transfer and every pose record equal the model's, with and without
+2), every forecast transfer, every pose record and the motion track's ``Y`` of every row
+equal the model's, with and without
 valid gaps and ready backpressure (SEED printed); the model's row slots are the
 generator's; a ``restart`` written while rows are forecast takes effect at the next
 frame boundary, as the model's restart there (nothing mismatched), with
@@ -47,7 +48,7 @@ def run_loop(case, *, seed, gaps, limit=400000):
     want_out = sum(len(e) for e in case["expected"])
     got = {"o": [], "records": [], "inputs": [], "lasts": [], "requests": [], "judged": [],
            "predicted": [], "verdicts": [], "counts": None, "pending": [],
-           "restarting": []}
+           "restarting": [], "track": []}
     requests, judged, predicted = dut._requests.o, dut._stage.i, dut._shift.o
 
     restart_at = restart_after(case)
@@ -97,6 +98,8 @@ def run_loop(case, *, seed, gaps, limit=400000):
                 verdict = ctx.get(dut.verdicts.payload)
                 got["verdicts"].append((verdict.judged, verdict.outliers, verdict.confident,
                                         verdict.last))
+            if ctx.get(dut.track.valid):
+                got["track"].append([int(v) for v in ctx.get(dut.track.payload)])
             if taking[1] and ctx.get(dut.records.valid):
                 got["records"].append((cycle, record_dict(ctx.get(dut.records.payload))))
             await ctx.tick()
@@ -105,10 +108,14 @@ def run_loop(case, *, seed, gaps, limit=400000):
                                    f"{len(got['records'])} records")
         ctx.set(dut.i.valid, 0)
         ctx.set(dut.o.ready, 0)
-        await ctx.tick().repeat(100)           # the last scale update counted
+        for _ in range(100):                   # the last scale update counted, Y out
+            if ctx.get(dut.track.valid):
+                got["track"].append([int(v) for v in ctx.get(dut.track.payload)])
+            await ctx.tick()
         got["counts"] = {n: ctx.get(getattr(dut.counts, n)) for n in COUNTS}
         got["counters"] = {n: ctx.get(getattr(dut.counters, n))
-                           for n in ("mismatched", "predicted_saturated", "restart_pending")}
+                           for n in ("mismatched", "predicted_saturated", "restart_pending",
+                                     "track_saturated", "track_overrange")}
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
@@ -131,6 +138,9 @@ def check(case, got):
     for n, ((_, g), e) in enumerate(zip(got["records"], case["records"])):
         assert g == e, f"record {n}: hardware {g}, model {e}"
     assert got["counts"] == case["counts"]
+    assert len(got["track"]) == len(case["track"])
+    for n, (g, e) in enumerate(zip(got["track"], case["track"])):
+        assert g == e, f"track row {n}: hardware {g}, model {e}"
     # one verdict per measurement; the outliers are the stage's count
     verdicts = np.array(got["verdicts"])
     assert len(verdicts) == len(case["inputs"])
@@ -138,7 +148,8 @@ def check(case, got):
     assert verdicts[:, 3].tolist() == [t["last"] for t in case["inputs"]]
     assert np.all(verdicts[:, 2] <= verdicts[:, 0])          # confident only if judged
     assert got["counters"] == {"mismatched": 0, "predicted_saturated": 0,
-                               "restart_pending": 0}
+                               "restart_pending": 0, "track_overrange": 0,
+                               "track_saturated": case["track_saturated"]}
 
 
 @pytest.mark.parametrize("gaps, delay, restart", [(False, 1, None), (True, 1, None),

@@ -2,8 +2,8 @@
 bit for bit (:func:`emulator.cosim_loop.closed_loop_cosim`): stereo8 cut to a few rows,
 every camera's rows played on the DVP pins, the loop running from reset, every pose
 record read from the PS FIFO (flags with the status bits), every solver record (step and
-pose) and every forecast row the engine took (each lane's window centre and source row)
-compared with :func:`emulator.pipeline.run`'s closed loop.
+pose), the motion track's ``Y`` of every row and every forecast row the engine took (each
+lane's window centre and source row) compared with :func:`emulator.pipeline.run`'s closed loop.
 
 The default suite runs 8 rows × 2 frames (frame 0 and one tracked frame) on Icarus; the
 Verilator case (24 rows × 3 frames: two tracked frames) takes minutes: ``RUN_SLOW=1``.
@@ -110,7 +110,8 @@ def _check(result, frames, rows):
           f"{len(result.solver['row'])} solver records ({result.solved} solved), "
           f"{len(result.forecasts['row'])} forecast rows (+{result.forecasts_ahead} ahead) "
           f"compared: {result.mismatches} FIFO + {result.solver_mismatches} solver + "
-          f"{result.forecast_mismatches} forecast mismatches ({result.first_mismatch}); "
+          f"{result.forecast_mismatches} forecast + {result.track_mismatches} track "
+          f"mismatches ({result.first_mismatch}); "
           f"last pixel → PS FIFO ≤ {result.latency_clocks} clocks, → solver record "
           f"{_span(result.record_latency_clocks)} clocks; record → next forecast "
           f"{_span(result.forecast_after_record_clocks)} clocks (offered before it: "
@@ -127,6 +128,9 @@ def _check(result, frames, rows):
     assert result.mismatches == 0, result.first_mismatch
     assert result.solver_mismatches == 0, result.first_mismatch
     assert result.forecast_mismatches == 0, result.first_mismatch
+    assert len(result.track["y"]) == frames * rows
+    assert result.track_mismatches == 0, result.first_mismatch
+    assert result.status["loop.counters"]["track_overrange"] == 0
     assert result.uart_packets_match
     assert result.solved > 0, "the emulator solved no row: the solver's steps went unchecked"
     assert result.status["loop.counters"]["mismatched"] == 0
@@ -199,6 +203,34 @@ def test_forecast_rows_are_grouped_compared_and_timed():
     mismatches, first = compare_records(got, want, [0, 0, 1], FORECAST_FIELDS)
     assert mismatches == 1
     assert first == "record 1 (frame 0, row 1): centre[1] HDL -1 ≠ emulator 1"
+
+
+def test_track_rows_are_unpacked_signed_and_compared():
+    """The motion track's ``Y`` columns back to (rows, 6) signed raw values, each with the
+    row of the solver record it follows (-1 beyond them: an extra HDL row is reported,
+    not dropped); a corrupted axis is one mismatch, located."""
+    from amaranth.lib import data
+    from emulator.cosim import compare_records
+    from emulator.cosim_loop import TRACK_FIELDS, _track_arrays
+    from emulator.hdl_sim.payload import pack
+    forecast = _small_engine_forecast()
+    layout = data.ArrayLayout(forecast.motion_fmt.shape(), 6)
+    low, high = forecast.motion_fmt.min_raw, forecast.motion_fmt.max_raw
+    values = [[low, -1, 0, 1, high, 7], [3, -3, 5, -5, 2 ** 20, -(2 ** 20)]]
+    columns = [(10 + k, pack(layout, dict(enumerate(v)))) for k, v in enumerate(values)]
+    got = _track_arrays(forecast, columns, np.array([4]))
+    assert got["y"].tolist() == values and got["row"].tolist() == [4, -1]
+    want = {"row": np.array([4, 5]), "y": np.array(values)}
+    assert compare_records(got, want, fields=TRACK_FIELDS) == (0, None)
+    want["y"][0, 4] = 0
+    assert compare_records(got, want, [1, 1], TRACK_FIELDS) == (
+        1, f"record 0 (frame 1, row 4): y[4] HDL {high} ≠ emulator 0")
+
+
+def _small_engine_forecast():
+    from hdl.pipeline_config import PipelineConfig
+    return PipelineConfig.for_rig(cut_rig(preset("stereo8"), 24), closed_loop=True,
+                                  stereo_segments=4).forecast()
 
 
 def test_a_row_period_too_short_for_the_pixels_is_refused():

@@ -75,10 +75,12 @@ def _cosim_result(outcome, **changes):
     records = {k: np.asarray(v)[:8] for k, v in outcome.emulated.records.items()}
     forecasts = {"row": np.arange(8), "centre": np.zeros((8, 2), dtype=int),
                  "source_row": np.zeros((8, 2), dtype=int)}
+    track = {"row": np.arange(8), "y": np.zeros((8, 6), dtype=int)}
     none = np.zeros(0)
     fields = dict(records=records, expected=records, solver=records, solver_expected=records,
                   forecasts=forecasts, forecasts_expected=forecasts, forecasts_ahead=2,
-                  mismatches=0, solver_mismatches=0, forecast_mismatches=0,
+                  track=track, track_expected=track, mismatches=0, solver_mismatches=0,
+                  forecast_mismatches=0, track_mismatches=0,
                   first_mismatch=None, solved=3, frames=2, row_sets=8, rows_match=True,
                   slots=np.arange(8), latency_clocks=300, record_latency_clocks=none,
                   forecast_after_record_clocks=none, forecast_lead_clocks=none,
@@ -212,7 +214,8 @@ def test_mismatches_and_silence_are_failures(outcome):
     assert failures == [f"HDL ↔ emulator: 2 mismatching PS FIFO record field(s); first "
                         f"difference: {where}"]
     for field, what in (("solver_mismatches", "solver record"),
-                        ("forecast_mismatches", "forecast row")):
+                        ("forecast_mismatches", "forecast row"),
+                        ("track_mismatches", "motion track row")):
         failures = cosim_failures(_cosim_result(outcome, **{field: 1}, first_mismatch=where))
         assert failures == [f"HDL ↔ emulator: 1 mismatching {what} field(s); first "
                             f"difference: {where}"]
@@ -528,24 +531,24 @@ def test_the_benchmark_does_not_judge_against_a_golden_b_that_lost_the_motion():
 
 def test_the_benchmark_judges_head_motion_against_paper_motion_and_each_estimate():
     """Issue 16's "head motion within 1.5 × of the paper-motion figures", per axis and per
-    estimate: the filter level's keys, or the motion track's (``track_``)."""
+    estimate: the motion track's keys (unprefixed), or the filter level's (``level_``)."""
     from emulator.benches.hw_tracking import verdicts
     f = {}
-    for motion, level, track in (("paper", 1.0, 1.0), ("head", 1.6, 1.2)):
+    for motion, track, level in (("paper", 1.0, 1.0), ("head", 1.6, 1.2)):
         key = f"board.{motion}."
         f[key + "solved_fraction"] = 1.0
         for unit in ("t_cm", "r_rad"):
             for a in "xyz":
                 f[f"{key}motion_rms_{unit}.{a}"] = 100.0
                 f[f"{key}golden_b_rms_{unit}.{a}"] = 1.0
-                f[f"{key}rms_{unit}.{a}"] = level
-                f[f"{key}track_rms_{unit}.{a}"] = track
+                f[f"{key}rms_{unit}.{a}"] = track
+                f[f"{key}level_rms_{unit}.{a}"] = level
     head = {estimate: {target: met for target, _, met in verdicts(f, "board", "", estimate)
                        if "paper motion's" in target}
-            for estimate in ("", "track_")}
+            for estimate in ("", "level_")}
     assert len(head[""]) == 6
     assert head[""]["head: Tx ≤ 1.5 × the paper motion's"] is False      # 1.6 ×
-    assert head["track_"]["head: θz ≤ 1.5 × the paper motion's"] is True  # 1.2 ×
+    assert head["level_"]["head: θz ≤ 1.5 × the paper motion's"] is True  # 1.2 ×
 
 
 def test_the_lanes_in_the_loop_equal_the_float_matcher_and_can_fail(outcome):

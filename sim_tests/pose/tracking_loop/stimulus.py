@@ -9,7 +9,8 @@ A case is a dict: ``params`` (ForecastParams), ``stage`` (ConsistencyParams),
 ``coefficients``, ``row_coefficients`` (the forecast's stores' contents: polynomial
 terms), ``solver_store``, ``initial`` (raw
 ``motion_fmt``), ``inputs`` (the measurement transfers, in order), ``expected`` (per row
-the forecast's per-camera transfers), ``records`` (per row the pose record), ``slots``
+the forecast's per-camera transfers), ``records`` (per row the pose record), ``track``
+(per row the motion track's ``Y``, raw ``motion_fmt``) and ``track_saturated``, ``slots``
 and ``rows`` (the model's row slot and camera row of each row), ``counts`` (the stage's
 counters at the end), ``restart`` (None, or the frame before whose first row the loop
 restarted and the raw ``motion_fmt`` motion it restarted at).
@@ -118,6 +119,8 @@ def _closed_loop(rows, frames, seed, pairs, delay, restart, gain):
             "row_coefficients": row_coefficients, "solver_store": config.coef_store,
             "initial": params.motion_fmt.quantize(initial), "inputs": inputs,
             "expected": expected, "records": records,
+            "track": [[int(v) for v in row] for row in out.loop["track"]],
+            "track_saturated": int(out.loop["track_saturated"]),
             "slots": [int(v) for v in out.loop["slot"]], "rows": [int(v) for v in out.loop["row"]],
             "counts": {k: v for k, v in out.loop["counts"].items() if k != "gain_flagged"},
             "gain_flagged": out.loop["counts"].get("gain_flagged"),
