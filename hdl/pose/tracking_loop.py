@@ -110,13 +110,14 @@ class TrackingLoop(wiring.Component):
         The engine's measurements, a row's slots distinct, ``last`` on its final one.
     o : Out(stream.Signature(output_layout(params)))
         The forecast: per row ``cameras`` transfers with the ``row`` they are for.
-    track : Out(stream.Signature(ArrayLayout(motion_fmt, 6), always_ready=True))
+    track : Out(stream.Signature(ArrayLayout(motion_fmt, 6)))
         ``Y`` after each row (raw ``motion_fmt``), the model's
         :class:`~emulator.pose.motion_track.MotionTrackModel`; restarted with the filter
         at ``initial``, its frame the built ``stage.frame_rows`` (the ring's length) or
-        the run-time ``frame_rows`` read then.
+        the run-time ``frame_rows`` read then. A stalled ``track`` stalls the filter's
+        next record, hence the loop (a top keeps ``ready`` high).
     track_y : Out(ArrayLayout(motion_fmt, 6))
-        The last ``Y`` on ``track``, held (0 after reset).
+        The last ``Y`` taken on ``track``, held (0 after reset).
     track_alpha : In(unsigned(gain_fmt.width)), reset ``params.track_alpha_raw``
         The track's pull (:class:`~hdl.pose.motion_track.MotionTrack`).
     records : Out(stream.Signature(record_layout(solver)))
@@ -179,8 +180,7 @@ class TrackingLoop(wiring.Component):
                if information else {}),
             "i": In(stream.Signature(measurement_layout(s))),
             "o": Out(stream.Signature(output_layout(params))),
-            "track": Out(stream.Signature(data.ArrayLayout(params.motion_fmt.shape(), 6),
-                                          always_ready=True)),
+            "track": self._track.signature.members["o"],
             "track_y": Out(data.ArrayLayout(params.motion_fmt.shape(), 6)),
             "track_alpha": self._track.signature.members["alpha"],
             "records": Out(stream.Signature(record_layout(s))),
@@ -245,11 +245,10 @@ class TrackingLoop(wiring.Component):
         connect(m, forecast.track, track.i)
         m.d.comb += [track.frame_rows.eq(self.frame_rows), track.alpha.eq(self.track_alpha),
                      track.initial.eq(self.initial), track.restart.eq(requests.restarting),
-                     self.track.valid.eq(track.o.valid), self.track.payload.eq(track.o.payload),
-                     track.o.ready.eq(1),
                      self.counters.track_saturated.eq(track.saturated),
                      self.counters.track_overrange.eq(track.overrange)]
-        with m.If(track.o.valid):
+        connect(m, track.o, flipped(self.track))
+        with m.If(track.o.valid & track.o.ready):
             m.d.sync += self.track_y.eq(track.o.payload)
 
         # --- i joined with the oldest context → predicted shift, cue store

@@ -98,7 +98,9 @@ def run_loop(case, *, seed, gaps, limit=400000):
                 verdict = ctx.get(dut.verdicts.payload)
                 got["verdicts"].append((verdict.judged, verdict.outliers, verdict.confident,
                                         verdict.last))
-            if ctx.get(dut.track.valid):
+            track_ready = rng.random() < prob
+            ctx.set(dut.track.ready, track_ready)
+            if track_ready and ctx.get(dut.track.valid):
                 got["track"].append([int(v) for v in ctx.get(dut.track.payload)])
             if taking[1] and ctx.get(dut.records.valid):
                 got["records"].append((cycle, record_dict(ctx.get(dut.records.payload))))
@@ -108,6 +110,7 @@ def run_loop(case, *, seed, gaps, limit=400000):
                                    f"{len(got['records'])} records")
         ctx.set(dut.i.valid, 0)
         ctx.set(dut.o.ready, 0)
+        ctx.set(dut.track.ready, 1)
         for _ in range(100):                   # the last scale update counted, Y out
             if ctx.get(dut.track.valid):
                 got["track"].append([int(v) for v in ctx.get(dut.track.payload)])

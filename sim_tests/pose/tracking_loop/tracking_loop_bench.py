@@ -1,6 +1,6 @@
 """cocotb bench for hdl.pose.tracking_loop.TrackingLoop: fed the measurement stream of a
-real closed-loop emulator run, every forecast transfer and every pose record against the
-loop's model (emulator.pose.tracking_loop.TrackingLoopModel through
+real closed-loop emulator run, every forecast transfer, every pose record and the motion
+track's ``Y`` of every row against the loop's model (emulator.pose.tracking_loop.TrackingLoopModel through
 emulator.pipeline.run), bit for bit and in order, and the consistency stage's counters;
 at full rate and with random gaps and backpressure. A restart case strobes ``restart``
 mid-frame (:func:`sim_tests.pose.tracking_loop.stimulus.restart_after`); the model
@@ -77,6 +77,8 @@ async def loop_matches_model(dut, traffic):
                          ready_prob=1.0 if busy else 0.5)
     verdicts = StreamSink(dut, "verdicts", verdict_layout(), clock, rng=rng,
                           ready_prob=1.0 if busy else 0.7)
+    dut.track_alpha.value = params.track_alpha_raw
+    track = StreamSink(dut, "track", motion, clock, rng=rng, ready_prob=1.0 if busy else 0.5)
     await reset(dut)
     dut.restart.value = 1
     await RisingEdge(dut.clk)
@@ -91,7 +93,7 @@ async def loop_matches_model(dut, traffic):
     await records.wait_for(len(case["records"]), timeout_cycles=timeout)
     if restart is not None:
         await restart                        # its checks of restart_pending
-    await ClockCycles(dut.clk, 100)          # the last scale update is counted
+    await ClockCycles(dut.clk, 100)          # the last scale update is counted, Y out
     got = [payload for _, payload in sink.received]
     for n, (g, e) in enumerate(zip(got, flat)):
         assert g == e, f"forecast transfer {n} (row {n // params.cameras}): hardware {g}, model {e}"
@@ -101,14 +103,22 @@ async def loop_matches_model(dut, traffic):
     assert len(verdicts.received) == len(case["inputs"]), "one verdict per measurement"
     for n, ((_, g), e) in enumerate(zip(records.received, case["records"])):
         assert g == _indexed(e), f"record {n}: hardware {g}, model {e}"
+    ys = [[y[k] for k in range(6)] for _, y in track.received]
+    assert len(ys) == len(case["track"]), (len(ys), len(case["track"]))
+    for n, (g, e) in enumerate(zip(ys, case["track"])):
+        assert g == e, f"track row {n}: hardware {g}, model {e}"
+    assert unpack(motion, dut.track_y.value) == _indexed(case["track"][-1])
     counts = unpack(counts_layout(), dut.counts.value)
     assert counts == case["counts"], counts
     counters = unpack(loop_counters_layout(params), dut.counters.value)
     assert counters["mismatched"] == 0, counters
+    assert counters["track_overrange"] == 0, counters
+    assert counters["track_saturated"] == case["track_saturated"], counters
     if params.motion_gain == "information":
         assert counters["gain_flagged"] == case["gain_flagged"], counters
     solved = sum(r["flags"] == 0 for r in case["records"])
     dut._log.info(f"{traffic}: {len(case['inputs'])} measurements, {len(flat)} forecast "
                   f"transfers, {len(records.received)} records ({solved} solved) bit-exact, "
-                  f"{len(verdicts.received)} verdicts; counts {counts}; last record at clock "
+                  f"{len(verdicts.received)} verdicts, {len(ys)} track rows; counts {counts}; "
+                  f"last record at clock "
                   f"{records.received[-1][0]}")
