@@ -186,6 +186,7 @@ def metrics(outcome):
                   "hdl_forecast_mismatches": int(cosim.forecast_mismatches),
                   "hdl_track_mismatches": int(cosim.track_mismatches),
                   "hdl_forecast_rows": _count(cosim.forecasts),
+                  "hdl_track_rows": _count(cosim.track),
                   "hdl_records": _count(cosim.records),
                   "hdl_solved_records": int(cosim.solved),
                   "hdl_expected": _count(cosim.expected), "clk_hz": cosim.clk_hz,
@@ -378,6 +379,7 @@ def hardware_section(m):
          m["hdl_solved_records"]),
         ("forecast rows the engine took (each camera's window centre and source row), "
          "compared", m["hdl_forecast_rows"]),
+        ("motion track rows (each row's Y) compared", m["hdl_track_rows"]),
         ("HDL ↔ emulator mismatches: PS FIFO + solver records + forecast rows + motion "
          "track rows (must be 0)",
          f"{m['hdl_mismatches']} ({m['hdl_fifo_mismatches']} + "

@@ -1,15 +1,16 @@
-"""The closed-loop top's parameters, register map and elaboration (issue 16): the
-measurement loop closed in the gateware top (TopParams.forecast/.consistency).
+"""The closed-loop top's parameters and register map (issue 16): the measurement loop
+closed in the gateware top (TopParams.forecast/.consistency).
 
 Bit-exactness of its parts against the emulator is in the blocks' own benches
 (sim_tests/measurement/follow_engine, sim_tests/pose/tracking_loop,
-sim_tests/pose/status_unit); this checks that the top puts them together as documented.
+sim_tests/pose/status_unit), of the whole top in its co-simulations
+(sim_tests/top/test_run.py's end-to-end job on Icarus, test_closed_loop_cosim.py); its
+Verilog is the catalog's ``top_closed`` (sim_tests/common/test_catalog.py).
 """
 
 from dataclasses import replace
 
 import pytest
-from amaranth.back import rtlil
 
 from golden.rig import preset
 from hdl.pipeline_config import PipelineConfig
@@ -66,7 +67,7 @@ def test_the_loop_registers_are_in_the_map(config):
     """The default (information gain) build adds the prior's two settings to the scalar
     build's loop registers."""
     scalar = ["alpha", "beta", "initial", "restart", "frame_rows", "consistency", "counts",
-              "forecast_counters", "counters"]
+              "forecast_counters", "track_alpha", "track", "counters"]
     groups = {g.name: g for g in config.top.regmap().groups}
     assert [r.name for r in groups["loop"].registers] == scalar + [
         "prior_weight", "typical_smoothing"]
@@ -78,11 +79,3 @@ def test_the_loop_registers_are_in_the_map(config):
     assert frame_rows.reset == int(config.frame_rows)
     assert "loop" not in {g.name for g in PipelineConfig.for_rig(preset("stereo8"))
                           .top.regmap().groups}
-
-
-def test_the_closed_loop_top_elaborates(config):
-    top = RowtrackTop(config.top, coefficients=config.coef_store,
-                      forecast_stores=config.forecast_stores)
-    text = rtlil.convert(top)
-    for block in ("loop", "row_counter", "status", "forecast_rows"):
-        assert f"\\{block}" in text or f".{block}" in text, block

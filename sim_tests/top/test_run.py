@@ -252,7 +252,7 @@ def test_end_to_end_with_the_cosimulation(tmp_path):
     pairs: the smallest stereo20 slice whose rows solve), 2-frame, 4-row slice on Icarus
     (``make run`` uses Verilator), its rows played at stereo20's own row period (the
     tiny cut stretches ``t_r`` 15-fold): bit-exact FIFO records, solver records, forecast
-    rows and UART packets, one record per row set, solved rows, a latency. The only
+    rows, the motion track's rows and UART packets, one record per row set, solved rows, a latency. The only
     failure lines are the hardware path's accuracy lines (on this cut it misses the
     golden (b) ratio on some axes)."""
     from golden.rig import preset
@@ -270,6 +270,8 @@ def test_end_to_end_with_the_cosimulation(tmp_path):
     assert figures["e2e.hdl_records"] == figures["e2e.hdl_expected"] == 2 * 4, \
         "a record per row set of the 2-frame, 4-row slice"
     assert figures["e2e.hdl_forecast_rows"] == 2 * 4
+    assert figures["e2e.hdl_track_rows"] == 2 * 4       # the motion track's Y compared
+    assert figures["e2e.hdl_track_mismatches"] == 0
     assert figures["e2e.hdl_solved_records"] > 0      # the solver's arithmetic was compared
     assert figures["e2e.cosim.dataset_cameras"] == list(job.cosim["dataset_cameras"])
     for key in ("e2e.pose_rate_hz", "e2e.latency_us", "e2e.emulator_rows_per_s",

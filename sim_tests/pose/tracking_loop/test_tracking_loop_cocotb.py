@@ -1,8 +1,9 @@
 """Runs the tracking loop's cocotb bench on a real closed loop (stereo20 cut to pairs 0, 1
-and 4): on Verilator 32 rows, three frames (96 rows, 2,304 measurements); on Icarus 8
-rows, two frames, and 8 rows, three frames with a restart strobed in frame 0 (the model
-restarted before frame 1); the information gain on both (32 rows × 3 frames, 8 rows × 2
-frames); with RUN_SLOW=1 also 64 rows, three frames at loop delay 2.
+and 4) with the default information gain: on Verilator 32 rows, three frames (96 rows,
+2,304 measurements); on Icarus 8 rows, three frames with a restart strobed in frame 0
+(the model restarted before frame 1). With RUN_SLOW=1 also the scalar gain (Verilator 32
+rows × 3 frames, Icarus 8 × 2 and the restart case), the information gain's 8 × 2 on
+Icarus, and 64 rows, three frames at loop delay 2.
 The case is built once (a few seconds) and kept under build/."""
 
 import os
@@ -30,16 +31,8 @@ def _run(sim, case, tag):
                extra_env={"LOOP_CASE": str(path)})
 
 
-def test_tracking_loop_verilator_closed_loop():
-    _run("verilator", closed_loop_case(rows=32, frames=3), "p014_r32_f3")
-
-
-def test_tracking_loop_icarus_small():
-    _run("icarus", closed_loop_case(rows=8, frames=2), "p014_r8_f2")
-
-
-def test_tracking_loop_icarus_restart():
-    _run("icarus", closed_loop_case(rows=8, frames=3, restart=1), "p014_r8_f3_restart1")
+SLOW = pytest.mark.skipif(not os.environ.get("RUN_SLOW"),
+                          reason="the scalar gain's and the longer loop runs with RUN_SLOW=1")
 
 
 def test_tracking_loop_verilator_information_gain():
@@ -47,11 +40,32 @@ def test_tracking_loop_verilator_information_gain():
          "p014_r32_f3_information")
 
 
+def test_tracking_loop_icarus_information_gain_restart():
+    _run("icarus", closed_loop_case(rows=8, frames=3, restart=1, gain="information"),
+         "p014_r8_f3_restart1_information")
+
+
+@SLOW
+def test_tracking_loop_verilator_closed_loop():
+    _run("verilator", closed_loop_case(rows=32, frames=3), "p014_r32_f3")
+
+
+@SLOW
+def test_tracking_loop_icarus_small():
+    _run("icarus", closed_loop_case(rows=8, frames=2), "p014_r8_f2")
+
+
+@SLOW
+def test_tracking_loop_icarus_restart():
+    _run("icarus", closed_loop_case(rows=8, frames=3, restart=1), "p014_r8_f3_restart1")
+
+
+@SLOW
 def test_tracking_loop_icarus_information_gain():
     _run("icarus", closed_loop_case(rows=8, frames=2, gain="information"),
          "p014_r8_f2_information")
 
 
-@pytest.mark.skipif(not os.environ.get("RUN_SLOW"), reason="the longer loop runs with RUN_SLOW=1")
+@SLOW
 def test_tracking_loop_verilator_long_delay_2():
     _run("verilator", closed_loop_case(rows=64, frames=3, delay=2), "p014_r64_f3_d2")
