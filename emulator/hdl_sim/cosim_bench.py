@@ -28,7 +28,7 @@ from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge
 from emulator.hdl_sim.clocking import CLOCK_PERIOD_NS
 from emulator.hdl_sim.dvp import DvpPlayer, DvpTiming, drive_cocotb
 from emulator.hdl_sim.payload import unpack
-from emulator.hdl_sim.top_harness import engine_input, start_top, stream_monitor
+from emulator.hdl_sim.top_harness import child, engine_input, start_top, stream_monitor
 from emulator.hdl_sim.uart_line import UartMonitor, wait_idle
 
 #: Clocks without a new pose record, once the cameras are done, that end the run.
@@ -124,7 +124,9 @@ async def cosim_slice(dut):
     if loop:     # the loop forecasts its first rows right after reset
         loop_records = stream_monitor(dut, dut.loop, "records", clock)
         forecasts = stream_monitor(dut, dut.engine, "forecast", clock)
-        track = stream_monitor(dut, dut.loop, "track", clock)
+        # the motion track block's own output: inside the loop's Verilog module the name
+        # ``track__payload`` is the filter's stream into the block, not the loop's output
+        track = stream_monitor(dut, child(dut.loop, "track"), "o", clock)
     cam, po = params.camera, params.pose_output
     images = stim["images"]                         # (cameras, frames, rows, width)
     n_cams, n_frames, height, width = images.shape

@@ -8,7 +8,8 @@ clock per axis), one write; the row's own period with the pull ``v = c + a·(m �
 c)`` (six more products on the same multiplier); ``Y`` out. A restart latches
 ``frame_rows``, divides ``1/P`` (one bit per clock), fills the ring with the carry of
 ``initial`` and sets ``Y = P·c`` on the multiplier; reset leaves the built ``P``, its
-reciprocal, and a ring of zeros (the restart from ``initial`` = 0).
+reciprocal and ``Y = 0``, and clears the ring (its length in clocks, rows waiting), as
+the restart from ``initial`` = 0 would: a reset at run time finds no stale increments.
 """
 
 from amaranth.hdl import Module, Mux, Signal, unsigned
@@ -144,7 +145,12 @@ class MotionTrack(wiring.Component):
         restart = self.restart | requested
         with m.If(self.restart):
             m.d.sync += requested.eq(1)
-        with m.FSM():
+        with m.FSM(init="CLEAR"):
+            with m.State("CLEAR"):                 # after reset: increment = 0, index 0
+                m.d.comb += write.en.eq(1)
+                m.d.sync += index.eq(wrap)
+                with m.If(index == self.depth - 1):
+                    m.next = "IDLE"
             with m.State("IDLE"):
                 m.d.comb += self.i.ready.eq(~restart)
                 with m.If(restart):
