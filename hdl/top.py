@@ -201,7 +201,6 @@ class RowtrackTop(wiring.Component):
         m.d.comb += [
             loop.alpha.eq(settings.alpha), loop.beta.eq(settings.beta),
             loop.track_alpha.eq(settings.track_alpha), settings.track.eq(loop.track_y),
-            loop.track.ready.eq(1),
             loop.initial.eq(settings.initial), loop.restart.eq(settings.restart.stb),
             loop.frame_rows.eq(settings.frame_rows), loop.settings.eq(settings.consistency),
             settings.counts.eq(loop.counts), settings.forecast_counters.eq(loop.forecast_counters),

@@ -103,6 +103,9 @@ class TrackingLoop(wiring.Component):
         polynomials).
     bits_per_clock : int
         Of the consistency stage's iterative units.
+    track_stream : bool
+        Offer every row's ``Y`` on a ``track`` stream (the benches take it); False: only
+        ``track_y`` (a top's register).
 
     Members
     -------
@@ -110,12 +113,13 @@ class TrackingLoop(wiring.Component):
         The engine's measurements, a row's slots distinct, ``last`` on its final one.
     o : Out(stream.Signature(output_layout(params)))
         The forecast: per row ``cameras`` transfers with the ``row`` they are for.
-    track : Out(stream.Signature(ArrayLayout(motion_fmt, 6)))
+    track : Out(stream.Signature(ArrayLayout(motion_fmt, 6))), with ``track_stream``
         ``Y`` after each row (raw ``motion_fmt``), the model's
         :class:`~emulator.pose.motion_track.MotionTrackModel`; restarted with the filter
         at ``initial``, its frame the built ``stage.frame_rows`` (the ring's length) or
         the run-time ``frame_rows`` read then. A stalled ``track`` stalls the filter's
-        next record, hence the loop (a top keeps ``ready`` high).
+        next record, hence the loop. Without ``track_stream`` the loop takes every ``Y``
+        itself (``track_y`` only).
     track_y : Out(ArrayLayout(motion_fmt, 6))
         The last ``Y`` taken on ``track``, held (0 after reset).
     track_alpha : In(unsigned(gain_fmt.width)), reset ``params.track_alpha_raw``
@@ -152,7 +156,7 @@ class TrackingLoop(wiring.Component):
     """
 
     def __init__(self, params, stage, coefficients, row_coefficients, solver_store, *,
-                 bits_per_clock=2, slot_bits=DEFAULT_SLOT_BITS):
+                 bits_per_clock=2, slot_bits=DEFAULT_SLOT_BITS, track_stream=False):
         if not isinstance(params, ForecastParams):
             raise TypeError(f"params must be a ForecastParams, not {params!r}")
         if not isinstance(stage, ConsistencyParams):
@@ -180,7 +184,7 @@ class TrackingLoop(wiring.Component):
                if information else {}),
             "i": In(stream.Signature(measurement_layout(s))),
             "o": Out(stream.Signature(output_layout(params))),
-            "track": self._track.signature.members["o"],
+            **({"track": self._track.signature.members["o"]} if track_stream else {}),
             "track_y": Out(data.ArrayLayout(params.motion_fmt.shape(), 6)),
             "track_alpha": self._track.signature.members["alpha"],
             "records": Out(stream.Signature(record_layout(s))),
@@ -247,7 +251,10 @@ class TrackingLoop(wiring.Component):
                      track.initial.eq(self.initial), track.restart.eq(requests.restarting),
                      self.counters.track_saturated.eq(track.saturated),
                      self.counters.track_overrange.eq(track.overrange)]
-        connect(m, track.o, flipped(self.track))
+        if "track" in self.signature.members:
+            connect(m, track.o, flipped(self.track))
+        else:
+            m.d.comb += track.o.ready.eq(1)
         with m.If(track.o.valid & track.o.ready):
             m.d.sync += self.track_y.eq(track.o.payload)
 

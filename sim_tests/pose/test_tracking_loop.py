@@ -27,7 +27,7 @@ OUT_FIELDS = ("camera", "row", "centre", "source_row", "centre_saturated", "row_
 
 def build(case):
     return TrackingLoop(case["params"], case["stage"], case["coefficients"],
-                        case["row_coefficients"], case["solver_store"])
+                        case["row_coefficients"], case["solver_store"], track_stream=True)
 
 
 def record_dict(record):

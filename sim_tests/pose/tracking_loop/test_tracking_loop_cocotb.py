@@ -23,7 +23,7 @@ def _run(sim, case, tag):
     with open(path, "wb") as f:
         pickle.dump(case, f)
     dut = TrackingLoop(case["params"], case["stage"], case["coefficients"],
-                       case["row_coefficients"], case["solver_store"])
+                       case["row_coefficients"], case["solver_store"], track_stream=True)
     print(f"tracking loop bench {tag}: {len(case['expected'])} rows, "
           f"{len(case['inputs'])} measurements, delay {case['params'].loop_delay_rows}")
     run_cocotb(dut, name="tracking_loop", tag=tag, sim=sim,
