@@ -192,8 +192,7 @@ class MotionFilter(wiring.Component):
             self.drained.eq((level == 0) & idle & handed),
         ]
         if information:     # a gain waits for its record, and goes with it
-            m.d.comb += self.gains.ready.eq(~self.restart & idle & (level != 0) & handed
-                                            & self.records.valid)
+            m.d.comb += self.gains.ready.eq(record_ready & self.records.valid)
         with m.If(take_query):
             m.d.sync += [Array(pending)[level].eq(self.query.payload), level.eq(level + 1),
                          queries.eq(queries + 1)]
