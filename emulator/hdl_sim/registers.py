@@ -84,7 +84,8 @@ class Registers:
         return resp.resp == AxiResp.OKAY
 
     async def read_register(self, group, name, index=0):
-        """The whole element of a register, read word by word."""
+        """The whole element of a register, read word by word from word 0 (which samples
+        a read-only element whole, :class:`hdl.bus.register_file.RegisterFile`)."""
         value = 0
         for word in self.regmap.words():
             if (word.group.name, word.register.name, word.index) == (group, name, index):

@@ -35,7 +35,8 @@ class RegisterFile(wiring.Component):
     <group> : Out(Signature)
         One member per group, and in it one per register: ``rw`` → ``Out(shape)`` (the
         stored value), ``ro`` → ``In(shape)`` (sampled the clock after the read address
-        is taken), ``wo`` → ``Out(Signature(data: shape, stb: count))`` (``stb[k]`` high
+        is taken; an element of several words is sampled whole when its word 0 is
+        read, and its other words answer from that sample), ``wo`` → ``Out(Signature(data: shape, stb: count))`` (``stb[k]`` high
         for one clock when element ``k`` was written), ``const`` → no port. ``shape`` is
         the register's shape, or an ``ArrayLayout`` of it when ``count > 1``.
 
@@ -162,6 +163,9 @@ class RegisterFile(wiring.Component):
         with m.If(axi.arvalid & axi.arready):
             hit, index = self._decode(axi.araddr)
             m.d.sync += [r_pending.eq(1), r_hit.eq(hit), r_index.eq(index)]
+        read_now = Signal()
+        m.d.comb += read_now.eq(r_pending & r_hit)
+        snapshots = {}
         readable = {}
         for w in regmap.words():
             reg = w.register
@@ -169,6 +173,8 @@ class RegisterFile(wiring.Component):
                 source = stored[(w.group.name, reg.name)]
             elif reg.access is Access.RO:
                 source = Value.cast(getattr(getattr(self, w.group.name), reg.name))
+                if reg.words > 1:
+                    source = self._snapshot(m, w, source, snapshots, read_now, r_index)
             elif reg.access is Access.CONST:
                 source = Const(reg.value << (w.index * reg.width), reg.width * reg.count)
             else:
@@ -183,6 +189,25 @@ class RegisterFile(wiring.Component):
         with m.Elif(axi.rvalid & axi.rready):
             m.d.sync += r_valid.eq(0)
         return m
+
+    @staticmethod
+    def _snapshot(m, w, live, snapshots, read_now, r_index):
+        """What word ``w`` of a multi-word read-only register reads: word 0 the live
+        value, and reading it copies the whole element into the register's snapshot;
+        the other words read that copy, so an element read from word 0 upwards is one
+        sample even when the block updates it between the reads (a torn read of a
+        counter or of ``loop.track`` would be a silently wrong value)."""
+        reg, width = w.register, w.register.width
+        key = (w.group.name, reg.name)
+        if key not in snapshots:
+            snapshots[key] = Signal(width * reg.count, name=f"{w.group.name}_{reg.name}_snap")
+        snap = snapshots[key]
+        if w.word != 0:
+            return snap
+        live_element = live[w.index * width:(w.index + 1) * width]
+        with m.If(read_now & (r_index == w.offset // WORD_BYTES)):
+            m.d.sync += snap[w.index * width:(w.index + 1) * width].eq(live_element)
+        return live
 
     @staticmethod
     def _word_value(w, element):

@@ -14,8 +14,9 @@ A block adds a register by adding a line to its group (rowtrack's map is declare
 :mod:`hdl.bus.regmap`); no decoder changes.
 
 Fields are packed into 32-bit words without straddling a word boundary (see
-:meth:`Register.pieces`); a register of several words is read word by word, not
-atomically, and a write-only value is delivered when its highest word is written. Array
+:meth:`Register.pieces`); reading word 0 of a read-only element of several words
+samples the whole element and its other words answer from that sample (read word 0
+first for a consistent value), and a write-only value is delivered when its highest word is written. Array
 elements follow each other.
 """
 
@@ -331,8 +332,11 @@ class RegisterMap:
                  "is delivered to the block with a one-clock strobe when the element's "
                  "highest word is written), `const` build-time constant. Fields never "
                  "straddle words: a field that does not fit the rest of a word starts the "
-                 "next; a field wider than 32 bits takes whole words, low bits first. A "
-                 "register of several words is read word by word (not atomically). "
+                 "next; a field wider than 32 bits takes whole words, low bits first. "
+                 "Reading word 0 of an `ro` register (or array element) of several words "
+                 "samples the whole element; its other words answer from that sample, so "
+                 "read word 0 first and then the others for one consistent value. `rw` "
+                 "words are read as stored. "
                  "Unlisted bits read as 0. Counters wrap.",
                  "", f"Map CRC-32 (`ident.map_crc`): `{self.layout_crc():#010x}`.", ""]
         for g in self.groups:

@@ -289,8 +289,8 @@ def _loop(params):
                  f"(pose/motion_track.md))", reset=forecast.track_alpha_raw),
         Register("track", data.ArrayLayout(motion.shape(), 6), Access.RO,
                  f"the motion track's Y = [T θ] after the last row, raw {motion} (metres, "
-                 f"radians per frame period; live: read it between rows, it changes "
-                 f"once per row)"),
+                 f"radians per frame period; it changes once per row: reading word 0 "
+                 f"samples all six, read it first)"),
         Register("counters", loop_counters_layout(forecast), Access.RO, "measurements of "
                  "another row than the forecast's, predicted shifts saturated, motion "
                  "track rows with a value saturated (wrap); `restart_pending`: a "
