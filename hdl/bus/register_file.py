@@ -36,8 +36,9 @@ class RegisterFile(wiring.Component):
         One member per group, and in it one per register: ``rw`` → ``Out(shape)`` (the
         stored value), ``ro`` → ``In(shape)`` (sampled the clock after the read address
         is taken; an element of several words is sampled whole when its word 0 is
-        read, and its other words answer from that sample), ``wo`` → ``Out(Signature(data: shape, stb: count))`` (``stb[k]`` high
-        for one clock when element ``k`` was written), ``const`` → no port. ``shape`` is
+        read, and its other words answer from that sample), ``wo`` →
+        ``Out(Signature(data: shape, stb: count))`` (``stb[k]`` high for one clock when
+        element ``k`` was written), ``const`` → no port. ``shape`` is
         the register's shape, or an ``ArrayLayout`` of it when ``count > 1``.
 
     Latency: a read answers two clocks after its address is taken; a write is accepted
@@ -106,11 +107,6 @@ class RegisterFile(wiring.Component):
                     m.d.comb += [Value.cast(cmd.data).eq(data_sig), cmd.stb.eq(stb)]
                     m.d.sync += stb.eq(0)
 
-        def element(w, value):
-            """Value of ``w``'s element inside the flat register ``value``."""
-            width = w.register.width
-            return value[w.index * width:(w.index + 1) * width]
-
         # Writes: take address and data together, answer on B.
         b_valid = Signal()
         b_resp = Signal(2)
@@ -132,7 +128,7 @@ class RegisterFile(wiring.Component):
                             continue
                         with m.Case(w.offset // WORD_BYTES):
                             if access is Access.RW:
-                                target = element(w, stored[key])
+                                target = _element(w, stored[key])
                                 for piece in w.pieces():
                                     dst = slice(piece.dst, piece.dst + piece.width)
                                     old_bits = target[piece.src:piece.src + piece.width]
@@ -141,7 +137,7 @@ class RegisterFile(wiring.Component):
                                 m.d.sync += b_resp.eq(RESP_OKAY)
                             else:
                                 data_sig, stb = commands[key]
-                                target = element(w, data_sig)
+                                target = _element(w, data_sig)
                                 with m.If(axi.wstrb == 0b1111):
                                     m.d.sync += [target[p.src:p.src + p.width].eq(
                                         axi.wdata[p.dst:p.dst + p.width]) for p in w.pieces()]
@@ -163,23 +159,20 @@ class RegisterFile(wiring.Component):
         with m.If(axi.arvalid & axi.arready):
             hit, index = self._decode(axi.araddr)
             m.d.sync += [r_pending.eq(1), r_hit.eq(hit), r_index.eq(index)]
-        read_now = Signal()
-        m.d.comb += read_now.eq(r_pending & r_hit)
-        snapshots = {}
+        snapshots = self._snapshots(m, r_pending & r_hit, r_index)
         readable = {}
         for w in regmap.words():
             reg = w.register
             if reg.access is Access.RW:
                 source = stored[(w.group.name, reg.name)]
             elif reg.access is Access.RO:
-                source = Value.cast(getattr(getattr(self, w.group.name), reg.name))
-                if reg.words > 1:
-                    source = self._snapshot(m, w, source, snapshots, read_now, r_index)
+                source = snapshots[(w.group.name, reg.name)] if w.word else \
+                    self._status_port(w)
             elif reg.access is Access.CONST:
                 source = Const(reg.value << (w.index * reg.width), reg.width * reg.count)
             else:
                 continue
-            readable[w.offset // WORD_BYTES] = self._word_value(w, element(w, source))
+            readable[w.offset // WORD_BYTES] = self._word_value(w, _element(w, source))
         okay = Const(sum(1 << i for i in readable), 1 << len(r_index))
         with m.If(r_pending):
             m.d.sync += [r_pending.eq(0), r_valid.eq(1),
@@ -190,24 +183,29 @@ class RegisterFile(wiring.Component):
             m.d.sync += r_valid.eq(0)
         return m
 
-    @staticmethod
-    def _snapshot(m, w, live, snapshots, read_now, r_index):
-        """What word ``w`` of a multi-word read-only register reads: word 0 the live
-        value, and reading it copies the whole element into the register's snapshot;
-        the other words read that copy, so an element read from word 0 upwards is one
-        sample even when the block updates it between the reads (a torn read of a
-        counter or of ``loop.track`` would be a silently wrong value)."""
-        reg, width = w.register, w.register.width
-        key = (w.group.name, reg.name)
-        if key not in snapshots:
-            snapshots[key] = Signal(width * reg.count, name=f"{w.group.name}_{reg.name}_snap")
-        snap = snapshots[key]
-        if w.word != 0:
-            return snap
-        live_element = live[w.index * width:(w.index + 1) * width]
-        with m.If(read_now & (r_index == w.offset // WORD_BYTES)):
-            m.d.sync += snap[w.index * width:(w.index + 1) * width].eq(live_element)
-        return live
+    def _status_port(self, w):
+        """The flat port of ``w``'s read-only register."""
+        return Value.cast(getattr(getattr(self, w.group.name), w.register.name))
+
+    def _snapshots(self, m, reading, r_index):
+        """A copy of every read-only register of several words, by ``(group, name)``:
+        reading word 0 of an element (``reading`` with ``r_index`` on it) copies the
+        whole element, and its other words answer from the copy, so an element read from
+        word 0 upwards is one sample even when the block updates it between the reads (a
+        torn read of a counter or of ``loop.track`` would be a silently wrong value)."""
+        snapshots = {}
+        for w in self.params.words():
+            reg = w.register
+            if reg.access is not Access.RO or reg.words == 1 or w.word:
+                continue
+            key = (w.group.name, reg.name)
+            if key not in snapshots:
+                snapshots[key] = Signal(reg.width * reg.count,
+                                        name=f"{w.group.name}_{reg.name}_snap")
+            snap = snapshots[key]
+            with m.If(reading & (r_index == w.offset // WORD_BYTES)):
+                m.d.sync += _element(w, snap).eq(_element(w, self._status_port(w)))
+        return snapshots
 
     @staticmethod
     def _word_value(w, element):
@@ -219,6 +217,12 @@ class RegisterFile(wiring.Component):
             parts.append(element[piece.src:piece.src + piece.width])
             at = piece.dst + piece.width
         return Cat(*parts)
+
+
+def _element(w, value):
+    """Value of ``w``'s element inside the flat register ``value``."""
+    width = w.register.width
+    return value[w.index * width:(w.index + 1) * width]
 
 
 def _select(words, index, bit=None):

@@ -16,8 +16,8 @@ A block adds a register by adding a line to its group (rowtrack's map is declare
 Fields are packed into 32-bit words without straddling a word boundary (see
 :meth:`Register.pieces`); reading word 0 of a read-only element of several words
 samples the whole element and its other words answer from that sample (read word 0
-first for a consistent value), and a write-only value is delivered when its highest word is written. Array
-elements follow each other.
+first for a consistent value), and a write-only value is delivered when its highest
+word is written. Array elements follow each other.
 """
 
 import enum
