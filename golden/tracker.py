@@ -47,7 +47,7 @@ import numpy as np
 from .descriptor import describe, match, segment_bounds, strength, textureless
 from .depth import StereoDepth, stereo_pairs
 from .pose_lsq import body_step
-from .reference_rows import HomographyReference, PreviousFrameReference
+from .reference_rows import HomographyReference, PreviousFrameReference, Reference
 from .temporal_filter import DelayedForecast, HoltWinters, information_gain
 from .tracker_geometry import DesignTable, reference_pixels, segment_means
 from .tracker_motion import PoseTrack, compose, ground_truth_track
@@ -183,20 +183,66 @@ class Tracker:
     # --- measurements of a block -----------------------------------------------------
 
     def _reference(self, n, frame, rows, rotations, positions, inverse_depth):
+        """The reference rows of a block, where the current pixels' points sit in them
+        (x, (B, C)) and each row's window centre."""
         cam = self.rig.cameras[n]
+        rays, depth = cam.rays[rows][:, self.columns], inverse_depth[:, self.columns]
         if isinstance(self.reference, HomographyReference):
-            return self.reference.rows(n, frame, rows, rotations, positions, self.columns,
-                                       inverse_depth if self.params.parallax else None)
-        ref = self.reference.rows(n, frame, rows)
-        if self.params.follow_rows:
-            _, y = reference_pixels(cam, cam.rays[rows][:, self.columns],
-                                    inverse_depth[:, self.columns],
-                                    rotations, positions, ref.view_rotation,
-                                    ref.source_centre)
+            ref = self.reference.rows(n, frame, rows, rotations, positions, self.columns,
+                                      inverse_depth if self.params.parallax else None)
+        else:
+            ref = self.reference.rows(n, frame, rows)
+        x, y = reference_pixels(cam, rays, depth, rotations, positions, ref.view_rotation,
+                                ref.source_centre)
+        if isinstance(self.reference, HomographyReference) or not self.params.follow_rows:
+            return ref, x, self._centres(x)
+        if self.params.follow_segments:
+            # the centre and the rows' addresses come from one prediction, as in hardware
+            centres = self._centres(x)
+            ref = self._segment_rows(n, frame, rows, y - rows[:, None], centres)
+        else:
             offset = _row_means(y - rows[:, None])
             source = np.clip(rows + np.rint(offset).astype(int), 0, cam.height - 1)
             ref = self.reference.rows(n, frame, source)
-        return ref
+        x, _ = reference_pixels(cam, rays, depth, rotations, positions, ref.view_rotation,
+                                ref.source_centre)
+        return ref, x, (centres if self.params.follow_segments else self._centres(x))
+
+    def _centres(self, x):
+        """Window centre of each row (B,): the mean predicted shift, rounded, within a
+        quarter of the row."""
+        limit = self.rig.cameras[0].width // 4
+        return np.clip(np.rint(_row_means(self.columns - x)), -limit, limit).astype(int)
+
+    def _segment_rows(self, n, frame, rows, displacement, centres):
+        """A reference row per current row put together from K stored rows (``follow_
+        segments``): segment k's row is the current row plus the mean of ``displacement``
+        (B, C) over its columns, and reference column j comes from the row of the segment
+        that current column ``j + centre`` belongs to (each segment's window, at its
+        centre shift, reads its own row); the view rotation and source centre are per
+        current pixel, from its own segment's row."""
+        cam, stride = self.rig.cameras[n], self.params.geometry_stride
+        matcher = self.params.recovery_matcher if self.recovering else self.matcher
+        bounds = np.array([segment_bounds(cam.width, self.desc, matcher, int(c))
+                           for c in centres])                             # (B, K, 2)
+        offsets, _ = segment_means(displacement, np.isfinite(displacement),
+                                   -(-bounds[..., 0] // stride), -(-bounds[..., 1] // stride))
+        offsets = np.where(np.isfinite(offsets), offsets, _row_means(displacement)[:, None])
+        source = np.clip(rows[:, None] + np.rint(offsets).astype(int), 0, cam.height - 1)
+        parts = [self.reference.rows(n, frame, source[:, k]) for k in range(source.shape[1])]
+
+        def segment_of(columns):            # (B, L): the segment of current columns
+            columns = np.broadcast_to(columns, (len(rows), np.shape(columns)[-1]))
+            return (columns[:, None, :] >= bounds[:, 1:, 0, None]).sum(axis=1)
+
+        by_column = segment_of(np.arange(cam.width) + centres[:, None])
+        by_pixel = segment_of(self.columns)
+        pick = np.arange(len(rows))[:, None]
+        bits = np.stack([part.bits for part in parts])[by_column, pick, np.arange(cam.width)]
+        rotation = np.stack([part.view_rotation for part in parts])[by_pixel, pick]
+        centre = np.stack([part.source_centre[:, 0] for part in parts])[by_pixel, pick]
+        return Reference(bits=bits, valid=np.ones(bits.shape, dtype=bool),
+                         view_rotation=rotation, source_centre=centre)
 
     def _entry(self, n, frame, rows, slot_ids, forecasts):
         """Predict, build the reference and prepare one camera's rows of a block."""
@@ -206,12 +252,8 @@ class Tracker:
         rotations, positions = compose(prev_rot, prev_pos, forecasts)
         full_depth = self._inverse_depth(n, frame, rows)
         inverse_depth = full_depth[:, self.columns]
-        ref = self._reference(n, frame, rows, rotations, positions, full_depth)
-        vx, _ = reference_pixels(cam, cam.rays[rows][:, self.columns], inverse_depth,
-                                 rotations, positions, ref.view_rotation, ref.source_centre)
+        ref, vx, centres = self._reference(n, frame, rows, rotations, positions, full_depth)
         predicted = self.columns - vx
-        limit = cam.width // 4
-        centres = np.clip(np.rint(_row_means(predicted)), -limit, limit).astype(int)
         strong = self.frame_strong(n, frame)[rows] if self.params.strong_test else None
         return SimpleNamespace(camera=n, frame=frame, rows=rows, slots=slot_ids,
                                inverse_depth=inverse_depth, ref=ref, predicted=predicted,
@@ -430,8 +472,10 @@ class Tracker:
             rotation, position = compose(*self.track.at(time), motions)
             rays = np.broadcast_to(cam.rays[e.rows[i]][self.columns],
                                    (len(motions), len(self.columns), 3))
+            view = e.ref.view_rotation[i]
+            view = view[None] if view.ndim == 3 else view       # per pixel: over motions
             vx, _ = reference_pixels(cam, rays, e.inverse_depth[i], rotation, position,
-                                     e.ref.view_rotation[i], e.ref.source_centre[i])
+                                     view, e.ref.source_centre[i])
             masks = e.masks[i]
             shifts.append(np.where(masks, self.columns - vx[:, None, :], 0.0).sum(axis=-1)
                           / np.maximum(masks.sum(axis=-1), 1))

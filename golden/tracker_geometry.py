@@ -65,16 +65,21 @@ def reference_pixels(camera, rays, inverse_depth, rotation, position, view_rotat
         1/Z of the current pixels (0 for points at infinity, NaN for unknown).
     rotation, position : (..., 3, 3), (..., 3)
         Rig pose at the current row.
-    view_rotation : (..., 3, 3)
-        Rig rotation the reference row is seen with.
+    view_rotation : (..., 3, 3) or (..., W, 3, 3)
+        Rig rotation the reference row is seen with (per pixel when a row is put together
+        from several stored rows: one more dimension than ``rays``).
     source_centre : (..., W, 3) or (..., 1, 3)
         Camera centre (world) each reference pixel was captured from.
     """
     w = np.asarray(inverse_depth, dtype=float)[..., None]
     body = rays @ camera.R.T + w * camera.c                       # body frame, scaled by w
     world = rotate(rotation, body) + w * (np.asarray(position)[..., None, :] - source_centre)
-    to_view = np.swapaxes(np.asarray(view_rotation, dtype=float), -1, -2)
-    return project(camera, rotate(to_view, world) @ camera.R)
+    view_rotation = np.asarray(view_rotation, dtype=float)
+    if view_rotation.ndim == np.ndim(rays) + 1:                   # one rotation per pixel
+        seen = np.einsum("...ji,...j->...i", view_rotation, world)
+    else:
+        seen = rotate(np.swapaxes(view_rotation, -1, -2), world)
+    return project(camera, seen @ camera.R)
 
 
 class DesignTable:

@@ -39,8 +39,17 @@ class TrackerParams:
         (a) Also compensate the translation's parallax when reading the reference, with
         the current depth (off: the papers' rotation-only compensation).
     follow_rows : bool
-        (b) Read the stored row the content is predicted to come from (one row address
-        per camera and row) instead of the same row index.
+        (b) Read the stored row the content is predicted to come from instead of the
+        same row index.
+    follow_segments : bool
+        (b, with ``follow_rows``) One row address per segment: each segment's points are
+        compared in the row they are predicted to have moved to, its own mean vertical
+        displacement (a rotation about the optical axis or the row direction tilts the
+        displacement along the row by several rows; compared in one row, the segments
+        far from the row's mean see texture from the wrong rows and under-read their
+        shifts). The reference row is put together from the segments' rows: column
+        ``j`` from the row of the segment that column ``j + centre`` of the current row
+        belongs to. Off: one address per camera row, the mean over the row.
     sigma : float
         Descriptor σ (pixels).
     strong_test : bool
@@ -146,6 +155,7 @@ class TrackerParams:
     reselect_angle: float = 0.06
     parallax: bool = True
     follow_rows: bool = True
+    follow_segments: bool = True
     sigma: float = 2.0
     strong_test: bool = False
     window: int = 20
@@ -192,7 +202,8 @@ class TrackerParams:
             if getattr(self, name) not in options:
                 raise ValueError(f"{name} must be one of {', '.join(options)}, "
                                  f"not {getattr(self, name)!r}")
-        for name in ("parallax", "follow_rows", "strong_test", "consistency_always"):
+        for name in ("parallax", "follow_rows", "follow_segments", "strong_test",
+                     "consistency_always"):
             if not isinstance(getattr(self, name), bool):
                 raise TypeError(f"{name} must be a bool, not {getattr(self, name)!r}")
         check_number("reselect_angle", self.reselect_angle, 0, low_open=True)
