@@ -106,7 +106,8 @@ def _record_values(records, k, fields=RECORD_FIELDS):
     for name in fields:
         value = np.asarray(records[name])[k]
         if np.ndim(value):
-            out += [(f"{name}[{i}]", int(v)) for i, v in enumerate(value)]
+            out += [(f"{name}[{', '.join(map(str, i))}]", int(value[i]))
+                    for i in np.ndindex(value.shape)]
         else:
             out.append((name, int(value)))
     return out

@@ -44,8 +44,9 @@ __all__ = ["SOLVER_FIELDS", "FORECAST_FIELDS", "TRACK_FIELDS", "LoopCosimResult"
 #: the status unit and the output's narrowing): the step and the integrated pose.
 SOLVER_FIELDS = ("row", "time", "flags", "q", "p", "step")
 #: Fields of the forecast rows the engine takes compared: the camera row, and per camera
-#: its lane's window centre and the previous frame's row it reads (``source_row``).
-FORECAST_FIELDS = ("row", "centre", "source_row")
+#: its lane's window centre and the previous frame's row each of its segments reads
+#: (``segment_rows``).
+FORECAST_FIELDS = ("row", "centre", "segment_rows")
 #: Fields of the motion track's rows compared: ``Y`` (raw ``motion_fmt``, six axes).
 TRACK_FIELDS = ("y",)
 
@@ -131,7 +132,8 @@ class LoopCosimResult:
         The loop's solver records (HDL) and the emulator's, :data:`SOLVER_FIELDS`.
     forecasts, forecasts_expected : dict
         The forecast rows the engine took (HDL) and the emulator's,
-        :data:`FORECAST_FIELDS` (``centre`` and ``source_row``: (rows, cameras)).
+        :data:`FORECAST_FIELDS` (``centre``: (rows, cameras); ``segment_rows``: (rows,
+        cameras, K)).
     forecasts_ahead : int
         Forecast rows the engine took beyond the played rows (at most
         ``loop_delay_rows + 1``, left out of ``forecasts``; more are compared, and count
@@ -271,8 +273,9 @@ def loop_expected(config, dataset, frames, times, initial_motion=None):
     packet = top.pose_output.packet
     uart = b"".join(packets.encode_packet(packet, r) for r in kept)
     forecasts = {"row": np.asarray(loop["row"], dtype=np.int64),
-                 **{name: np.array(loop[name], dtype=np.int64).reshape(len(slots), -1)
-                    for name in ("centre", "source_row")}}
+                 "centre": np.array(loop["centre"], dtype=np.int64).reshape(len(slots), -1),
+                 "segment_rows": np.array(loop["segment_rows"], dtype=np.int64).reshape(
+                     len(slots), top.forecast.cameras, top.forecast.segments)}
     track = {"row": forecasts["row"],
              "y": np.asarray(loop["track"], dtype=np.int64).reshape(len(slots), 6)}
     return record_arrays(packet, kept), solver, forecasts, track, slots, uart
@@ -331,10 +334,18 @@ def _forecast_rows(layout, columns, stalls):
             taken.append(clock)
             current = {}
     cameras = max((len(r) for r in rows), default=0)
+    segments = len(rows[0][0]["segment_rows"]) if rows and 0 in rows[0] else 0
+    missing = [-1] * segments
+
+    def segment_rows(transfer):            # the unpacked array, in segment order
+        return [transfer["segment_rows"][n] for n in range(segments)]
+
     arrays = {"row": np.array([r[max(r)]["row"] for r in rows], dtype=np.int64),
-              **{name: np.array([[r[c][name] if c in r else -1 for c in range(cameras)]
-                                 for r in rows], dtype=np.int64).reshape(len(rows), cameras)
-                 for name in ("centre", "source_row")}}
+              "centre": np.array([[r[c]["centre"] if c in r else -1 for c in range(cameras)]
+                                  for r in rows], dtype=np.int64).reshape(len(rows), cameras),
+              "segment_rows": np.array([[segment_rows(r[c]) if c in r else missing
+                                         for c in range(cameras)] for r in rows],
+                                       dtype=np.int64).reshape(len(rows), cameras, segments)}
     return arrays, offered[:len(rows)], taken
 
 

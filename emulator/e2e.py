@@ -27,6 +27,7 @@ import numpy as np
 
 from golden.descriptor import describe, match, strength
 from golden.pose_lsq import UNKNOWNS, ShiftCoefficients, body_step, quat_to_matrix, solve_step
+from hdl.descriptor.params import REFERENCE_WORD_BITS
 
 __all__ = ["true_steps", "golden_steps", "golden_poses", "golden_trajectory_steps",
            "float_steps", "agreement",
@@ -335,12 +336,25 @@ def _lane_measurements(path):
         field("no_reference").astype(bool) | field("edge_hit").astype(bool)
 
 
+def followed_rows(lane, bits, frames, sources, centre):
+    """The reference rows (n, W) following lanes read from descriptor bits ``bits``
+    (frames, H, W): row ``sources[i]`` (K rows, one per segment) of frame ``frames[i]``,
+    word by word as ``lane.word_segments(centre)`` picks the segment (the columns after
+    the last stored word with the last word's segment)."""
+    segments = np.array(lane.word_segments(centre))
+    columns = np.arange(bits.shape[-1]) // REFERENCE_WORD_BITS
+    pick = segments[np.minimum(columns, len(segments) - 1)]           # (W,)
+    rows = np.asarray(sources)[:, pick]                                # (n, W)
+    return bits[np.asarray(frames)[:, None], rows, np.arange(bits.shape[-1])]
+
+
 def lane_agreement(path, dataset):
     """Level 2 of the lanes inside the loop: each temporal measurement of frames ≥ 1
     against :func:`golden.descriptor.match` (the float kernel) of the same current row
-    and the same stored row of the previous frame the forecast named, at the same window
-    centre. Figures (flat dict): ``well_textured`` (both kernels' peak ratio ≥
-    :data:`WELL_TEXTURED`, neither side at the window edge, a reference row),
+    and the same stored rows of the previous frame the forecast named
+    (:func:`followed_rows`), at the same window centre. Figures (flat dict):
+    ``well_textured`` (both kernels' peak ratio ≥ :data:`WELL_TEXTURED`, neither side
+    at the window edge, a reference row),
     ``within_subpixel`` (their share within :data:`SUBPIXEL_TOLERANCE`),
     ``max_shift_px``; and where the worst is, ``(frame, row, camera, segment, px)``."""
     lane, loop = path.config.router.temporal, path.result.loop
@@ -351,10 +365,11 @@ def lane_agreement(path, dataset):
     for n in range(shift.shape[1]):
         pixels = np.asarray(dataset.cameras[n].rows[:frame.max() + 1], dtype=np.float64)
         bits, strong = describe(pixels, lane.descriptor), strength(pixels, lane.descriptor)
-        centre, source = loop["centre"][later, n], loop["source_row"][later, n]
+        centre, source = loop["centre"][later, n], loop["segment_rows"][later, n]
         for c in np.unique(centre):
             i = np.flatnonzero(centre == c)
-            m = match(bits[frame[i], row[i]], bits[frame[i] - 1, source[i]],
+            m = match(bits[frame[i], row[i]],
+                      followed_rows(lane, bits, frame[i] - 1, source[i], int(c)),
                       lane.descriptor, lane.match, int(c),
                       cur_strong=strong[frame[i], row[i]])
             good = (m.peak_ratio >= WELL_TEXTURED) & ~m.edge_hit & \

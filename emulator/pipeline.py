@@ -62,8 +62,8 @@ class PipelineResult:
     loop : dict of ndarray or None
         Closed loop only (``forecast`` given): per row set, in order, ``frame``, ``row``,
         ``slot``, the forecast ``centre`` and ``source_row`` (n, cameras) it used and its
-        saturation flags, and ``level`` (n, 6) the filter's level after the row's step
-        (raw ``motion_fmt``); with a consistency stage also ``counts``, its counters
+        saturation flags, ``segment_rows`` (n, cameras, K) the rows its lanes read, and
+        ``level`` (n, 6) the filter's level after the row's step (raw ``motion_fmt``); with a consistency stage also ``counts``, its counters
         (:class:`emulator.measurement.consistency.ConsistencyModel`), and ``row_counts``
         (records, 4): each record's row's ``(judged, outliers, confident,
         determinable)``, the tracking-status unit's per-row input.
@@ -213,10 +213,10 @@ class _Loop:
         """The temporal measurements of one row set at the forecast centres and rows."""
         row = rows[0].row
         prediction = self.model.request(self.slot(frame, row), row)
-        centres, sources = prediction["centre"], prediction["source_row"]
+        centres, sources = prediction["centre"], prediction["segment_rows"]
         return [m for lane, framed, centre, source in zip(lanes, rows, centres, sources)
                 for m in lane.process_rows([replace(framed, centre=int(centre))],
-                                           [int(source)])]
+                                           [source])]
 
     def close(self, transfers, frame, row):
         """Judge the row's transfers (with a consistency stage), keep its depth cues for
@@ -230,14 +230,15 @@ class _Loop:
         tracked = None if self.track is None else \
             self.track.update(slot, *before, None if self.model.step is None else level)
         self.log.append((frame, row, slot, p["centre"], p["centre_saturated"],
-                         p["source_row"], p["row_saturated"], level, tracked))
+                         p["source_row"], p["row_saturated"], p["segment_rows"], level,
+                         tracked))
         if self.model.row_counts is not None:
             self.row_counts.append(self.model.row_counts)
         return transfers
 
     def history(self):
         names = ("frame", "row", "slot", "centre", "centre_saturated", "source_row",
-                 "row_saturated", "level", "track")
+                 "row_saturated", "segment_rows", "level", "track")
         out = {name: np.array([entry[k] for entry in self.log])
                for k, name in enumerate(names)}
         if self.track is None:

@@ -29,6 +29,7 @@ import numpy as np
 
 from emulator.descriptor.framer import frame_rows
 from emulator.descriptor.matcher import descriptor_bits, measure_rows
+from hdl.descriptor.params import REFERENCE_WORD_BITS
 
 __all__ = ["ReferenceStoreModel", "FollowedReferenceStoreModel", "TemporalLaneModel", "StereoLaneModel", "stereo_pairs"]
 
@@ -102,10 +103,10 @@ class ReferenceStoreModel:
 
 
 class FollowedReferenceStoreModel:
-    """A reference store that serves a row of the previous frame chosen per row (issue
-    16's followed rows): a ring of ``ring_rows = height + D + 1`` descriptor rows
-    (``params.row_displacement`` = D), the gateware's ``ReferenceStore(params,
-    follow=True)``.
+    """A reference store that serves rows of the previous frame chosen per row and
+    segment (issue 16's followed rows): a ring of ``ring_rows = height + D + 1``
+    descriptor rows (``params.row_displacement`` = D), the gateware's
+    ``ReferenceStore(params, follow=True)``.
 
     Row ``y`` of a frame goes to slot ``(base + y) mod ring_rows``, where ``base``
     advances by ``height`` (mod ``ring_rows``) whenever a row's frame number differs from
@@ -114,11 +115,14 @@ class FollowedReferenceStoreModel:
     row ``s`` is read from ``(previous base + s) mod ring_rows``. That slot is rewritten by
     row ``s + D + 1`` of this frame, which reads it first, so row ``y`` is served every
     ``s`` with ``0 ≤ s < height`` and ``y − s ≤ D + 1``
-    (:meth:`~hdl.descriptor.params.RowDescriptorParams.source_in_range`). A request
-    outside that range reads zeros, has no reference and is counted
-    (:attr:`out_of_range`); a request inside it has a reference when the slot's tag
-    says it holds row ``s`` of frame ``frame − 1`` (modulo ``2**frame_bits``) and that
-    row was not bad. The bits read are the slot's, whatever the tag.
+    (:meth:`~hdl.descriptor.params.RowDescriptorParams.source_in_range`).
+
+    Each row names one source row per segment; stored word ``q`` is read from the source
+    of segment ``params.word_segments(centre)[q]``. A segment whose request is outside
+    the served range reads zeros, and the row is counted once in :attr:`out_of_range`;
+    the row has a reference when every segment it reads is in range and its slot's tag
+    says it holds that row of frame ``frame − 1`` (modulo ``2**frame_bits``), not bad.
+    The bits read are the slots', whatever the tags.
     """
 
     def __init__(self, params):
@@ -137,26 +141,36 @@ class FollowedReferenceStoreModel:
 
     def exchange(self, rows, bits, sources):
         """Store each row's ``bits`` in its ring slot and read, for each row, the
-        previous frame's row ``sources[i]`` (any integer); returns ``(reference bits
-        (N, width), no_reference (N,))``, one row after the other as they arrive."""
+        previous frame's rows ``sources[i]`` (K integers, one per segment); returns
+        ``(reference bits (N, width), no_reference (N,))``, one row after the other as
+        they arrive."""
         p, n = self.params, len(rows)
-        size, kept = p.ring_rows, p.width - p.radius
+        size, kept, word = p.ring_rows, p.width - p.radius, REFERENCE_WORD_BITS
+        sources = np.asarray(sources, dtype=np.int64).reshape(n, p.segments)
         reference = np.zeros((n, p.width), dtype=bool)
         no_reference = np.ones(n, dtype=bool)
-        for i, (row, source) in enumerate(zip(rows, sources)):
+        for i, row in enumerate(rows):
             if row.frame != self.frame:
                 self.frame, self.previous_base = row.frame, self.base
                 self.base = (self.base + p.height) % size
             if row.row >= p.height:
                 continue
-            if p.source_in_range(row.row, source):
+            segments = p.word_segments(row.centre)
+            served = True
+            for k in sorted(set(segments)):
+                source = int(sources[i, k])
+                if not p.source_in_range(row.row, source):
+                    served = False
+                    continue
                 slot = (self.previous_base + source) % size
-                reference[i] = self.bits[slot]
-                no_reference[i] = not (self.tag_valid[slot] and self.tag_row[slot] == source
-                                       and self.tag_frame[slot]
-                                       == (row.frame - 1) % (1 << p.frame_bits))
-            else:
-                self.out_of_range += 1
+                for q in np.flatnonzero(np.array(segments) == k):
+                    columns = slice(word * q, min(word * (q + 1), kept))
+                    reference[i, columns] = self.bits[slot, columns]
+                served &= bool(self.tag_valid[slot] and self.tag_row[slot] == source and
+                               self.tag_frame[slot] == (row.frame - 1) % (1 << p.frame_bits))
+            no_reference[i] = not served
+            self.out_of_range += not all(p.source_in_range(row.row, int(sources[i, k]))
+                                         for k in set(segments))
             slot = (self.base + row.row) % size
             self.bits[slot, :kept] = bits[i, :kept]
             self.tag_valid[slot], self.tag_frame[slot] = not row.bad, row.frame
@@ -171,8 +185,8 @@ def _half_width(row, params):
 
 class TemporalLaneModel:
     """One camera: each row matched against the same row of the previous frame, or with
-    ``follow=True`` against a row of the previous frame chosen per row (the forecast's
-    row address, :class:`FollowedReferenceStoreModel`, a ring of
+    ``follow=True`` against rows of the previous frame chosen per row and segment (the
+    forecast's row addresses, :class:`FollowedReferenceStoreModel`, a ring of
     ``height + row_displacement + 1`` rows)."""
 
     def __init__(self, params, follow=False):
@@ -188,9 +202,9 @@ class TemporalLaneModel:
         rows : sequence of FramedRow
             In arrival order; each row's reference is what the store holds at its row
             index when it arrives (so a row may reference an earlier row of the batch).
-        sources : sequence of int, optional
-            With ``follow=True`` (and only then): the previous frame's row each row is
-            compared with.
+        sources : (N, K) ints, optional
+            With ``follow=True`` (and only then): the previous frame's row each segment
+            of each row is compared with.
 
         Returns
         -------

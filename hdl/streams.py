@@ -195,7 +195,7 @@ def row_measurement_layout(*, camera_bits, frame_bits, row_bits, timestamp_bits,
 __all__ += ["row_measurement_layout"]
 
 
-def followed_pixel_layout(*, centre_fmt, **camera):
+def followed_pixel_layout(*, centre_fmt, segments, **camera):
     """A camera pixel (:func:`camera_pixel_layout`, same keyword arguments) with the
     forecast for its row, for a lane that follows rows (``RowDescriptor(follow=True)``).
 
@@ -203,13 +203,14 @@ def followed_pixel_layout(*, centre_fmt, **camera):
     ------
     centre : centre_fmt, SQ(c, 0)
         The row's shift-window centre in pixels (saturated by the lane).
-    source : unsigned(row_bits)
-        The previous frame's row the lane compares this row with.
+    source : ArrayLayout(unsigned(row_bits), segments)
+        The previous frame's row each segment of this row is compared with.
 
     Both are sampled with the row's ``first`` beat, like the row's metadata.
     """
     return data.StructLayout({**camera_pixel_layout(**camera).members,
-                              "centre": centre_fmt.shape(), "source": camera["row_bits"]})
+                              "centre": centre_fmt.shape(),
+                              "source": data.ArrayLayout(camera["row_bits"], segments)})
 
 
 __all__ += ["followed_pixel_layout"]

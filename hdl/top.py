@@ -193,7 +193,7 @@ class RowtrackTop(wiring.Component):
         m.d.comb += [fed.valid.eq(ahead.valid), ahead.ready.eq(fed.ready),
                      fed.payload.camera.eq(ahead.payload.camera),
                      fed.payload.centre.eq(ahead.payload.centre),
-                     fed.payload.source_row.eq(ahead.payload.source_row),
+                     fed.payload.segment_rows.eq(ahead.payload.segment_rows),
                      fed.payload.row.eq(ahead.payload.row),
                      fed.payload.last.eq(ahead.payload.last)]
         self._wire_solver_registers(m, regs, loop)

@@ -19,7 +19,8 @@ def _to_signed(value, bits):
 
 
 def pack(layout, value):
-    """A field dict (nested for nested layouts) or an int to the flat unsigned integer."""
+    """A field dict (nested for nested layouts; a list for an array layout) or an int to
+    the flat unsigned integer."""
     if not isinstance(layout, data.Layout):
         shape = Shape.cast(layout)
         if not isinstance(value, int):
@@ -29,6 +30,8 @@ def pack(layout, value):
         if not lo <= value <= hi:
             raise ValueError(f"value {value} does not fit {shape}")
         return value & ((1 << shape.width) - 1)
+    if isinstance(layout, data.ArrayLayout) and isinstance(value, (list, tuple)):
+        value = dict(enumerate(value))          # an array's elements, in order
     missing = {name for name, _ in layout} - set(value)
     extra = set(value) - {name for name, _ in layout}
     if missing or extra:

@@ -161,7 +161,7 @@ class ConsistencyModel:
     def apply(self, transfers, predicted, delta):
         """One row of router transfers (dicts in stream order, the row's slots distinct)
         with the forecast's predicted shift of every slot (raw ``predicted_fmt``,
-        (slots,)) and each camera's row offset ``delta = source − row`` (cameras,): the
+        (slots,)) and each segment's row offset ``delta = source − row`` (slots,): the
         transfers the solver gets (copies) and the verdict of :meth:`judge` plus
         ``gated`` (the row failed the gates), ``conf_in`` (the confidences the judge
         took: a channel whose source row was too far enters with 0) and
@@ -172,7 +172,7 @@ class ConsistencyModel:
             return [], None
         p = self.params
         channel = np.array([t["slot"] for t in transfers])
-        delta = np.asarray(delta, dtype=np.int64)[channel // p.segments]
+        delta = np.asarray(delta, dtype=np.int64)[channel]
         far = np.abs(delta) > p.max_row_offset
         self.counts["far_rows"] += len(np.unique(channel[far] // p.segments))
         delta = np.where(far, 0, delta)

@@ -96,17 +96,19 @@ def _key(beats):
 def forecast_rows(params, transfers):
     """The forecast transfers gathered into rows, as
     :class:`hdl.measurement.forecast_rows.ForecastRows`: ``(rows, malformed)``, each row
-    a dict ``row``, ``centre`` and ``source`` (lists per camera); a row that is not
-    ``cameras`` transfers in camera order with ``last`` on the final one, or names a
-    source row wider than the lanes' ``row_bits``, is discarded and counted."""
-    cameras, row_bits = params.cameras, params.temporal.row_bits
+    a dict ``row``, ``centre`` (a list per camera) and ``source`` (per camera, a list of
+    its segments' rows); a row that is not ``cameras`` transfers in camera order with
+    ``last`` on the final one, or names a source row wider than the lanes' ``row_bits``,
+    is discarded and counted."""
+    cameras, row_bits, k = params.cameras, params.temporal.row_bits, params.temporal.segments
     rows, malformed = [], 0
-    centre, source = [0] * cameras, [0] * cameras
+    centre, source = [0] * cameras, [[0] * k] * cameras
     position, damaged = 0, False
     for t in transfers:
+        segment_rows = [t["segment_rows"][n] for n in range(k)]     # a list or a dict
         wrong = (t["camera"] != position or bool(t["last"]) != (position == cameras - 1)
-                 or t["source_row"] >> row_bits != 0)
-        centre[position], source[position] = t["centre"], t["source_row"]
+                 or any(r >> row_bits for r in segment_rows))
+        centre[position], source[position] = t["centre"], segment_rows
         if t["last"]:
             if damaged or wrong:
                 malformed += 1

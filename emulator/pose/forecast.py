@@ -186,14 +186,26 @@ class ForecastModel:
         unit = p.segments << p.displacement_fmt.frac_bits
         return (2 * total + unit) // (2 * unit)
 
+    def _segment_rows(self, row, across):
+        """Per camera and segment (cameras, K): the previous frame's row the segment's
+        content is predicted to come from, ``row`` minus its displacement across rows
+        rounded half-up, and whether it was saturated to the frame."""
+        p = self.params
+        unit = 1 << p.displacement_fmt.frac_bits
+        source = row - (2 * across + unit) // (2 * unit)
+        source = source.reshape(p.cameras, p.segments)
+        return np.clip(source, 0, p.height - 1), (source < 0) | (source >= p.height)
+
     def predict(self, slot, row, cue):
         """The forecast for camera row ``row`` read in row slot ``slot``, with the depth
         cue of every segment ``cue`` (raw ``solver.cue_fmt``, (slots,)).
 
         Returns a dict: ``motion`` (6,) raw ``motion_fmt``; ``shift`` and ``across``
         (slots,) raw ``displacement_fmt`` with ``shift_saturated``/``across_saturated``;
-        per camera ``centre`` and ``source_row`` (integers, saturated) with
-        ``centre_saturated``/``row_saturated``.
+        per camera ``centre`` and ``source_row`` (the camera mean's row: integers,
+        saturated) with ``centre_saturated``/``row_saturated``; per camera and segment
+        ``segment_rows`` (cameras, K), the rows the lanes read, with
+        ``segment_rows_saturated``.
         """
         p = self.params
         motion = self.motion(slot)
@@ -202,7 +214,9 @@ class ForecastModel:
                                                  motion)
         centre = self._camera_means(shift)
         source = row - self._camera_means(across)
+        segment_rows, segment_saturated = self._segment_rows(row, across)
         return {"motion": motion, "shift": shift, "shift_saturated": shift_sat,
+                "segment_rows": segment_rows, "segment_rows_saturated": segment_saturated,
                 "across": across, "across_saturated": across_sat,
                 "centre": np.clip(centre, -p.centre_range, p.centre_range),
                 "centre_saturated": np.abs(centre) > p.centre_range,
@@ -213,7 +227,8 @@ class ForecastModel:
 def output_transfers(params, prediction, row):
     """The gateware's output transfers of one row's :meth:`ForecastModel.predict`
     (``hdl.pose.forecast_predictor.output_layout``): one dict per camera, camera 0
-    first; the saturation flags of a camera's K segments as bits."""
+    first; the saturation flags of a camera's K segments as bits, its ``segment_rows`` a
+    dict by segment (as :func:`emulator.hdl_sim.payload.unpack` gives an array)."""
     k = params.segments
 
     def bits(flags):
@@ -226,4 +241,6 @@ def output_transfers(params, prediction, row):
              "row_saturated": int(p["row_saturated"][c]),
              "shift_saturated": bits(p["shift_saturated"][c * k:(c + 1) * k]),
              "across_saturated": bits(p["across_saturated"][c * k:(c + 1) * k]),
+             "segment_rows": dict(enumerate(int(r) for r in p["segment_rows"][c])),
+             "segment_rows_saturated": bits(p["segment_rows_saturated"][c]),
              "last": int(c == params.cameras - 1)} for c in range(params.cameras)]

@@ -98,7 +98,7 @@ class TrackingLoopModel:
             cue = np.zeros(self.params.solver.slots, dtype=np.int64)
             cue[[t["slot"] for t in transfers]] = [t["cue"] for t in transfers]
             predicted = self.forecast.predict(slot, row, cue)["shift"]
-            delta = self.prediction["source_row"] - row
+            delta = self.prediction["segment_rows"].ravel() - row
             transfers, verdict = self.consistency.apply(transfers, predicted, delta)
             self.row_counts = row_counts(verdict["conf_in"], verdict,
                                          self.params.solver.slots)

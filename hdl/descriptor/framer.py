@@ -2,7 +2,7 @@
 ``width`` pixels out of a camera beat stream (:class:`RowFramer`), and the descriptor
 bits of a stereo pair's two rows joined column by column (:class:`StereoJoin`)."""
 
-from amaranth.hdl import Module, Mux, Signal
+from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -42,9 +42,9 @@ class RowFramer(wiring.Component):
     ----------
     params : RowDescriptorParams
     follow : bool
-        The beats carry their row's centre and source row
+        The beats carry their row's centre and its segments' source rows
         (``hdl.streams.followed_pixel_layout``) instead of a ``centre`` port; without,
-        ``meta.source`` is the row itself.
+        every segment's ``meta.source`` is the row itself.
     paired : bool
         The beats carry ``paired`` (``params.input_layout(follow, paired=True)``), kept
         in ``meta.paired``; without, ``meta.paired`` is 0.
@@ -84,7 +84,8 @@ class RowFramer(wiring.Component):
         m = Module()
         beat = self.i.payload
         width = p.width
-        asked, source = (beat.centre, beat.source) if self.follow else (self.centre, beat.row)
+        asked, source = (beat.centre, beat.source) if self.follow else \
+            (self.centre, Cat(*[beat.row] * p.segments))
 
         col = Signal(range(width + 1), init=width)   # width: no incomplete row
         incomplete = Signal()                         # col != width, registered

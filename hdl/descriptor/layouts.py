@@ -13,8 +13,9 @@ __all__ = ["meta_layout", "framed_layout", "descriptor_layout", "pair_layout"]
 def meta_layout(params):
     """Row metadata: the camera beat's indices, the saturated centre (``centre_fmt``),
     the saturated run-time half-width of the shift window (``half_width_fmt``),
-    the previous frame's row the reference store reads (``source``: the row itself in a
-    same-row lane, the forecast's row address in a following one), ``bad``, sticky
+    the previous frame's rows the reference store reads (``source``, one per segment:
+    the row itself in a same-row lane, the forecast's row addresses in a following
+    one), ``bad``, sticky
     within the row (final on the row's last item), and ``paired``: a temporal lane's
     row also goes to its pair's stereo lane (``RowDescriptor(paired=True)``; 0 in
     every other lane)."""
@@ -22,7 +23,7 @@ def meta_layout(params):
         "camera": params.camera_bits, "frame": params.frame_bits, "row": params.row_bits,
         "t_first": params.timestamp_bits, "centre": params.centre_fmt.shape(),
         "half_width": params.half_width_fmt.shape(),
-        "source": params.row_bits, "bad": 1, "paired": 1,
+        "source": data.ArrayLayout(params.row_bits, params.segments), "bad": 1, "paired": 1,
     })
 
 

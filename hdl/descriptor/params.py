@@ -16,7 +16,7 @@ from golden.descriptor import STEREO_MATCH, DescriptorParams, MatchParams, dog2_
 from hdl.fixed import SQ, UQ, QFormat, Rounding, check_format
 
 __all__ = ["RowDescriptorParams", "DEFAULT_SEGMENTS", "TEMPORAL_640X480", "STEREO_640X480",
-           "check_lane_params"]
+           "check_lane_params", "REFERENCE_WORD_BITS"]
 
 #: Temporal segments per row (K) of a lane, the engine and the top unless told otherwise:
 #: the solver has one slot per camera and segment.
@@ -30,6 +30,10 @@ def _signed_bits(lo, hi):
         bits += 1
     return bits
 
+
+#: Bits per word of the reference store (a block RAM's data and parity bits): a followed
+#: store switches the row it reads between segments at these words' boundaries.
+REFERENCE_WORD_BITS = 36
 
 #: D of a followed reference store (see ``max_row_displacement``).
 DEFAULT_MAX_ROW_DISPLACEMENT = 31
@@ -168,6 +172,30 @@ class RowDescriptorParams:
         ``row``: ``0 ≤ source < height`` and ``row − source ≤ D + 1`` (the ring slot of
         ``source`` is rewritten by row ``source + D + 1``, which reads it first)."""
         return 0 <= source < self.height and row - source <= self.row_displacement + 1
+
+    @property
+    def reference_words(self):
+        """Words of a stored reference row: columns ``0 … width − R − 1``, each word
+        ``REFERENCE_WORD_BITS`` columns."""
+        return -(-(self.width - self.radius) // REFERENCE_WORD_BITS)
+
+    @property
+    def segment_starts(self):
+        """Current-row columns where segments ``1 … K − 1`` begin at centre 0 (the
+        bounds of ``golden.descriptor.segment_bounds``), the followed store's switches."""
+        lo, hi = self.compare_range(0)
+        return tuple(lo + (hi - lo) * i // self.segments for i in range(1, self.segments))
+
+    def word_segments(self, centre):
+        """The segment whose row a followed reference store reads each stored word from
+        (tuple, one per word of :attr:`reference_words`): word ``q`` (columns ``36q …
+        36q + 35``) is the reference that current column ``36q + 18 + centre`` (its
+        middle, at the window's centre shift) is compared with, and goes with that
+        column's segment by :attr:`segment_starts`. ``centre`` is the saturated centre."""
+        half = REFERENCE_WORD_BITS // 2
+        return tuple(sum(REFERENCE_WORD_BITS * q + half + centre >= start
+                         for start in self.segment_starts)
+                     for q in range(self.reference_words))
 
     def clamp_centre(self, centre):
         """The centre the hardware uses: saturated to ``±centre_range``."""
@@ -344,8 +372,8 @@ class RowDescriptorParams:
 
     def input_layout(self, follow=False, paired=False):
         """The camera pixel stream this lane consumes (one pixel per transfer); with
-        ``follow`` each beat also carries its row's window centre and source row
-        (``hdl.streams.followed_pixel_layout``); with ``paired`` a ``paired`` bit,
+        ``follow`` each beat also carries its row's window centre and its segments'
+        source rows (``hdl.streams.followed_pixel_layout``); with ``paired`` a ``paired`` bit,
         sampled with the row's first beat: the row also goes to the pair's stereo lane
         (``hdl.row_descriptor.RowDescriptor``)."""
         from amaranth.lib import data
@@ -355,7 +383,8 @@ class RowDescriptorParams:
                   "frame_bits": self.frame_bits, "row_bits": self.row_bits,
                   "timestamp_bits": self.timestamp_bits}
         if follow:
-            layout = followed_pixel_layout(centre_fmt=self.centre_fmt, **camera)
+            layout = followed_pixel_layout(centre_fmt=self.centre_fmt,
+                                           segments=self.segments, **camera)
         else:
             layout = camera_pixel_layout(**camera)
         return data.StructLayout({**layout.members, "paired": 1}) if paired else layout

@@ -4,8 +4,9 @@ The gateware twin of :class:`emulator.measurement.consistency.ConsistencyModel` 
 docstring lists every step and rounding; formats in
 :class:`hdl.measurement.consistency_params.ConsistencyParams`). Inside:
 
-* a *judge* that takes one measurement at a time: the camera's reference-time factor
-  ``P/(P − Δ)`` (one division, only at the first measurement of each camera in a row),
+* a *judge* that takes one measurement at a time: its segment's reference-time factor
+  ``P/(P − Δ)`` (one division, only when the camera or the row offset Δ differs from
+  the previous measurement's: a camera's segments that read the same row share one),
   the products (in the DSPs' registers), the scaled shift, the innovation, the outlier
   test with ``kσ`` (a register after each, for the 8 LUT levels of ``docs/timing.md``)
   and the ratio division, then the output register. The two divisions share one
@@ -48,9 +49,9 @@ HE, SAT, WRAP, ERR = Rounding.HALF_EVEN, Overflow.SATURATE, Overflow.WRAP, Overf
 def judge_layout(params):
     """One measurement with what the forecast says about it: the solver's
     ``measurement_layout`` fields, its ``predicted`` shift (``predicted_fmt``, the
-    forecast's ``a·Ŷ`` with the measurement's own cue) and its camera's row offset
-    ``delta = source − row`` (signed, ``row_bits + 1``; the same for every measurement
-    of a camera in a row)."""
+    forecast's ``a·Ŷ`` with the measurement's own cue) and its segment's row offset
+    ``delta = source − row`` (signed, ``row_bits + 1``: the previous frame's row its
+    lane segment read)."""
     fields = dict(measurement_layout(params.solver).members)
     fields.update(predicted=params.predicted_fmt.shape(),
                   delta=signed(params.solver.row_bits + 1))
@@ -155,8 +156,8 @@ class ConsistencyStage(wiring.Component):
         its last ``o.valid`` rises).
 
     Timing: :attr:`latency` clocks from a measurement's transfer to its ``o.valid`` when
-    its camera's time factor is known (an earlier measurement of the row had that
-    camera), :attr:`time_clocks` more at a camera's first measurement; a new transfer
+    its time factor is known (the previous measurement had the same camera and row
+    offset), :attr:`time_clocks` more otherwise; a new transfer
     may be taken the clock after ``o.valid`` when ``o`` is ready. With confidence, the
     updater needs :attr:`update_clocks` per measurement, which bounds the rate.
     """
@@ -196,8 +197,9 @@ class ConsistencyStage(wiring.Component):
         self.wide_fmt = QFormat(False, square.int_bits + p.gain_fmt.int_bits, square.frac_bits)
         self.sqrt = SerialSqrt(self.wide_fmt.width, self.bits_per_clock)
         # clocks: TAKE, CAMERA (the products), SCALE, INNOVATION, JUDGE (starts the
-        # divider), its steps, the verdict; a camera's first measurement goes CAMERA (starts
-        # the division P/(P − Δ)), its steps, the factor, then CAMERA again
+        # divider), its steps, the verdict; a measurement with a new camera or row offset
+        # goes CAMERA (starts the division P/(P − Δ)), its steps, the factor, then CAMERA
+        # again
         self.time_clocks = self.divider.steps + 2
         self.latency = self.divider.steps + 6
         self.update_clocks = self.sqrt.steps + 6
@@ -218,6 +220,7 @@ class ConsistencyStage(wiring.Component):
         meas = Signal(judge_layout(p))
         camera = Signal(range(p.cameras))
         cached, cached_camera = Signal(), Signal(range(p.cameras))
+        cached_delta = Signal.like(meas.delta)
         factor = Signal(p.time_fmt.width)
         far_seen, conf_cams, near_cams = (Signal(p.cameras) for _ in range(3))
         far_r = Signal()                         # ``far`` of the measurement being judged
@@ -337,7 +340,7 @@ class ConsistencyStage(wiring.Component):
                                  camera.eq(camera_of[self.i.payload.slot])]
                     m.next = "CAMERA"
             with m.State("CAMERA"):
-                with m.If(cached & (cached_camera == camera)):
+                with m.If(cached & (cached_camera == camera) & (cached_delta == meas.delta)):
                     m.next = "SCALE"
                 with m.Else():
                     m.d.comb += [div.start.eq(1), div.num.eq(time_num), div.den.eq(time_den)]
@@ -347,7 +350,7 @@ class ConsistencyStage(wiring.Component):
             with m.State("TIME"):
                 with m.If(~div.busy):
                     m.d.sync += [factor.eq(time_factor), cached.eq(1),
-                                 cached_camera.eq(camera)]
+                                 cached_camera.eq(camera), cached_delta.eq(meas.delta)]
                     m.next = "CAMERA"           # now cached: the products of the factor
             with m.State("SCALE"):
                 m.next = "INNOVATION"

@@ -173,23 +173,27 @@ class EngineParams:
         camera : range(cameras)
         centre : temporal.centre_fmt
             Window centre (pixels); the lane saturates it to ``±centre_range``.
-        source_row, row : unsigned(solver.row_bits)
+        segment_rows : ArrayLayout(unsigned(solver.row_bits), K)
+            The previous frame's row each of the camera's segments reads.
+        row : unsigned(solver.row_bits)
         last : 1
         """
         from amaranth.lib import data
         row = self.router.solver.row_bits
         return data.StructLayout({"camera": range(self.cameras),
                                   "centre": self.temporal.centre_fmt.shape(),
-                                  "source_row": row, "row": row, "last": 1})
+                                  "segment_rows": data.ArrayLayout(row, self.temporal.segments),
+                                  "row": row, "last": 1})
 
     def forecast_row_layout(self):
         """A whole forecast row (:class:`hdl.measurement.forecast_rows.ForecastRows`'
-        output): ``centre`` and ``source`` (the lane's ``row_bits``) per camera, and
-        the ``row`` key."""
+        output): ``centre`` and ``source`` (K rows of the lane's ``row_bits``, one per
+        segment) per camera, and the ``row`` key."""
         from amaranth.lib import data
+        segments = data.ArrayLayout(self.temporal.row_bits, self.temporal.segments)
         return data.StructLayout({
             "centre": data.ArrayLayout(self.temporal.centre_fmt.shape(), self.cameras),
-            "source": data.ArrayLayout(self.temporal.row_bits, self.cameras),
+            "source": data.ArrayLayout(segments, self.cameras),
             "row": self.router.solver.row_bits})
 
 

@@ -32,7 +32,8 @@ class ForecastRows(wiring.Component):
     -------
     i : In(stream.Signature(params.forecast_layout()))
     o : Out(stream.Signature(params.forecast_row_layout()))
-        ``centre[k]``, ``source[k]`` of camera ``k``; ``row``: the final transfer's.
+        ``centre[k]``, ``source[k]`` (its segments' rows) of camera ``k``; ``row``: the
+        final transfer's.
     malformed : Out(params.count_bits)
         Rows discarded (wrapping).
 
@@ -66,13 +67,16 @@ class ForecastRows(wiring.Component):
             m.d.sync += self.o.valid.eq(0)
 
         wrong = (beat.camera != position) | (beat.last != (position == last_camera))
+        segments = range(p.temporal.segments)
         if p.router.solver.row_bits > p.temporal.row_bits:
-            wrong |= beat.source_row[p.temporal.row_bits:].any()
+            for n in segments:
+                wrong |= beat.segment_rows[n][p.temporal.row_bits:].any()
         with m.If(self.i.valid & self.i.ready):
             for k in range(p.cameras):
                 with m.If(position == k):
                     m.d.sync += [row.centre[k].eq(beat.centre),
-                                 row.source[k].eq(beat.source_row)]
+                                 *[row.source[k][n].eq(beat.segment_rows[n])
+                                   for n in segments]]
             with m.If(beat.last):
                 m.d.sync += [position.eq(0), damaged.eq(0), row.row.eq(beat.row)]
                 with m.If(damaged | wrong):

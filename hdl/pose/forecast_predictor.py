@@ -1,5 +1,5 @@
 """The forecast's per-row predictor: from the forecast ``Ŷ``, a camera row and the depth
-cue of each of its segments, each camera's window centre and source row address
+cue of each of its segments, each camera's window centre and source row addresses
 (:meth:`emulator.pose.forecast.ForecastModel.predict` in gateware, bit for bit).
 
 Two lanes run side by side, one per coefficient store: the solver's store (the shift
@@ -14,14 +14,16 @@ lane, six terms, one per clock: the design entry ``a_i`` of the solver's arithme
 (``w·a_T`` or ``a_R + w·a_C``, rounded half-even into ``a_fmt``, saturated), then
 ``a_i·Ŷ_i`` summed exactly and rounded once into ``displacement_fmt`` (saturation
 flagged per segment). Per camera the K segment values are summed; the mean is rounded
-half-up (a shift: K must be a power of two) and saturated with a flag.
+half-up (a shift: K must be a power of two) and saturated with a flag. Each segment's
+displacement across rows is also rounded half-up on its own: the row its lane segment
+reads (``segment_rows``), saturated to the frame with a flag.
 
 Each lane has two multipliers: ``coef × cue`` (18 × 18 bits, one DSP48) and
 ``a × Ŷ`` (``a_fmt`` × ``motion_fmt``, 25 × 40 bits, two DSP48 and an adder), each
 with registered operands and product.
 """
 
-from amaranth.hdl import Array, Module, Mux, Signal, signed
+from amaranth.hdl import Array, Cat, Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out, connect, flipped
 
@@ -58,19 +60,28 @@ def output_layout(params):
     centre : signed
         Window centre (pixels), saturated to ``±centre_range``.
     source_row : unsigned(row_bits)
-        The previous frame's row to compare against, saturated to ``[0, height − 1]``.
+        The previous frame's row the camera's mean displacement names, saturated to
+        ``[0, height − 1]`` (a diagnostic: the lanes and the consistency stage use
+        ``segment_rows``; its saturations are ``counters.row``).
     centre_saturated, row_saturated : 1
         The centre or the row address was saturated.
     shift_saturated, across_saturated : K bits
         Segment ``k``'s predicted shift or across-rows displacement left
         ``displacement_fmt`` (bit ``k``; saturated before the mean).
+    segment_rows : ArrayLayout(unsigned(row_bits), K)
+        The previous frame's row each segment reads: ``row`` minus the segment's
+        displacement across rows rounded half-up, saturated to ``[0, height − 1]``.
+    segment_rows_saturated : K bits
+        Segment ``k``'s row address was saturated (bit ``k``).
     last : 1
     """
     return data.StructLayout({
         "camera": range(params.cameras), "row": params.solver.row_bits,
         "centre": signed(params.centre_range.bit_length() + 1),
         "source_row": params.solver.row_bits, "centre_saturated": 1, "row_saturated": 1,
-        "shift_saturated": params.segments, "across_saturated": params.segments, "last": 1,
+        "shift_saturated": params.segments, "across_saturated": params.segments,
+        "segment_rows": data.ArrayLayout(params.solver.row_bits, params.segments),
+        "segment_rows_saturated": params.segments, "last": 1,
     })
 
 
@@ -194,7 +205,7 @@ class RowPredictor(wiring.Component):
         y2 = Signal(p.motion_fmt.shape())
         m.d.sync += y2.eq(motion[stages[1].term])
 
-        means, flags = [], []
+        means, flags, values = [], [], []
         for lane, store in enumerate(self.stores):
             m.submodules[f"store{lane}"] = store
             slot, at, index = channel, row, tags[0].term
@@ -203,9 +214,10 @@ class RowPredictor(wiring.Component):
                                    _delayed(m, at, f"row{lane}_{n}"),
                                    _delayed(m, index, f"term{lane}_{n}"))
             m.d.comb += [store.slot.eq(slot), store.row.eq(at), store.term.eq(index)]
-            mean, flag = self._lane(m, lane, store, stages, cue1, y2)
+            mean, flag, value = self._lane(m, lane, store, stages, cue1, y2)
             means.append(mean)
             flags.append(flag)
+            values.append(value)
         if self.shared_port:
             connect(m, flipped(self.coef), self.stores[0].second_port)
 
@@ -214,6 +226,14 @@ class RowPredictor(wiring.Component):
         centre_over = (centre < -p.centre_range) | (centre > p.centre_range)
         row_over = (source < 0) | (source > p.height - 1)
         segments_over = sum(flag[n] for flag in flags for n in range(k))
+        # each segment's own row: its displacement across rows, rounded half-up
+        dst = p.displacement_fmt
+        whole_fmt = SQ(dst.int_bits + 1, 0)
+        across = Array(Signal(whole_fmt.shape(), name=f"across{n}") for n in range(k))
+        with m.If(stages[5].valid & (stages[5].term == 5)):
+            m.d.sync += across[stages[5].segment].eq(
+                hdl_resize(values[1], dst, whole_fmt, Rounding.HALF_UP, Overflow.ERROR))
+        segment_sources = [row - value for value in across]
         last_camera = camera == cameras - 1
         counters = self.counters
         with m.If(stages[6].valid & stages[6].end):
@@ -225,6 +245,10 @@ class RowPredictor(wiring.Component):
                 self.o.p.source_row.eq(_clamp(source, 0, p.height - 1)),
                 self.o.p.row_saturated.eq(row_over),
                 self.o.p.shift_saturated.eq(flags[0]), self.o.p.across_saturated.eq(flags[1]),
+                *[self.o.p.segment_rows[n].eq(_clamp(source, 0, p.height - 1))
+                  for n, source in enumerate(segment_sources)],
+                self.o.p.segment_rows_saturated.eq(
+                    Cat((source < 0) | (source > p.height - 1) for source in segment_sources)),
                 counters.centre.eq(counters.centre + centre_over),
                 counters.row.eq(counters.row + row_over),
                 counters.segment.eq(counters.segment + segments_over),
@@ -241,7 +265,8 @@ class RowPredictor(wiring.Component):
 
     def _lane(self, m, lane, store, tags, cue1, y2):
         """One store's datapath from its coefficients; returns (the camera mean of its
-        displacements, rounded half-up to pixels; the per-segment saturation flags)."""
+        displacements, rounded half-up to pixels; the per-segment saturation flags; each
+        segment's displacement, valid while ``tags[5]`` holds its sixth term)."""
         p, k = self.params, self.params.segments
         value, over = displacement_terms(m, p, store.params, store.first, store.second, tags,
                                          cue1, y2, f"{lane}")
@@ -257,7 +282,7 @@ class RowPredictor(wiring.Component):
         # the mean: ⌊sum / (K·2**frac) + 1/2⌋
         mean = hdl_resize(camera_sum, camera_fmt, SQ(camera_fmt.int_bits, 0), Rounding.HALF_UP,
                           Overflow.ERROR)
-        return mean, flags
+        return mean, flags, value
 
 
 def term_tag(params):

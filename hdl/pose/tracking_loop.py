@@ -203,11 +203,12 @@ class TrackingLoop(wiring.Component):
         })
 
     def context_layout(self):
-        """A forecast row's context: its row, ``Ŷ`` and each camera's ``source − row``."""
+        """A forecast row's context: its row, ``Ŷ`` and each segment's ``source − row``
+        (by solver slot: camera · K + segment)."""
         p, s = self.params, self.params.solver
         return data.StructLayout({
             "row": s.row_bits, "motion": data.ArrayLayout(p.motion_fmt.shape(), 6),
-            "delta": data.ArrayLayout(signed(s.row_bits + 1), p.cameras)})
+            "delta": data.ArrayLayout(signed(s.row_bits + 1), s.slots)})
 
     def elaborate(self, platform):
         p = self.params
@@ -236,14 +237,16 @@ class TrackingLoop(wiring.Component):
                      forecast.o.ready.eq(self.o.ready & contexts.w_rdy)]
         out = forecast.o.payload
         deltas = Signal(layout.members["delta"])
-        offset = (out.source_row - out.row).as_signed()
+        k = p.segments
+        offsets = [(out.segment_rows[n] - out.row).as_signed() for n in range(k)]
         written = Signal(layout)
         m.d.comb += [written.row.eq(out.row), written.motion.eq(forecast.motion),
-                     written.delta.eq(deltas), written.delta[out.camera].eq(offset),
+                     written.delta.eq(deltas),
+                     *[written.delta[out.camera * k + n].eq(offsets[n]) for n in range(k)],
                      contexts.w_data.eq(written.as_value()),
                      contexts.w_en.eq(self.o.valid & self.o.ready & out.last)]
         with m.If(self.o.valid & self.o.ready):
-            m.d.sync += deltas[out.camera].eq(offset)
+            m.d.sync += [deltas[out.camera * k + n].eq(offsets[n]) for n in range(k)]
 
         # --- the filter's updates → the motion track → Y, restarted with the filter
         connect(m, forecast.track, track.i)
@@ -267,7 +270,7 @@ class TrackingLoop(wiring.Component):
                      i.ready.eq(shift.i.ready & contexts.r_rdy),
                      take.eq(i.valid & i.ready),
                      contexts.r_en.eq(take & i.payload.last),
-                     q.motion.eq(context.motion), q.delta.eq(context.delta[camera]),
+                     q.motion.eq(context.motion), q.delta.eq(context.delta[i.payload.slot]),
                      *[getattr(q, name).eq(getattr(i.payload, name))
                        for name in i.payload.shape().members],
                      requests.write_en.eq(take & (i.payload.cue != 0)),

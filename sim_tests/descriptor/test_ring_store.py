@@ -15,7 +15,7 @@ from emulator.descriptor.matcher import descriptor_bits
 from emulator.hdl_sim.row_stimulus import frame_beats, inject_faults, moving_rows
 from emulator.row_descriptor import FollowedReferenceStoreModel, TemporalLaneModel
 from golden.descriptor import DescriptorParams, MatchParams
-from hdl.descriptor.params import RowDescriptorParams
+from hdl.descriptor.params import REFERENCE_WORD_BITS, RowDescriptorParams
 from hdl.descriptor.store import ReferenceStore
 from hdl.row_descriptor import RowDescriptor
 from sim_tests.descriptor.test_row_descriptor import check_latency, simulate
@@ -36,7 +36,7 @@ def rng_for(offset):
 class TwoBanks:
     """The specification the ring replaces (the former model): two banks of ``height``
     rows, frame ``f`` written into bank ``f mod 2``, any row of the previous frame
-    readable until its frame ends."""
+    readable until its frame ends; each stored word from its segment's row."""
 
     def __init__(self, params):
         self.params = params
@@ -48,33 +48,49 @@ class TwoBanks:
         p, kept = self.params, self.params.width - self.params.radius
         reference = np.zeros((len(rows), p.width), dtype=bool)
         none = np.ones(len(rows), dtype=bool)
-        for i, (row, source) in enumerate(zip(rows, sources)):
+        for i, (row, segment_sources) in enumerate(zip(rows, sources)):
             bank, previous = row.frame % 2, (row.frame - 1) % 2
-            if 0 <= source < p.height:
-                reference[i] = self.bits[previous, source]
-                none[i] = not (self.valid[previous, source] and self.frame[previous, source]
+            served = True
+            for q, k in enumerate(p.word_segments(row.centre)):
+                source = segment_sources[k]
+                if not 0 <= source < p.height:
+                    served = False
+                    continue
+                columns = slice(REFERENCE_WORD_BITS * q, REFERENCE_WORD_BITS * (q + 1))
+                reference[i, columns] = self.bits[previous, source, columns]
+                served &= bool(self.valid[previous, source] and self.frame[previous, source]
                                == (row.frame - 1) % (1 << p.frame_bits))
+            none[i] = not served
             self.bits[bank, row.row, :kept] = bits[i, :kept]
             self.valid[bank, row.row], self.frame[bank, row.row] = not row.bad, row.frame
         return reference, none
 
 
 def random_sources(rng, params, row_indices):
-    """A source row per row index: uniform inside the served range, on its upper
+    """K source rows per row index, each: uniform inside the served range, on its upper
     boundary (d = D + 1), just beyond it (d = D + 2), or far outside (−1, height, the
     largest row index), each a quarter of the time (the boundary cases where they
-    exist)."""
+    exist); a third of the rows name one row for every segment."""
     out = []
     for y in row_indices:
         lo = y - params.row_displacement - 1
-        kind = rng.integers(4)
-        if kind == 0 or (kind in (1, 2) and lo - (kind == 2) < 0):
-            out.append(int(rng.integers(max(lo, 0), params.height)))
-        elif kind in (1, 2):
-            out.append(int(lo - (kind == 2)))
-        else:
-            out.append(int(rng.choice([-1, params.height, (1 << params.row_bits) - 1])))
+        row = []
+        for _ in range(params.segments):
+            kind = rng.integers(4)
+            if kind == 0 or (kind in (1, 2) and lo - (kind == 2) < 0):
+                row.append(int(rng.integers(max(lo, 0), params.height)))
+            elif kind in (1, 2):
+                row.append(int(lo - (kind == 2)))
+            else:
+                row.append(int(rng.choice([-1, params.height, (1 << params.row_bits) - 1])))
+        out.append(row if rng.random() > 1 / 3 else [row[0]] * params.segments)
     return out
+
+
+def row_served(params, row, sources):
+    """Whether the ring serves every segment ``row`` (a FramedRow) reads."""
+    return all(params.source_in_range(row.row, sources[k])
+               for k in set(params.word_segments(row.centre)))
 
 
 def textured_rows(rng, params, n_frames, faults=0, frame0=65534):
@@ -88,9 +104,9 @@ def textured_rows(rng, params, n_frames, faults=0, frame0=65534):
 
 @pytest.mark.parametrize("faults", [0, 6])
 def test_ring_equals_two_banks_inside_the_range_and_flags_the_rest(faults):
-    """Random sources over five frames (frame numbers wrapping, bad rows): every request
-    the ring serves gives the two banks' bits and flag; every other one is flagged,
-    reads zeros and is counted."""
+    """Random sources over five frames (frame numbers wrapping, bad rows): every row the
+    ring serves gives the two banks' bits and flag; every other one is flagged and
+    counted, its out-of-range segments reading zeros."""
     rng = rng_for(faults)
     p = RING
     rows = textured_rows(rng, p, 5, faults)
@@ -99,11 +115,17 @@ def test_ring_equals_two_banks_inside_the_range_and_flags_the_rest(faults):
     ring = FollowedReferenceStoreModel(p)
     got, got_none = ring.exchange(rows, bits, sources)
     want, want_none = TwoBanks(p).exchange(rows, bits, sources)
-    served = np.array([p.source_in_range(r.row, s) for r, s in zip(rows, sources)])
+    served = np.array([row_served(p, r, s) for r, s in zip(rows, sources)])
     assert 0.1 < served.mean() < 0.95 and (~want_none[served]).sum() > 10
     np.testing.assert_array_equal(got[served], want[served])
     np.testing.assert_array_equal(got_none[served], want_none[served])
-    assert got_none[~served].all() and not got[~served].any()
+    assert got_none[~served].all()
+    for i in np.flatnonzero(~served):           # out-of-range segments read zeros
+        for q, k in enumerate(p.word_segments(rows[i].centre)):
+            columns = slice(REFERENCE_WORD_BITS * q, REFERENCE_WORD_BITS * (q + 1))
+            inside = p.source_in_range(rows[i].row, sources[i][k])
+            np.testing.assert_array_equal(got[i, columns],
+                                          want[i, columns] if inside else False)
     assert ring.out_of_range == (~served).sum()
 
 
@@ -123,7 +145,8 @@ def test_the_served_range_is_exact():
                     for f, r in [(0, r) for r in range(p.height)] + [(1, r) for r in
                                                                      range(y + 1)]]
             stack = np.concatenate([bits[0], bits[1][:y + 1]])
-            ref, none = store.exchange(rows, stack, [0] * p.height + [0] * y + [source])
+            ref, none = store.exchange(rows, stack, [[0, 0]] * (p.height + y) +
+                                       [[source, source]])
             inside = 0 <= source < p.height and y - source <= d + 1
             assert p.source_in_range(y, source) == inside
             assert none[-1] == (not inside), (y, source)
@@ -140,11 +163,37 @@ def test_a_lost_row_or_frame_is_flagged_never_replaced():
                       bad=False, padded=False)
             for f in (0, 1, 2, 4) for y in range(p.height) if (f, y) != (1, 3)]
     bits, _ = descriptor_bits(np.array([r.pixels for r in rows]), p)
-    sources = [r.row for r in rows]
+    sources = [[r.row] * p.segments for r in rows]
     _, none = FollowedReferenceStoreModel(p).exchange(rows, bits, sources)
     flagged = {(r.frame, r.row) for r, n in zip(rows, none) if n}
     assert flagged == ({(0, y) for y in range(p.height)} | {(2, 3)} |
                        {(4, y) for y in range(p.height)})
+
+
+@pytest.mark.parametrize("centre", [-4, 0, 4])
+def test_each_word_is_read_from_its_segment_s_row(centre):
+    """Row 4 of frame 1 names row 1 for segment 0 and row 6 for segment 1 (both served,
+    D = 2): the words whose middle column plus the centre lies in segment 0 come from
+    frame 0's row 1, the others from its row 6, and the row has a reference."""
+    p = RING
+    pixels = rng_for(4).integers(0, 256, (2, p.height, p.width))
+    bits = np.concatenate([descriptor_bits(pixels[f], p)[0] for f in range(2)])
+    rows = [FramedRow(pixels=pixels[f, y], camera=0, frame=f, row=y, t_first=0,
+                      centre=centre, bad=False, padded=False)
+            for f in range(2) for y in range(p.height)]
+    sources = [[y, y] for y in range(p.height)] * 2
+    sources[p.height + 4] = [1, 6]
+    ref, none = FollowedReferenceStoreModel(p).exchange(rows, bits, sources)
+    assert not none[p.height + 4]
+    segments = p.word_segments(centre)
+    assert set(segments) == {0, 1}
+    kept = p.width - p.radius
+    for q, k in enumerate(segments):
+        columns = slice(REFERENCE_WORD_BITS * q, min(REFERENCE_WORD_BITS * (q + 1), kept))
+        np.testing.assert_array_equal(ref[p.height + 4, columns], bits[[1, 6][k], columns])
+    middle = REFERENCE_WORD_BITS * np.arange(len(segments)) + REFERENCE_WORD_BITS // 2
+    start = p.segment_starts[0]
+    assert segments == tuple(int(x + centre >= start) for x in middle)
 
 
 def test_the_default_ring_fills_nine_block_rams_at_640x480():
@@ -181,8 +230,8 @@ def followed_beats(rng, params, n_frames, faults=0):
     frames, _ = moving_rows(rng, n_frames, params.height, params.width)
     beats = inject_faults(rng, frame_beats(frames, frame0=65534), params.width, faults)
     firsts = [i for i, b in enumerate(beats) if b["first"]]
-    sources = [s % (1 << params.row_bits)                          # the port is unsigned
-               for s in random_sources(rng, params, [beats[i]["row"] for i in firsts])]
+    sources = [[s % (1 << params.row_bits) for s in row]        # the port is unsigned
+               for row in random_sources(rng, params, [beats[i]["row"] for i in firsts])]
     centres = [int(c) for c in rng.integers(-params.centre_range - 2,
                                             params.centre_range + 3, len(firsts))]
     per_beat, k = [], -1
@@ -201,7 +250,7 @@ def test_following_lane_matches_model(traffic):
     rng = rng_for(10 + busy)
     beats, expected, out_of_range = followed_beats(rng, RING, 4)
     d = RING.row_displacement
-    displacements = {b["row"] - b["source"] for b in beats if b["first"]}
+    displacements = {b["row"] - s for b in beats if b["first"] for s in b["source"]}
     assert {d + 1, d + 2} <= displacements, "the stimulus misses the range's edge"
     assert out_of_range > 0 and any(not m["no_reference"] for m in expected)
     dut = RowDescriptor(RING, follow=True)

@@ -241,7 +241,8 @@ def test_following_the_own_row_is_the_plain_lane():
     rows = temporal_rows(rng_for(10), SMALL, 4, faults=3)
     plain = TemporalLaneModel(SMALL).process_rows(rows)
     following = TemporalLaneModel(SMALL, follow=True)
-    followed = [m for row in rows for m in following.process_rows([row], [row.row])]
+    followed = [m for row in rows
+                for m in following.process_rows([row], [[row.row] * SMALL.segments])]
     assert followed == plain
 
 
@@ -255,17 +256,18 @@ def test_a_followed_row_is_the_previous_frames_row_even_after_this_frame_wrote_i
     rows = [FramedRow(pixels=pixels[f, y], camera=0, frame=f, row=y, t_first=0, centre=0,
                       bad=False, padded=False) for f in range(2) for y in range(p.height)]
     store_lane = TemporalLaneModel(p, follow=True)
-    store_lane.process_rows(rows[:p.height], list(range(p.height)))     # frame 0
+    k = p.segments
+    store_lane.process_rows(rows[:p.height], [[y] * k for y in range(p.height)])  # frame 0
     store = store_lane.store
     bits, _ = descriptor_bits(pixels[1], p)
-    sources = [0, 1, 2, 3, 1, -1]
+    sources = [[y] * k for y in (0, 1, 2, 3, 1, -1)]
     reference, none = store.exchange(rows[p.height:], bits, sources)
     expected, _ = descriptor_bits(pixels[0], p)
     kept = p.width - p.radius
     np.testing.assert_array_equal(reference[4, :kept], expected[1, :kept])
     assert list(none) == [False] * 5 + [True]
     late = [dataclasses.replace(rows[0], frame=3)]        # frame 2 was never stored
-    _, none = store.exchange(late, bits[:1], [0])
+    _, none = store.exchange(late, bits[:1], [[0] * k])
     assert none[0]
 
 

@@ -126,20 +126,21 @@ def test_row_gates_need_a_confident_measurement_and_three_cameras():
     p = params()
     ones = SOLVER.conf_fmt.quantize(np.full(p.channels, 1.5))
     zero = np.zeros(p.channels, dtype=int)
+    near = [0] * p.channels                 # every segment read its own row
     # three cameras, confident: passes
-    out, verdict = ConsistencyModel(p).apply(transfers(zero, ones, range(3)), zero, [0] * 4)
+    out, verdict = ConsistencyModel(p).apply(transfers(zero, ones, range(3)), zero, near)
     assert not verdict["gated"] and all(t["conf"] for t in out)
     # two cameras: gated, every confidence 0
     model = ConsistencyModel(p)
-    out, verdict = model.apply(transfers(zero, ones, range(2)), zero, [0] * 4)
+    out, verdict = model.apply(transfers(zero, ones, range(2)), zero, near)
     assert verdict["gated"] and not any(t["conf"] for t in out)
     assert model.counts["gated_rows"] == 1
     # four cameras but no confidence reaches min_confidence 1
     weak = SOLVER.conf_fmt.quantize(np.full(p.channels, 0.75))
-    _, verdict = ConsistencyModel(p).apply(transfers(zero, weak), zero, [0] * 4)
+    _, verdict = ConsistencyModel(p).apply(transfers(zero, weak), zero, near)
     assert verdict["gated"]
     _, verdict = ConsistencyModel(p.replace(min_confidence=0.5)).apply(
-        transfers(zero, weak), zero, [0] * 4)
+        transfers(zero, weak), zero, near)
     assert not verdict["gated"]
 
 
@@ -148,10 +149,17 @@ def test_a_camera_compared_too_far_off_gets_no_confidence():
     model = ConsistencyModel(p)
     ones = SOLVER.conf_fmt.quantize(np.full(p.channels, 1.5))
     zero = np.zeros(p.channels, dtype=int)
-    out, _ = model.apply(transfers(zero, ones), zero, [0, 5, -4, -5])
+    out, _ = model.apply(transfers(zero, ones), zero, np.repeat([0, 5, -4, -5], K))
     conf = np.array([t["conf"] for t in out]).reshape(CAMERAS, K)
     assert conf[[0, 2]].all() and not conf[[1, 3]].any()
     assert model.counts["far_rows"] == 2
+    # per segment: one segment of camera 0 read a row too far off, camera 1's are near
+    delta = np.repeat([0, 1, 0, 0], K)
+    delta[1] = 5
+    out, _ = model.apply(transfers(zero, ones), zero, delta)
+    conf = np.array([t["conf"] for t in out])
+    assert not conf[1] and np.delete(conf, 1).all()
+    assert model.counts["far_rows"] == 3
 
 
 def test_saturation_at_the_format_extremes_is_counted_not_raised():

@@ -177,27 +177,38 @@ def test_row_rate(recorded, bits_per_clock):
     check_against_model(params, [row], got)
     dut = ConsistencyStage(params, bits_per_clock=bits_per_clock)
     clocks = got["out_cycles"][-1] - got["in_cycles"][0]
-    bound = len(row[0]) * dut.update_clocks + params.cameras * dut.time_clocks + dut.latency
+    # a division P/(P − Δ) wherever the camera or the segment's Δ changes
+    keys = [(t["slot"] // params.segments, int(row[2][t["slot"]])) for t in row[0]]
+    divisions = 1 + sum(a != b for a, b in zip(keys, keys[1:]))
+    bound = len(row[0]) * dut.update_clocks + divisions * dut.time_clocks + dut.latency
     print(f"bits_per_clock {bits_per_clock}: latency {dut.latency}, update "
           f"{dut.update_clocks}; row of {len(row[0])} measurements "
-          f"({sum(t['conf'] > 0 for t in row[0])} with confidence): {clocks} clocks "
-          f"(bound {bound})")
+          f"({sum(t['conf'] > 0 for t in row[0])} with confidence, {divisions} time "
+          f"divisions): {clocks} clocks (bound {bound})")
     assert clocks <= bound
 
 
-def test_latency():
-    """One row of two measurements per camera, no gaps: a camera's first measurement
-    ``latency + time_clocks`` clocks from its transfer to ``o.valid``, its second
-    ``latency``."""
+@pytest.mark.parametrize("apart", [False, True], ids=["one_row_per_camera",
+                                                      "a_row_per_segment"])
+def test_latency(apart):
+    """One row of two measurements per camera, no gaps: a measurement whose camera or
+    row offset differs from the previous one's ``latency + time_clocks`` clocks from its
+    transfer to ``o.valid`` (the division ``P/(P − Δ)``), one that shares both
+    ``latency``: a camera's segments that read one row share the division, segments
+    that read their own rows pay one each."""
     rows = random_rows(SMALL, np.random.default_rng(SEED), 1)
     transfers = [{**t, "slot": k, "last": int(k == SMALL.channels - 1), "conf": 0}
                  for k, t in enumerate([rows[0][0][0]] * SMALL.channels)]
-    got = run_stage(SMALL, [(transfers, rows[0][1], rows[0][2])], seed=SEED, gaps=False)
+    delta = np.repeat(np.arange(SMALL.cameras) % 3, SMALL.segments)
+    delta[1::SMALL.segments] += apart
+    got = run_stage(SMALL, [(transfers, rows[0][1], delta)], seed=SEED, gaps=False)
     dut = ConsistencyStage(SMALL)
     took = [o - i for i, o in zip(got["in_cycles"], got["out_cycles"])]
     print("latency", dut.latency, "time", dut.time_clocks, "update", dut.update_clocks,
           "measured", took)
-    assert took == [dut.latency + dut.time_clocks, dut.latency] * SMALL.cameras
+    assert SMALL.segments == 2
+    second = dut.latency + dut.time_clocks * apart
+    assert took == [dut.latency + dut.time_clocks, second] * SMALL.cameras
 
 
 def test_the_gates_compare_the_product_with_the_rounding_floor():

@@ -51,7 +51,9 @@ def test_model_equals_the_closed_loop(loop):
     params, result = loop.params, loop.result
     history = result.loop
     assert history["centre"].any(), "the forecast never moved a window"
-    assert (history["source_row"] != history["row"][:, None]).any(), "no row was followed"
+    rows = history["segment_rows"]
+    assert (rows != history["row"][:, None, None]).any(), "no row was followed"
+    assert (rows != rows[..., :1]).any(), "no camera row read its segments from two rows"
     got = run_engine(params, loop.row_sets, configs(params, len(loop.row_sets)), loop.forecast)
     assert len(got.transfers) == len(result.transfers) == FRAMES * 6 * params.router.solver.slots
     for n, (g, e) in enumerate(zip(got.transfers, result.transfers)):
@@ -66,7 +68,8 @@ def test_model_equals_the_closed_loop(loop):
     other = run_engine(no_fallback, loop.row_sets, configs(params, len(loop.row_sets)),
                        loop.forecast)
     assert other.transfers != got.transfers
-    fixed = [{**t, "centre": 0, "source_row": t["row"]} for t in loop.forecast]
+    fixed = [{**t, "centre": 0, "segment_rows": [t["row"]] * params.temporal.segments}
+             for t in loop.forecast]
     other = run_engine(params, loop.row_sets, configs(params, len(loop.row_sets)), fixed)
     assert other.transfers != got.transfers
 
@@ -121,16 +124,21 @@ def test_damaged_forecasts_are_counted_and_never_misapplied(loop):
 
 def test_forecast_rows_gathers_and_discards():
     params = closed_loop_params()
+    k = params.temporal.segments
+    sources = [[c + n for n in range(k)] for c in range(4)]     # row_bits = 3
     good = forecast_transfers({"row": [3], "centre": [[1, -2, 3, -4]],
-                               "source_row": [[2, 3, 4, 5]]})
+                               "segment_rows": [sources]})
     rows, malformed = forecast_rows(params, good)
-    assert rows == [{"row": 3, "centre": [1, -2, 3, -4], "source": [2, 3, 4, 5]}]
+    assert rows == [{"row": 3, "centre": [1, -2, 3, -4], "source": sources}]
     assert malformed == 0
     early = [dict(t) for t in good]
     early[1]["last"] = 1                       # a row cut short, then a stray rest
     rows, malformed = forecast_rows(params, early + good)
     assert (rows, malformed) == ([{"row": 3, "centre": [1, -2, 3, -4],
-                                   "source": [2, 3, 4, 5]}], 2)
+                                   "source": sources}], 2)
+    wide = [dict(t) for t in good]             # a segment's row beyond the lanes' row_bits
+    wide[2]["segment_rows"] = sources[2][:-1] + [1 << params.temporal.row_bits]
+    assert forecast_rows(params, wide) == ([], 1)
     long = good[:3] + [dict(good[2], last=0)] + good[3:]
     assert forecast_rows(params, long) == ([], 1)
 
@@ -166,6 +174,6 @@ def test_ports_follow_the_option():
     assert "temporal" in dict(engine_config_layout(params.replace(follow=False)).members)
     engine = MeasurementEngine(params)
     assert dict(params.forecast_layout().members).keys() == {
-        "camera", "centre", "source_row", "row", "last"}
+        "camera", "centre", "segment_rows", "row", "last"}
     assert "forecast" in engine.signature.members
     assert "forecast" not in MeasurementEngine(params.replace(follow=False)).signature.members

@@ -36,7 +36,8 @@ def params():
 
 
 def _forecast_row(params, rng, row):
-    return [{"camera": k, "centre": rng.randint(-40, 40), "source_row": rng.randrange(HEIGHT),
+    return [{"camera": k, "centre": rng.randint(-40, 40),
+             "segment_rows": [rng.randrange(HEIGHT) for _ in range(params.temporal.segments)],
              "row": row, "last": int(k == params.cameras - 1)} for k in range(params.cameras)]
 
 
@@ -152,7 +153,8 @@ def test_forecast_join_matches_model(params, busy):
         for g, b, c, s in zip(got, beats, centres, sources):
             assert {name: g[name] for name in b} == b, f"temporal lane {k}"
             if b["first"]:          # the lane samples centre and source with it
-                assert (g["centre"], g["source"]) == (c, s), f"temporal lane {k}, {b}"
+                source = [g["source"][n] for n in range(len(s))]
+                assert (g["centre"], source) == (c, list(s)), f"temporal lane {k}, {b}"
     temporal = [out["temporal"].get(k, []) for k in range(params.cameras)]
     for j, (beats_a, _, beats_b) in enumerate(model.stereo):
         assert stereo_beats(params, temporal, j) == [beats_a, beats_b], f"stereo lane {j}"

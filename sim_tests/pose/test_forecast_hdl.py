@@ -48,11 +48,13 @@ def simulate(dut, case, *, gaps=False, seed=0, limit=200000, setup=None, record_
                 payload = ctx.get(dut.o.payload)
                 if payload.camera == 0:
                     motions.append([ctx.get(dut.motion[i]) for i in range(6)])
-                outputs.append((cycle, {name: getattr(payload, name) for name in
-                                        ("camera", "row", "centre", "source_row",
-                                         "centre_saturated",
-                                         "row_saturated", "shift_saturated",
-                                         "across_saturated", "last")}))
+                fields = {name: getattr(payload, name) for name in
+                          ("camera", "row", "centre", "source_row", "centre_saturated",
+                           "row_saturated", "shift_saturated", "across_saturated",
+                           "segment_rows_saturated", "last")}
+                fields["segment_rows"] = {n: payload.segment_rows[n]
+                                          for n in range(len(payload.segment_rows))}
+                outputs.append((cycle, fields))
             await ctx.tick()
             cycle += 1
         counters.update({name: ctx.get(getattr(dut.counters, name))

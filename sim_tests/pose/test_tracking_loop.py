@@ -22,7 +22,7 @@ from sim_tests.pose.tracking_loop.stimulus import closed_loop_case, restart_afte
 
 SEED = int(os.environ.get("SEED", "1"))
 OUT_FIELDS = ("camera", "row", "centre", "source_row", "centre_saturated", "row_saturated",
-              "shift_saturated", "across_saturated", "last")
+              "shift_saturated", "across_saturated", "segment_rows_saturated", "last")
 
 
 def build(case):
@@ -90,7 +90,10 @@ def run_loop(case, *, seed, gaps, limit=400000):
             was_shown = shown and not ctx.get(predicted.ready)
             if ready and ctx.get(dut.o.valid):
                 payload = ctx.get(dut.o.payload)
-                got["o"].append((cycle, {n: getattr(payload, n) for n in OUT_FIELDS}))
+                fields = {n: getattr(payload, n) for n in OUT_FIELDS}
+                fields["segment_rows"] = {n: payload.segment_rows[n]
+                                          for n in range(len(payload.segment_rows))}
+                got["o"].append((cycle, fields))
             taking = [rng.random() < prob for _ in range(2)]
             ctx.set(dut.verdicts.ready, taking[0])
             ctx.set(dut.records.ready, taking[1])

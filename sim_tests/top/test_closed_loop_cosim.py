@@ -166,14 +166,14 @@ def test_closed_loop_top_equals_the_emulator_on_icarus():
 
 def _forecast_columns(rows, cameras, layout, start=10, gap=3):
     """Forecast transfers as the engine takes them, ``(clock, raw)``: ``rows`` of
-    ``(row, centres, sources)``, one transfer per camera, a clock apart, rows ``gap``
-    clocks apart."""
+    ``(row, centres, sources)`` (``sources``: per camera, its segments' rows), one
+    transfer per camera, a clock apart, rows ``gap`` clocks apart."""
     from emulator.hdl_sim.payload import pack
     columns, clock = [], start
     for row, centres, sources in rows:
         for c in range(cameras):
             columns.append((clock, pack(layout, {"camera": c, "centre": centres[c],
-                                                 "source_row": sources[c], "row": row,
+                                                 "segment_rows": sources[c], "row": row,
                                                  "last": int(c == cameras - 1)})))
             clock += 1
         clock += gap
@@ -193,14 +193,16 @@ def test_forecast_rows_are_grouped_compared_and_timed():
     corrupted centre is one mismatch, located."""
     from emulator.cosim import compare_records
     from emulator.cosim_loop import FORECAST_FIELDS, _forecast_rows
-    layout = _small_engine().forecast_layout()
-    rows = [(0, (-3, 5), (7, 7)), (1, (0, -1), (1, 0)), (2, (2, 2), (2, 3))]
+    engine = _small_engine()
+    layout, k = engine.forecast_layout(), engine.temporal.segments
+    rows = [(0, (-3, 5), ([7] * k, [7] * k)), (1, (0, -1), ([1] * k, list(range(k)))),
+            (2, (2, 2), ([2] * k, [3] * k))]
     columns = _forecast_columns(rows, 2, layout)
     stalls = [columns[2][0] - 2, columns[2][0] - 1]    # row 1 offered 2 clocks early
     got, offered, taken = _forecast_rows(layout, columns, stalls)
     assert got["row"].tolist() == [0, 1, 2]
     assert got["centre"].tolist() == [[-3, 5], [0, -1], [2, 2]]
-    assert got["source_row"].tolist() == [[7, 7], [1, 0], [2, 3]]
+    assert got["segment_rows"].tolist() == [list(sources) for _, _, sources in rows]
     assert offered == [10, columns[2][0] - 2, columns[4][0]]
     assert taken == [columns[1][0], columns[3][0], columns[5][0]]
     want = {k: np.array(v) for k, v in got.items()}
@@ -209,6 +211,9 @@ def test_forecast_rows_are_grouped_compared_and_timed():
     mismatches, first = compare_records(got, want, [0, 0, 1], FORECAST_FIELDS)
     assert mismatches == 1
     assert first == "record 1 (frame 0, row 1): centre[1] HDL -1 ≠ emulator 1"
+    want = {k: np.array(v) for k, v in got.items()}
+    want["segment_rows"][2, 1, k - 1] = 4                  # one segment's row address
+    assert compare_records(got, want, [0, 0, 1], FORECAST_FIELDS)[0] == 1
 
 
 def test_track_rows_are_unpacked_signed_and_compared():

@@ -24,9 +24,9 @@ ROWS, FRAMES, SEED, SEGMENTS = 32, 3, 1, 4
 def closed_loop_stimulus(path):
     """Path of an ``.npz`` made once and kept at ``path`` (under ``build/``): ``pixels``
     (F, H, W) of the camera whose forecast reads rows above its own most (the direction
-    the ring's D limits), its ``centre``
-    and ``source`` (F·H,) as the loop set them, ``camera``, and the pipeline's
-    measurements of that camera as ``expected`` (F·H·K, fields ``fields``); the
+    the ring's D limits), its ``centre`` and ``source`` (F·H, K: each segment's row) as
+    the loop set them, ``camera``, and the pipeline's measurements of that camera as
+    ``expected`` (F·H·K, fields ``fields``); the
     pipeline's lane parameters beside it (:func:`loop_lane`)."""
     if path.exists() and path.with_suffix(".pkl").exists():
         return path
@@ -44,7 +44,7 @@ def closed_loop_stimulus(path):
     measured = [m for m in result.temporal if m["camera"] == camera]
     fields = sorted(measured[0])
     np.savez(path, pixels=dataset.cameras[camera].rows[:FRAMES], camera=camera,
-             centre=loop["centre"][:, camera], source=loop["source_row"][:, camera],
+             centre=loop["centre"][:, camera], source=loop["segment_rows"][:, camera],
              fields=np.array(fields),
              expected=np.array([[m[k] for k in fields] for m in measured], dtype=np.int64))
     path.with_suffix(".pkl").write_bytes(pickle.dumps(config.router.temporal))

@@ -38,19 +38,21 @@ def stimulus(params, rng):
     cut = pixels[:, :height, x0:x0 + params.width]
     n_random = 6 if os.environ.get("RUN_SLOW") else 2
     frames = np.concatenate([cut, cut[np.arange(n_random) % n_loop]])
-    sources = loop["source"].reshape(n_loop, -1)[:, :height].ravel().tolist()
+    k = loop["source"].shape[-1]          # the loop's segments; every (k/K)-th for K < k
+    sources = loop["source"].reshape(n_loop, -1, k)[:, :height, ::k // params.segments]
+    sources = sources.reshape(-1, params.segments).tolist()
     centres = loop["centre"].reshape(n_loop, -1)[:, :height].ravel().tolist()
-    sources += [s % (1 << params.row_bits) for s in random_sources(
+    sources += [[s % (1 << params.row_bits) for s in row] for row in random_sources(
         rng, params, list(range(height)) * n_random)]
     centres += rng.integers(-params.centre_range - 2, params.centre_range + 3,
                             n_random * height).tolist()
     lost_y = int(rng.integers(height))            # lost in the first random frame,
-    sources[(n_loop + 1) * height + lost_y] = lost_y   # asked for by the next one
+    sources[(n_loop + 1) * height + lost_y] = [lost_y] * params.segments  # asked for next
     beats = frame_beats(frames, camera=int(loop["camera"]) % (1 << params.camera_bits),
                         frame0=(1 << params.frame_bits) - 2, frame_bits=params.frame_bits)
     for k in range(len(frames) * height):
         for beat in beats[k * params.width:(k + 1) * params.width]:
-            beat.update(centre=int(centres[k]), source=int(sources[k]))
+            beat.update(centre=int(centres[k]), source=[int(r) for r in sources[k]])
     lost = n_loop * height + lost_y
     del beats[lost * params.width:(lost + 1) * params.width]
     del sources[lost], centres[lost]

@@ -43,7 +43,7 @@ def check_against_model(params, rows, got):
                 f"row {r} transfer {k}: hardware {g}, model {w} {verdict}"
             assert (0 if row_gated else g["conf"]) == w["conf"], f"row {r} transfer {k}"
             if "judged" in got:
-                far = abs(int(delta[w["slot"] // params.segments])) > params.max_row_offset
+                far = abs(int(delta[w["slot"]])) > params.max_row_offset
                 assert got["judged"][n] == int(transfers[k]["conf"] != 0 and not far), \
                     f"row {r} transfer {k} judged"
                 assert got["outlier"][n] == int(verdict["outlier"][k]), \
@@ -59,9 +59,9 @@ def check_against_model(params, rows, got):
 
 def judge_inputs(params, rows):
     """The stage's input transfers of rows ``(transfers, predicted, delta)``: each
-    transfer with its slot's ``predicted`` shift and its camera's ``delta``."""
+    transfer with its slot's ``predicted`` shift and ``delta``."""
     return [{**t, "predicted": int(predicted[t["slot"]]),
-             "delta": int(delta[t["slot"] // params.segments])}
+             "delta": int(delta[t["slot"]])}
             for transfers, predicted, delta in rows for t in transfers]
 
 
@@ -86,6 +86,10 @@ def random_rows(params, rng, count):
         predicted[rng.random(params.channels) < 0.05] = params.predicted_fmt.min_raw
         delta = rng.integers(-s.rows + 1, s.rows, params.cameras)
         delta[rng.random(params.cameras) < 0.6] = 0
+        delta = np.repeat(delta, params.segments)   # per segment: the camera's, or near it
+        apart = rng.random(params.channels) < 0.3
+        delta[apart] = np.clip(delta[apart] + rng.integers(-2, 3, apart.sum()),
+                               -s.rows + 1, s.rows - 1)
         row = int(rng.integers(0, s.rows))
         transfers = [{"slot": int(sl), "row": row, "time": int(rng.integers(0, 1 << 32)),
                       "shift": int(sh), "cue": int(rng.integers(s.cue_fmt.min_raw,

@@ -70,10 +70,10 @@ def row_sets(config, dataset, frames, frame0=0):
 def forecast_transfers(loop):
     """The closed loop's forecast per row set as the engine's ``forecast`` transfers."""
     out = []
-    for row, centres, sources in zip(loop["row"], loop["centre"], loop["source_row"]):
+    for row, centres, sources in zip(loop["row"], loop["centre"], loop["segment_rows"]):
         cameras = len(centres)
-        out += [{"camera": k, "centre": int(c), "source_row": int(s), "row": int(row),
-                 "last": int(k == cameras - 1)}
+        out += [{"camera": k, "centre": int(c), "segment_rows": [int(r) for r in s],
+                 "row": int(row), "last": int(k == cameras - 1)}
                 for k, (c, s) in enumerate(zip(centres, sources))]
     return out
 
@@ -112,7 +112,8 @@ def priming(params, frame0):
         for y in range(lane.height):
             sets.append({k: row_beats(black, camera=k, frame=frame, row=y)
                          for k in range(params.cameras)})
-            forecast += [{"camera": k, "centre": 0, "source_row": y, "row": y,
+            forecast += [{"camera": k, "centre": 0, "segment_rows": [y] * lane.segments,
+                          "row": y,
                           "last": int(k == params.cameras - 1)} for k in range(params.cameras)]
     return sets, forecast
 
