@@ -27,7 +27,6 @@ import numpy as np
 
 from golden.descriptor import describe, match, strength
 from golden.pose_lsq import UNKNOWNS, ShiftCoefficients, body_step, quat_to_matrix, solve_step
-from hdl.descriptor.params import REFERENCE_WORD_BITS
 
 __all__ = ["true_steps", "golden_steps", "golden_poses", "golden_trajectory_steps",
            "float_steps", "agreement",
@@ -339,11 +338,8 @@ def _lane_measurements(path):
 def followed_rows(lane, bits, frames, sources, centre):
     """The reference rows (n, W) following lanes read from descriptor bits ``bits``
     (frames, H, W): row ``sources[i]`` (K rows, one per segment) of frame ``frames[i]``,
-    word by word as ``lane.word_segments(centre)`` picks the segment (the columns after
-    the last stored word with the last word's segment)."""
-    segments = np.array(lane.word_segments(centre))
-    columns = np.arange(bits.shape[-1]) // REFERENCE_WORD_BITS
-    pick = segments[np.minimum(columns, len(segments) - 1)]           # (W,)
+    each column from its segment's row (``lane.column_segments(centre)``)."""
+    pick = np.array(lane.column_segments(centre))                      # (W,)
     rows = np.asarray(sources)[:, pick]                                # (n, W)
     return bits[np.asarray(frames)[:, None], rows, np.arange(bits.shape[-1])]
 

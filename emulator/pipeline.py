@@ -63,7 +63,8 @@ class PipelineResult:
         Closed loop only (``forecast`` given): per row set, in order, ``frame``, ``row``,
         ``slot``, the forecast ``centre`` and ``source_row`` (n, cameras) it used and its
         saturation flags, ``segment_rows`` (n, cameras, K) the rows its lanes read, and
-        ``level`` (n, 6) the filter's level after the row's step (raw ``motion_fmt``); with a consistency stage also ``counts``, its counters
+        ``level`` (n, 6) the filter's level after the row's step (raw ``motion_fmt``);
+        with a consistency stage also ``counts``, its counters
         (:class:`emulator.measurement.consistency.ConsistencyModel`), and ``row_counts``
         (records, 4): each record's row's ``(judged, outliers, confident,
         determinable)``, the tracking-status unit's per-row input.

@@ -29,7 +29,6 @@ import numpy as np
 
 from emulator.descriptor.framer import frame_rows
 from emulator.descriptor.matcher import descriptor_bits, measure_rows
-from hdl.descriptor.params import REFERENCE_WORD_BITS
 
 __all__ = ["ReferenceStoreModel", "FollowedReferenceStoreModel", "TemporalLaneModel", "StereoLaneModel", "stereo_pairs"]
 
@@ -145,7 +144,7 @@ class FollowedReferenceStoreModel:
         ``(reference bits (N, width), no_reference (N,))``, one row after the other as
         they arrive."""
         p, n = self.params, len(rows)
-        size, kept, word = p.ring_rows, p.width - p.radius, REFERENCE_WORD_BITS
+        size, kept = p.ring_rows, p.width - p.radius
         sources = np.asarray(sources, dtype=np.int64).reshape(n, p.segments)
         reference = np.zeros((n, p.width), dtype=bool)
         no_reference = np.ones(n, dtype=bool)
@@ -155,22 +154,16 @@ class FollowedReferenceStoreModel:
                 self.base = (self.base + p.height) % size
             if row.row >= p.height:
                 continue
-            segments = p.word_segments(row.centre)
-            served = True
-            for k in sorted(set(segments)):
-                source = int(sources[i, k])
-                if not p.source_in_range(row.row, source):
-                    served = False
-                    continue
-                slot = (self.previous_base + source) % size
-                for q in np.flatnonzero(np.array(segments) == k):
-                    columns = slice(word * q, min(word * (q + 1), kept))
-                    reference[i, columns] = self.bits[slot, columns]
-                served &= bool(self.tag_valid[slot] and self.tag_row[slot] == source and
-                               self.tag_frame[slot] == (row.frame - 1) % (1 << p.frame_bits))
-            no_reference[i] = not served
-            self.out_of_range += not all(p.source_in_range(row.row, int(sources[i, k]))
-                                         for k in set(segments))
+            pick = np.array(p.column_segments(row.centre)[:kept])      # each column's
+            inside = np.array([p.source_in_range(row.row, int(s)) for s in sources[i]])
+            slots = (self.previous_base + sources[i]) % size
+            read = np.unique(pick)                                     # the segments read
+            reference[i, :kept] = inside[pick] & self.bits[slots[pick], np.arange(kept)]
+            no_reference[i] = not all(
+                inside[k] and self.tag_valid[slots[k]] and self.tag_row[slots[k]] == sources[i, k]
+                and self.tag_frame[slots[k]] == (row.frame - 1) % (1 << p.frame_bits)
+                for k in read)
+            self.out_of_range += not inside[read].all()
             slot = (self.base + row.row) % size
             self.bits[slot, :kept] = bits[i, :kept]
             self.tag_valid[slot], self.tag_frame[slot] = not row.bad, row.frame

@@ -197,6 +197,14 @@ class RowDescriptorParams:
                          for start in self.segment_starts)
                      for q in range(self.reference_words))
 
+    def column_segments(self, centre):
+        """:meth:`word_segments` per column ``0 … width − 1`` (tuple): each column the
+        segment of its word; the border columns after the last stored word take the
+        last word's."""
+        words = self.word_segments(centre)
+        return tuple(words[min(x // REFERENCE_WORD_BITS, len(words) - 1)]
+                     for x in range(self.width))
+
     def clamp_centre(self, centre):
         """The centre the hardware uses: saturated to ``±centre_range``."""
         return int(max(-self.centre_range, min(self.centre_range, int(centre))))
@@ -373,9 +381,9 @@ class RowDescriptorParams:
     def input_layout(self, follow=False, paired=False):
         """The camera pixel stream this lane consumes (one pixel per transfer); with
         ``follow`` each beat also carries its row's window centre and its segments'
-        source rows (``hdl.streams.followed_pixel_layout``); with ``paired`` a ``paired`` bit,
-        sampled with the row's first beat: the row also goes to the pair's stereo lane
-        (``hdl.row_descriptor.RowDescriptor``)."""
+        source rows (``hdl.streams.followed_pixel_layout``); with ``paired`` a ``paired``
+        bit, sampled with the row's first beat: the row also goes to the pair's stereo
+        lane (``hdl.row_descriptor.RowDescriptor``)."""
         from amaranth.lib import data
 
         from hdl.streams import camera_pixel_layout, followed_pixel_layout
