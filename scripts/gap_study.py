@@ -119,11 +119,12 @@ def _track_frame():
     return patched(pl._Loop, "measure", measure)
 
 
-def oracle_cue_patch(dataset, config, columns="own"):
+def oracle_cue_patch(dataset, config, columns="own", own_role=None):
     """route_row's cues replaced by the true disparity: ``columns`` "own": of each
     camera's own temporal segment (its columns at the run-time centre); "stereo": camera
     A's over the stereo segment the router maps the temporal segment to, for both
-    cameras of the pair (what a perfect stereo lane would give the hardware)."""
+    cameras of the pair (what a perfect stereo lane would give the hardware).
+    ``own_role`` "A" or "B": "own" for that camera of each pair, "stereo" for the other."""
     import emulator.pipeline as pl
     from golden.depth import stereo_pairs
     from golden.depth_maps import OracleDepth
@@ -148,7 +149,8 @@ def oracle_cue_patch(dataset, config, columns="own"):
         for t in out:
             n, k = divmod(t["slot"], lane.segments)
             m = by_slot[(n, k)]
-            if columns == "own":
+            role = "A" if params.pair_of[n] == n else "B"
+            if (columns == "own") if own_role is None else role == own_role:
                 centre = int(_Current.centres[n]) if _Current.centres is not None else 0
                 lo, hi = segment_bounds(lane.width, lane.descriptor, lane.match, centre)[k]
                 z = inv(n, _Current.frame)[t["row"], lo:hi]
