@@ -21,7 +21,9 @@ sequence (12 frames, noise σ = 2; the first ``--frames`` used). Runs (``--only`
   true disparity over the stereo segment, for both cameras); ``oracle_own_a`` /
   ``oracle_own_b``: "own" for camera A (B) of each pair, "stereo" for the other;
 * ``column_cue``: the hardware path with each temporal segment's cue taken from the
-  stereo segments its columns overlap (:func:`column_cue_patch`), the measured cues.
+  stereo segments its columns overlap (:func:`column_cue_patch`), the measured cues;
+  ``centre_cue``: the same cues interpolated at the segment's centre column
+  (:func:`centre_cue_patch`).
 """
 
 import argparse
@@ -105,6 +107,53 @@ def column_cue_patch(config):
     return gap_study.patched(pl, "route_row", route_row)
 
 
+def centre_cue_patch(config):
+    """As :func:`column_cue_patch`, but the hardware-friendly form: the stereo cues
+    interpolated linearly at the segment's centre column (camera B's shifted by its
+    disparity) between the two stereo segment centres around it (equally spaced: a
+    constant reciprocal), the nearer alone where the other is not usable, the end
+    segment's beyond the first or last centre (no extrapolation)."""
+    import emulator.pipeline as pl
+    from emulator.measurement.router import usable_cues
+    from golden.descriptor import segment_bounds
+    lane, stereo = config.router.temporal, config.router.stereo
+    temporal_centres = [(lo + hi - 1) / 2 for lo, hi in
+                        segment_bounds(lane.width, lane.descriptor, lane.match)]
+    stereo_centres = np.array([(lo + hi - 1) / 2 for lo, hi in
+                               segment_bounds(stereo.width, stereo.descriptor, stereo.match)])
+    original = pl.route_row
+
+    def route_row(params, temporal, stereo_records, fallback=None):
+        out = original(params, temporal, stereo_records, fallback)
+        fmt = params.solver.cue_fmt
+        cues = {**(fallback or {}), **usable_cues(params, stereo_records)}
+        edge = {(m["camera"], m["segment"]): m["edge_hit"] for m in temporal}
+        for t in out:
+            n, k = divmod(t["slot"], lane.segments)
+            a = params.pair_of[n]
+            x = temporal_centres[k]
+            if a != n:
+                own = cues.get((a, k * stereo.segments // lane.segments))
+                x += fmt.to_float(own) if own is not None else 0.0
+            x = min(max(x, stereo_centres[0]), stereo_centres[-1])
+            j = min(int(np.searchsorted(stereo_centres, x, side="right")) - 1,
+                    len(stereo_centres) - 2) if len(stereo_centres) > 1 else 0
+            w = 0.0 if len(stereo_centres) == 1 else \
+                (x - stereo_centres[j]) / (stereo_centres[j + 1] - stereo_centres[j])
+            near = [(j, 1 - w), (j + 1, w)] if len(stereo_centres) > 1 else [(0, 1.0)]
+            got = [(fmt.to_float(cues[(a, i)]), v) for i, v in near if (a, i) in cues]
+            if len(got) == 2:
+                cue = got[0][0] * got[0][1] + got[1][0] * got[1][1]
+            elif got:
+                cue = got[0][0]
+            if got and not edge[(n, k)]:
+                t["cue"] = int(fmt.quantize(cue))
+            else:
+                t["conf"] = 0
+        return out
+    return gap_study.patched(pl, "route_row", route_row)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--segments", type=int, default=8)
@@ -132,6 +181,7 @@ def main(argv=None):
         "oracle_own_b": lambda: hardware_steps(
             dataset, config, lambda c: gap_study.oracle_cue_patch(dataset, c, own_role="B")),
         "column_cue": lambda: hardware_steps(dataset, config, column_cue_patch),
+        "centre_cue": lambda: hardware_steps(dataset, config, centre_cue_patch),
     }
     wanted = list(runs) if args.only is None else args.only.split(",")
     unknown = sorted(set(wanted) - set(runs))
