@@ -60,98 +60,83 @@ def hardware_steps(dataset, config, patch=None):
     return run[3]
 
 
-def column_cue_patch(config):
-    """The router's cue of each temporal segment: the overlap-weighted mean of the
-    usable stereo cues over the segment's columns (centre 0) as camera A sees them —
-    camera A's own columns, camera B's shifted by the pair's disparity (B sees a point
-    ``d`` columns left of A; ``d`` the cue the router gives the segment today, stereo
-    segment ``k·K_s // K``). Instead of today's ``k·K_s // K`` alone, whose columns are
-    A's from the stereo lane's first comparable column (76 on stereo20, 26 for the
-    temporal lanes). A segment no usable stereo cue overlaps gets no weight."""
+def _cue_patch(config, cue_of):
+    """The router's cue of each temporal segment replaced by ``cue_of(k, shift, cues)``
+    (float pixels, or None: the segment gets no weight): ``k`` the temporal segment,
+    ``shift`` how far right of its own columns camera A sees them (0 for camera A; for
+    camera B the pair's disparity, the cue the router gives the segment today, stereo
+    segment ``k·K_s // K``), ``cues`` the pair's usable cues by stereo segment (float)."""
     import emulator.pipeline as pl
     from emulator.measurement.router import usable_cues
-    from golden.descriptor import segment_bounds
     lane, stereo = config.router.temporal, config.router.stereo
-    temporal_bounds = segment_bounds(lane.width, lane.descriptor, lane.match)
-    stereo_bounds = segment_bounds(stereo.width, stereo.descriptor, stereo.match)
     original = pl.route_row
 
     def route_row(params, temporal, stereo_records, fallback=None):
         out = original(params, temporal, stereo_records, fallback)
         fmt = params.solver.cue_fmt
-        cues = {**(fallback or {}), **usable_cues(params, stereo_records)}
+        cues = {key: fmt.to_float(raw) for key, raw in
+                {**(fallback or {}), **usable_cues(params, stereo_records)}.items()}
         edge = {(m["camera"], m["segment"]): m["edge_hit"] for m in temporal}
         for t in out:
             n, k = divmod(t["slot"], lane.segments)
             a = params.pair_of[n]
-            shift = 0.0
-            if a != n:
-                own = cues.get((a, k * stereo.segments // lane.segments))
-                shift = fmt.to_float(own) if own is not None else 0.0
-            lo = max(temporal_bounds[k][0] + shift, stereo_bounds[0][0])
-            hi = min(temporal_bounds[k][1] + shift, stereo_bounds[-1][1])
-            if hi <= lo:                    # outside the stereo lane's columns: the nearest
-                j = 0 if temporal_bounds[k][1] + shift <= stereo_bounds[0][0] else -1
-                lo, hi = stereo_bounds[j][0], stereo_bounds[j][0] + 1
-            total = weight = 0.0
-            for j, (s_lo, s_hi) in enumerate(stereo_bounds):
-                overlap = max(0.0, min(hi, s_hi) - max(lo, s_lo))
-                if overlap > 0 and (a, j) in cues:
-                    total += overlap * fmt.to_float(cues[(a, j)])
-                    weight += overlap
-            if weight > 0 and not edge[(n, k)]:
-                t["cue"] = int(fmt.quantize(total / weight))
-            else:
-                t["conf"] = 0
-        return out
-    return gap_study.patched(pl, "route_row", route_row)
-
-
-def centre_cue_patch(config):
-    """As :func:`column_cue_patch`, but the hardware-friendly form: the stereo cues
-    interpolated linearly at the segment's centre column (camera B's shifted by its
-    disparity) between the two stereo segment centres around it (equally spaced: a
-    constant reciprocal), the nearer alone where the other is not usable, the end
-    segment's beyond the first or last centre (no extrapolation)."""
-    import emulator.pipeline as pl
-    from emulator.measurement.router import usable_cues
-    from golden.descriptor import segment_bounds
-    lane, stereo = config.router.temporal, config.router.stereo
-    temporal_centres = [(lo + hi - 1) / 2 for lo, hi in
-                        segment_bounds(lane.width, lane.descriptor, lane.match)]
-    stereo_centres = np.array([(lo + hi - 1) / 2 for lo, hi in
-                               segment_bounds(stereo.width, stereo.descriptor, stereo.match)])
-    original = pl.route_row
-
-    def route_row(params, temporal, stereo_records, fallback=None):
-        out = original(params, temporal, stereo_records, fallback)
-        fmt = params.solver.cue_fmt
-        cues = {**(fallback or {}), **usable_cues(params, stereo_records)}
-        edge = {(m["camera"], m["segment"]): m["edge_hit"] for m in temporal}
-        for t in out:
-            n, k = divmod(t["slot"], lane.segments)
-            a = params.pair_of[n]
-            x = temporal_centres[k]
-            if a != n:
-                own = cues.get((a, k * stereo.segments // lane.segments))
-                x += fmt.to_float(own) if own is not None else 0.0
-            x = min(max(x, stereo_centres[0]), stereo_centres[-1])
-            j = min(int(np.searchsorted(stereo_centres, x, side="right")) - 1,
-                    len(stereo_centres) - 2) if len(stereo_centres) > 1 else 0
-            w = 0.0 if len(stereo_centres) == 1 else \
-                (x - stereo_centres[j]) / (stereo_centres[j + 1] - stereo_centres[j])
-            near = [(j, 1 - w), (j + 1, w)] if len(stereo_centres) > 1 else [(0, 1.0)]
-            got = [(fmt.to_float(cues[(a, i)]), v) for i, v in near if (a, i) in cues]
-            if len(got) == 2:
-                cue = got[0][0] * got[0][1] + got[1][0] * got[1][1]
-            elif got:
-                cue = got[0][0]
-            if got and not edge[(n, k)]:
+            shift = cues.get((a, k * stereo.segments // lane.segments), 0.0) if a != n else 0.0
+            cue = cue_of(k, shift, {j: c for (pair, j), c in cues.items() if pair == a})
+            if cue is not None and not edge[(n, k)]:
                 t["cue"] = int(fmt.quantize(cue))
             else:
                 t["conf"] = 0
         return out
     return gap_study.patched(pl, "route_row", route_row)
+
+
+def _bounds(lane):
+    from golden.descriptor import segment_bounds
+    return segment_bounds(lane.width, lane.descriptor, lane.match)
+
+
+def column_cue_patch(config):
+    """Each temporal segment's cue: the overlap-weighted mean of the usable stereo cues
+    over the segment's columns (centre 0) as camera A sees them, instead of stereo
+    segment ``k·K_s // K`` alone, whose columns start at the stereo lane's first
+    comparable column (76 on stereo20, 26 for the temporal lanes). Beyond the stereo
+    lane's columns the nearest end segment; none usable: no weight."""
+    temporal = _bounds(config.router.temporal)
+    stereo = _bounds(config.router.stereo)
+
+    def cue_of(k, shift, cues):
+        lo = max(temporal[k][0] + shift, stereo[0][0])
+        hi = min(temporal[k][1] + shift, stereo[-1][1])
+        if hi <= lo:
+            j = 0 if temporal[k][1] + shift <= stereo[0][0] else -1
+            lo, hi = stereo[j][0], stereo[j][0] + 1
+        parts = [(max(0.0, min(hi, s_hi) - max(lo, s_lo)), cues[j])
+                 for j, (s_lo, s_hi) in enumerate(stereo) if j in cues]
+        weight = sum(w for w, _ in parts)
+        return sum(w * c for w, c in parts) / weight if weight > 0 else None
+    return _cue_patch(config, cue_of)
+
+
+def centre_cue_patch(config):
+    """The hardware-friendly form of :func:`column_cue_patch`: the stereo cues
+    interpolated linearly at the segment's centre column between the two stereo
+    segment centres around it (equally spaced: a constant reciprocal), the nearer alone
+    where the other is not usable, the end segment's beyond the first or last centre
+    (no extrapolation)."""
+    temporal = [(lo + hi - 1) / 2 for lo, hi in _bounds(config.router.temporal)]
+    stereo = np.array([(lo + hi - 1) / 2 for lo, hi in _bounds(config.router.stereo)])
+
+    def cue_of(k, shift, cues):
+        if len(stereo) == 1:
+            return cues.get(0)
+        x = min(max(temporal[k] + shift, stereo[0]), stereo[-1])
+        j = min(int(np.searchsorted(stereo, x, side="right")) - 1, len(stereo) - 2)
+        w = (x - stereo[j]) / (stereo[j + 1] - stereo[j])
+        near = [(cues[i], v) for i, v in ((j, 1 - w), (j + 1, w)) if i in cues]
+        if len(near) == 2:
+            return near[0][0] * near[0][1] + near[1][0] * near[1][1]
+        return near[0][0] if near else None
+    return _cue_patch(config, cue_of)
 
 
 def main(argv=None):
