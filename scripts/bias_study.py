@@ -29,7 +29,6 @@ sequence (12 frames, noise σ = 2; the first ``--frames`` used). Runs (``--only`
 import argparse
 import sys
 import time
-from dataclasses import replace
 
 import numpy as np
 
@@ -42,15 +41,12 @@ UNITS = np.array([100, 100, 100, 1e4, 1e4, 1e4])
 
 def golden_steps(dataset, segments):
     """(frames, rows, raw measured steps) of golden (b) with a frozen forecast."""
-    from emulator.e2e import _golden_slots
-    from emulator.hardware_path import golden_b_params
-    from golden.tracker import track
-    result = track(dataset, replace(golden_b_params(1), segments=segments, **FROZEN))
+    result = gap_study.golden_b(dataset, segments=segments, **FROZEN)
     height = dataset.rig.cameras[0].height
     frames = len(dataset.cameras[0].rows)
     fr = np.repeat(np.arange(1, frames), height)
     rw = np.tile(np.arange(height), frames - 1)
-    return fr, rw, result.measured[_golden_slots(result, dataset, fr, rw)]
+    return fr, rw, gap_study._golden_measured(result, dataset, fr, rw)
 
 
 def hardware_steps(dataset, config, patch=None):
