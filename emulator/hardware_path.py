@@ -40,12 +40,16 @@ def first_frame_motion(dataset, camera=0):
 
 
 def hardware_config(rig):
-    """The pipeline the hardware path runs: :meth:`PipelineConfig.for_rig` with a
-    disparity per temporal segment (``stereo_segments`` = the top's default segments).
-    ``ValueError`` for a rig the pipeline cannot take."""
+    """The pipeline the hardware path runs: :meth:`PipelineConfig.for_rig` with golden
+    (b)'s segments (:class:`golden.tracker_params.TrackerParams`' ``segments``, K = 8),
+    temporal and stereo alike, so that the two compare like with like and each temporal
+    segment's depth cue is interpolated from stereo segments as fine as it (the cue
+    map, :mod:`hdl.measurement.cue_map_params`). ``ValueError`` for a rig the pipeline
+    cannot take."""
+    from golden.tracker_params import TrackerParams
     from hdl.pipeline_config import PipelineConfig
-    from hdl.top_params import DEFAULT_SEGMENTS
-    return PipelineConfig.for_rig(rig, stereo_segments=DEFAULT_SEGMENTS)
+    segments = TrackerParams().segments
+    return PipelineConfig.for_rig(rig, segments=segments, stereo_segments=segments)
 
 
 def golden_b_params(loop_delay_rows, motion_gain=DEFAULT_MOTION_GAIN):

@@ -15,16 +15,15 @@ Decisions (each one is a choice the HDL router must copy):
   ``SQ(1, f)``), rounded half-even and saturated into the solver's ``shift_fmt``. Same
   sign: the lane's ``cur[x] ≈ ref[x − d]`` is the image displacement from the reference
   row to the current one, which is the solver's shift.
-* **Cue.** The disparity of the camera's stereo pair in the same (frame, row), from
-  the stereo segment ``k · K_s // K`` for temporal segment ``k`` (K_s stereo segments,
-  K temporal ones: equal parts of the row, a constant table in hardware; with the
-  default K_s = 1 one disparity serves the whole row): ``shift + subpixel`` of the
-  stereo lane, half-even, saturated into ``cue_fmt``. Both cameras of a pair use it
-  (camera B sees the same points ``d`` pixels further left; the depth difference is
-  neglected), so the coefficient table is built with ``cue_scale = 1/(f·b)``. With a
+* **Cue.** The disparity of the camera's stereo pair in the same (frame, row): the
+  stereo lane's ``shift + subpixel``, half-even, saturated into ``cue_fmt``, one per
+  stereo segment, mapped to each temporal segment by :mod:`emulator.measurement.cue_map`
+  (interpolated at the segment's centre column as camera A sees it: camera B's centre
+  moved right by camera A's cue there; with K_s = 1 one disparity serves the whole
+  row). The coefficient table is built with ``cue_scale = 1/(f·b)``. With a
   ``fallback`` (the closed loop's store of each pair's last usable cue per row and
-  stereo segment, i.e. the previous frame's), a segment whose stereo match fails takes
-  the stored cue of the same row instead (issue 16 item 4). Every
+  stereo segment, i.e. the previous frame's), a stereo segment whose match fails takes
+  the stored cue of the same row instead (issue 16 item 4), before the map. Every
   camera must belong to exactly one pair: the depth-map cue of the radial rigs is not
   modelled.
 * **Confidence.** The temporal lane's peak ratio, half-even and saturated into
@@ -72,6 +71,7 @@ import numpy as np
 from hdl.fixed import Overflow, Rounding, add, resize
 from hdl.measurement.router_params import RouterParams
 
+from emulator.measurement.cue_map import pair_cues
 from emulator.pose_solver import PoseRows
 
 __all__ = ["RouterParams", "measured_shifts", "usable_cues", "route_row", "route", "route_tickets",
@@ -118,10 +118,13 @@ def route_row(params, temporal, stereo, fallback=None):
     shift = measured_shifts(ordered, d, s.shift_fmt)
     conf = resize(_field(ordered, "confidence"), d.confidence_fmt, s.conf_fmt,
                   Rounding.HALF_EVEN, Overflow.SATURATE)
+    mapped = {}
+    for a, b in params.pairs:
+        mapped[a], mapped[b] = pair_cues(params.cue_map, [
+            cues.get((a, j)) for j in range(params.stereo.segments)])
     out = []
     for m, shift_raw, conf_raw in zip(ordered, shift, conf):
-        segment = m["segment"] * params.stereo.segments // d.segments
-        cue = cues.get((params.pair_of[m["camera"]], segment))
+        cue = mapped[m["camera"]][m["segment"]]
         usable = cue is not None and not m["edge_hit"]
         out.append({"slot": m["camera"] * d.segments + m["segment"], "row": m["row"],
                     "time": time, "shift": int(shift_raw), "cue": cue or 0,

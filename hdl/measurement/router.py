@@ -18,6 +18,9 @@ checked against, transfer by transfer). Inside:
   cues and valid bits): read when a ticket is fetched, merged into the cue registers
   (a failed segment takes the stored cue) and written back when the ticket is resolved;
   cleared by a sweep of ``height`` clocks after reset, during which no ticket is fetched;
+* per stereo pair a cue mapper (:class:`hdl.measurement.cue_map.CueMapper`), started
+  once the cue registers are final: each temporal segment's cue for camera A and for
+  camera B, interpolated at the segment's centre column;
 * an emitter that walks the marked cameras in order, K measurements each, one transfer
   per clock into an output register.
 
@@ -31,6 +34,7 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from hdl.fixed import Overflow, Rounding, hdl_add, hdl_resize
+from hdl.measurement.cue_map import CueMapper
 from hdl.measurement.router_params import RouterParams
 from hdl.pose.params import PoseSolverParams
 from hdl.pose_solver import measurement_layout
@@ -177,9 +181,10 @@ class MeasurementRouter(wiring.Component):
 
     @property
     def latency(self):
-        """Ticket FIFO, fetch, K_s resynchronizer clocks and their check, output
-        register."""
-        return 4 + self.params.stereo.segments
+        """Ticket FIFO, fetch, K_s resynchronizer clocks and their check, the cue
+        mappers' start and walk (:attr:`hdl.measurement.cue_map.CueMapper.latency`),
+        output register."""
+        return 5 + self.params.stereo.segments + CueMapper.latency_of(self.params.cue_map)
 
     def elaborate(self, platform):
         p = self.params
@@ -192,9 +197,11 @@ class MeasurementRouter(wiring.Component):
                      self.tickets.ready.eq(ticket_fifo.w_rdy)]
         fetch = Signal()            # the ticket FIFO's head becomes the current ticket
         resolving = Signal()
+        mapping = Signal()          # the cue mappers run on the resolved cues
         emitting = Signal()
         clearing = Signal(init=p.cue_fallback)      # the cue store's sweep after reset
-        m.d.comb += [fetch.eq(~resolving & ~emitting & ~clearing & ticket_fifo.r_rdy),
+        m.d.comb += [fetch.eq(~resolving & ~mapping & ~emitting & ~clearing
+                              & ticket_fifo.r_rdy),
                      ticket_fifo.r_en.eq(fetch)]
         incoming = data.View(ticket_layout(p), ticket_fifo.r_data)
         with m.If(fetch):
@@ -206,10 +213,13 @@ class MeasurementRouter(wiring.Component):
                            clearing)
         heads = self._temporal_fifos(m)
 
-        with m.If(resolving & pairs["done"]):
-            m.d.sync += [resolving.eq(0), emitting.eq(ticket.cameras.any())]
-        counts = self._emit(m, ticket, heads, pairs, emitting,
-                            start=resolving & pairs["done"])
+        resolved = resolving & pairs["done"]
+        mapped = self._map(m, pairs, ticket, resolved, mapping)
+        with m.If(resolved):
+            m.d.sync += [resolving.eq(0), mapping.eq(ticket.cameras.any())]
+        with m.If(mapped["done"]):
+            m.d.sync += [mapping.eq(0), emitting.eq(1)]
+        counts = self._emit(m, ticket, heads, mapped, emitting, start=mapped["done"])
         # counter increments registered first: the adders stay off the emit path
         steps = {
             "rows": counts["row"], "empty": counts["empty"],
@@ -311,6 +321,29 @@ class MeasurementRouter(wiring.Component):
             m.d.comb += [write.addr.eq(ticket.row), write.data.eq(merged),
                          write.en.eq(resolved & in_range)]
 
+    # --- cue mappers ---------------------------------------------------------------------
+
+    def _map(self, m, pairs, ticket, resolved, mapping):
+        """Per stereo pair a cue mapper, started the clock after ``resolved`` of a
+        ticket with cameras (the cue registers then hold the fallback's merge). Returns
+        each camera's ``cue`` and ``usable`` (K each, its role's outputs) and ``done``:
+        the clock the mappers' results are final."""
+        p = self.params
+        start = Signal()
+        m.d.sync += start.eq(resolved & ticket.cameras.any())
+        cue, usable, busy = {}, {}, []
+        for j, (a, b) in enumerate(p.pairs):
+            mapper = m.submodules[f"cue_map{j}"] = CueMapper(p.cue_map)
+            m.d.comb += [mapper.start.eq(start), mapper.usable.eq(Cat(pairs["usable"][j]))]
+            m.d.comb += [mapper.cues[s].eq(pairs["cue"][j][s])
+                         for s in range(p.stereo.segments)]
+            cue[a], usable[a] = mapper.cue_a, mapper.usable_a
+            cue[b], usable[b] = mapper.cue_b, mapper.usable_b
+            busy.append(mapper.busy)
+        return {"cue": [cue[c] for c in range(p.cameras)],
+                "usable": [usable[c] for c in range(p.cameras)],
+                "done": mapping & ~start & ~Cat(busy).any()}
+
     # --- temporal lanes: FIFOs ----------------------------------------------------------
 
     def _temporal_fifos(self, m):
@@ -339,11 +372,12 @@ class MeasurementRouter(wiring.Component):
 
     # --- emitter ------------------------------------------------------------------------
 
-    def _emit(self, m, ticket, fifos, pairs, emitting, *, start):
-        """Walk the marked cameras, K transfers each, into the output register; returns
-        this clock's ``row``, ``empty`` and ``misaligned`` counter increments."""
+    def _emit(self, m, ticket, fifos, mapped, emitting, *, start):
+        """Walk the marked cameras, K transfers each, into the output register, with
+        the mappers' cues (``mapped``); returns this clock's ``row``, ``empty`` and
+        ``misaligned`` counter increments."""
         p = self.params
-        k_seg, ks = p.temporal.segments, p.stereo.segments
+        k_seg = p.temporal.segments
         layout = _temporal_entry(p)
         camera = Signal(range(p.cameras))
         selected = Signal(p.cameras)        # one-hot ``camera``
@@ -366,15 +400,13 @@ class MeasurementRouter(wiring.Component):
         for c, fifo in enumerate(fifos):           # one-hot: no multiplexer on this path
             m.d.comb += fifo.r_en.eq(emitting & advance & selected[c] & fifo.r_rdy)
 
-        lane_of = {c: j for j, pair in enumerate(p.pairs) for c in pair}
-        # cue of (camera, segment): pair lane of the camera, stereo segment k · K_s // K
-        cue_of = Array(Array(pairs["cue"][lane_of[c]][k * ks // k_seg] for k in range(k_seg))
+        # the mapped cue of (camera, segment); 0 where it has none
+        cue_of = Array(Array(mapped["cue"][c][k] for k in range(k_seg))
                        for c in range(p.cameras))[camera][segment]
         # every camera's head is judged beside the others and the one-hot ``selected``
         # picks a verdict: the same-row test and the weight no longer wait for the camera
         # multiplexer (issue 17: 14 LUT levels to ``weighted`` in the board top)
-        usable_c = [Array(pairs["usable"][lane_of[c]][k * ks // k_seg]
-                          for k in range(k_seg))[segment] for c in range(p.cameras)]
+        usable_c = [mapped["usable"][c].bit_select(segment, 1) for c in range(p.cameras)]
         same_c, weight_c = [], []
         for c, fifo in enumerate(fifos):
             entry = data.View(layout, fifo.r_data)
@@ -385,7 +417,6 @@ class MeasurementRouter(wiring.Component):
         same = Cat(same_c).any()
         weight = Signal.like(head.conf)
         m.d.comb += weight.eq(_or_tree(weight_c))
-        usable_of = Array(usable_c)[camera]
         closing = (segment == k_seg - 1) & ~pending.any()
         row_time = Mux(opening, head.t_first, time)
 
@@ -396,7 +427,7 @@ class MeasurementRouter(wiring.Component):
             m.d.sync += [
                 out.slot.eq(camera * k_seg + segment), out.row.eq(ticket.row),
                 out.time.eq(row_time), out.shift.eq(head.shift),
-                out.cue.eq(Mux(usable_of, cue_of, 0)), out.conf.eq(weight),
+                out.cue.eq(cue_of), out.conf.eq(weight),
                 out.last.eq(closing),
                 time.eq(row_time), opening.eq(0),
                 segment.eq(Mux(segment == k_seg - 1, 0, segment + 1)),

@@ -10,6 +10,7 @@ from golden.checks import check_int
 
 from hdl.pose.params import PoseSolverParams
 from hdl.descriptor.params import RowDescriptorParams
+from hdl.measurement.cue_map_params import CueMap
 
 __all__ = ["RouterParams"]
 
@@ -35,6 +36,13 @@ class RouterParams:
         row (the closed loop's, issue 16 item 4): a store of ``pairs × K_s × height``
         cues. Default off (no store).
 
+    Attributes
+    ----------
+    pair_of : dict
+        Each camera's pair, by its camera A.
+    cue_map : hdl.measurement.cue_map_params.CueMap
+        How each temporal segment's cue comes from its pair's stereo cues.
+
     Raises
     ------
     TypeError, ValueError
@@ -47,6 +55,7 @@ class RouterParams:
     solver: PoseSolverParams
     cue_fallback: bool = False
     pair_of: dict = field(init=False, repr=False, compare=False)
+    cue_map: CueMap = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         check_int("cameras", self.cameras, 1)
@@ -86,3 +95,5 @@ class RouterParams:
             raise ValueError(f"pairs must give every camera a stereo pair; cameras "
                              f"{missing} have none")
         object.__setattr__(self, "pair_of", pair_of)
+        object.__setattr__(self, "cue_map", CueMap.for_lanes(self.temporal, self.stereo,
+                                                             self.solver.cue_fmt))

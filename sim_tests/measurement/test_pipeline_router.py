@@ -8,6 +8,7 @@ import random
 import pytest
 
 from golden.descriptor import STEREO_MATCH
+from emulator.measurement.cue_map import pair_cues
 from emulator.measurement.router import RouterParams, pose_rows, route, route_row, usable_cues
 from hdl.fixed import SQ, UQ
 from hdl.pose.params import PoseSolverParams
@@ -67,39 +68,60 @@ def test_shift_saturates_to_solver_format():
     assert all(t["shift"] == SQ(3, 12).max_raw for t in out)
 
 
-def test_cue_is_pair_disparity_of_covering_segment_for_both_cameras():
+def test_cue_is_the_pairs_disparity_mapped_to_each_cameras_segment_centres():
     temporal, stereo = full_row()
     for m in stereo:
-        m["shift"] = 10 + m["camera"] * 5 + m["segment"]          # distinct per (pair, k)
+        m["shift"] = 10 + m["camera"] * 5 + 3 * m["segment"]      # distinct per (pair, k)
     out = route_row(PARAMS, temporal, stereo)
-    for t in out:
-        camera, segment = divmod(t["slot"], 4)
-        pair_a = 0 if camera < 2 else 2
-        disparity = (10 + pair_a * 5 + segment // 2) + 16 / (1 << F)
-        assert t["cue"] == round(disparity * (1 << 10))
-        assert t["conf"] == 96 << 2                    # UQ(2, 6) → UQ(2, 8), exact
+    for a, b in PARAMS.pairs:
+        raw = [round((10 + a * 5 + 3 * j + 16 / (1 << F)) * (1 << 10)) for j in range(2)]
+        own, moved = pair_cues(PARAMS.cue_map, raw)
+        assert [t["cue"] for t in out[4 * a:4 * a + 4]] == own
+        assert [t["cue"] for t in out[4 * b:4 * b + 4]] == moved
+        assert moved != own             # camera B's columns sit further right in A's
+    assert all(t["conf"] == 96 << 2 for t in out)      # UQ(2, 6) → UQ(2, 8), exact
+
+
+def _spoil(stereo, temporal, spoil, segments):
+    """Make pair (2, 3)'s stereo ``segments`` unusable (or, ``temporal_edge``, camera
+    2's temporal segment 0)."""
+    for m in stereo:
+        if m["camera"] != 2 or m["segment"] not in segments:
+            continue
+        if spoil == "stereo_zero_conf":
+            m["confidence"] = 0
+        elif spoil == "stereo_edge":
+            m["edge_hit"] = 1
+        elif spoil == "negative_disparity":
+            m["shift"], m["subpixel"] = 0, -1
+    if spoil == "no_stereo":
+        stereo[:] = [m for m in stereo if not (m["camera"] == 2 and m["segment"] in segments)]
+    if spoil == "temporal_edge":
+        next(m for m in temporal if m["camera"] == 2 and m["segment"] == 0)["edge_hit"] = 1
 
 
 @pytest.mark.parametrize("spoil", ["no_stereo", "stereo_zero_conf", "stereo_edge",
                                    "negative_disparity", "temporal_edge"])
 def test_unusable_measurements_get_zero_weight_but_are_sent(spoil):
     temporal, stereo = full_row()
-    if spoil == "no_stereo":
-        stereo = [m for m in stereo if not (m["camera"] == 2 and m["segment"] == 0)]
-    elif spoil == "stereo_zero_conf":
-        next(m for m in stereo if m["camera"] == 2 and m["segment"] == 0)["confidence"] = 0
-    elif spoil == "stereo_edge":
-        next(m for m in stereo if m["camera"] == 2 and m["segment"] == 0)["edge_hit"] = 1
-    elif spoil == "negative_disparity":
-        m = next(m for m in stereo if m["camera"] == 2 and m["segment"] == 0)
-        m["shift"], m["subpixel"] = 0, -1
-    else:
-        next(m for m in temporal if m["camera"] == 2 and m["segment"] == 0)["edge_hit"] = 1
+    _spoil(stereo, temporal, spoil, (0, 1))
     out = route_row(PARAMS, temporal, stereo)
     assert len(out) == 16
     zero = {t["slot"] for t in out if t["conf"] == 0}
-    # stereo segment 0 of pair (2, 3) serves temporal segments 0 and 1 of cameras 2, 3
-    assert zero == ({2 * 4} if spoil == "temporal_edge" else {8, 9, 12, 13})
+    # no usable stereo segment left in pair (2, 3): cameras 2 and 3 get no weight
+    assert zero == ({2 * 4} if spoil == "temporal_edge" else set(range(8, 16)))
+    assert all(t["cue"] == 0 for t in out if t["slot"] >= 8) != (spoil == "temporal_edge")
+
+
+@pytest.mark.parametrize("spoil", ["no_stereo", "stereo_zero_conf", "stereo_edge",
+                                   "negative_disparity"])
+def test_one_unusable_stereo_segment_lends_its_neighbours_cue(spoil):
+    temporal, stereo = full_row()
+    stereo[3]["shift"] = 24                    # pair (2, 3), stereo segment 1
+    _spoil(stereo, temporal, spoil, (0,))
+    out = route_row(PARAMS, temporal, stereo)
+    assert all(t["conf"] for t in out)
+    assert {t["cue"] for t in out[8:]} == {(24 << 10) + (16 << 10 >> F)}
 
 
 def test_missing_camera_and_missing_row():
@@ -151,19 +173,18 @@ def test_parameter_checks(changes, error, message):
 
 def test_a_failed_stereo_segment_takes_the_fallback_cue():
     """Depth per segment (issue 16 item 4): where the pair's stereo match of a segment is
-    unusable, the stored cue of the same row (the previous frame's) stands in; a usable
-    stereo measurement wins over the store; without a stored cue the weight stays 0."""
+    unusable, the stored cue of the same row (the previous frame's) stands in before the
+    map; a usable stereo measurement wins over the store; a pair with neither gives its
+    cameras no weight."""
     temporal, stereo = full_row()
     for m in stereo:
-        if (m["camera"], m["segment"]) in ((0, 1), (2, 1)):
+        if (m["camera"], m["segment"]) in ((0, 1), (2, 0), (2, 1)):
             m["confidence"] = 0
     fallback = {(0, 0): 999, (0, 1): 12345}
-    assert set(usable_cues(PARAMS, stereo)) == {(0, 0), (2, 0)}
+    assert set(usable_cues(PARAMS, stereo)) == {(0, 0)}
     out = route_row(PARAMS, temporal, stereo, fallback)
     own = round((20 + 16 / (1 << F)) * (1 << 10))
-    for t in out:
-        camera, segment = divmod(t["slot"], 4)
-        if camera < 2:
-            assert t["cue"] == (own if segment < 2 else 12345) and t["conf"] > 0
-        else:
-            assert (t["cue"], t["conf"] > 0) == ((own, True) if segment < 2 else (0, False))
+    a, b = pair_cues(PARAMS.cue_map, [own, 12345])
+    assert [t["cue"] for t in out[:8]] == a + b
+    assert all(t["conf"] > 0 for t in out[:8])
+    assert all(t["cue"] == 0 and t["conf"] == 0 for t in out[8:])
