@@ -4,7 +4,7 @@ formats: :mod:`hdl.measurement.cue_map_params`; the gateware: :mod:`hdl.measurem
 """
 
 from hdl.fixed import Overflow, Rounding, add, mul, resize
-from hdl.measurement.cue_map_params import WEIGHT_FMT, CueMap
+from hdl.measurement.cue_map_params import B_PASSES, WEIGHT_FMT, CueMap
 
 __all__ = ["CueMap", "map_cue", "pair_cues"]
 
@@ -32,12 +32,15 @@ def map_cue(cue_map, position, cues):
 def pair_cues(cue_map, cues):
     """``(camera A's, camera B's)`` mapped cues of every temporal segment (lists of raw
     cue or None) from the pair's stereo cues ``cues`` (raw or None per stereo segment):
-    A's at its segment centre ``T_k``, B's at ``T_k`` moved right by A's cue there."""
+    A's at its segment centre ``T_k``, B's at ``T_k`` moved right by the cue there
+    (``B_PASSES`` passes, the first with A's cue)."""
     if len(cues) != cue_map.stereo_segments:
         raise ValueError(f"cues must hold {cue_map.stereo_segments} stereo segments, "
                          f"not {len(cues)}")
     f = cue_map.cue_fmt.frac_bits
     own = [map_cue(cue_map, centre << f, cues) for centre in cue_map.temporal]
-    moved = [None if a is None else map_cue(cue_map, (centre << f) + 2 * a, cues)
-             for centre, a in zip(cue_map.temporal, own)]
+    moved = own
+    for _ in range(B_PASSES):
+        moved = [None if c is None else map_cue(cue_map, (centre << f) + 2 * c, cues)
+                 for centre, c in zip(cue_map.temporal, moved)]
     return own, moved

@@ -2,9 +2,9 @@
 for camera A and camera B, bit-exact with :func:`emulator.measurement.cue_map.pair_cues`.
 
 The arithmetic, its formats and why it exists: :mod:`hdl.measurement.cue_map_params`.
-The gateware walks the 2K (camera, segment) items through a five-stage pipeline, one
-item per clock: camera A's K segments, then camera B's (whose position needs camera
-A's mapped cue of the same segment, so B's first item waits until A's first result is
+The gateware walks ``(1 + B_PASSES)·K`` items through a five-stage pipeline, one item
+per clock: camera A's K segments, then each of camera B's passes (whose position needs
+the previous pass's cue of the same segment, so a pass waits until that result is
 written when K < 5). One multiplier forms the weight, one the interpolation step; the
 constants (segment centres, reciprocals) are small tables indexed by the item.
 """
@@ -14,7 +14,7 @@ from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
 from hdl.fixed import Overflow, Rounding, hdl_add, hdl_mul, hdl_resize
-from hdl.measurement.cue_map_params import WEIGHT_FMT, CueMap
+from hdl.measurement.cue_map_params import B_PASSES, WEIGHT_FMT, CueMap
 
 __all__ = ["CueMapper"]
 
@@ -50,7 +50,7 @@ class CueMapper(wiring.Component):
     def __init__(self, cue_map):
         if not isinstance(cue_map, CueMap):
             raise TypeError(f"cue_map must be a CueMap, not {cue_map!r}")
-        self.cue_map = cue_map
+        self.params = cue_map
         cues_k = data.ArrayLayout(cue_map.cue_fmt.shape(), cue_map.segments)
         super().__init__({
             "start": In(1),
@@ -63,47 +63,62 @@ class CueMapper(wiring.Component):
 
     @staticmethod
     def gap_of(cue_map):
-        """Idle issue clocks between camera A's last item and camera B's first."""
+        """Idle issue clocks after each pass, so that the next pass reads the result of
+        the same segment (``STAGES`` clocks after its issue)."""
         return max(0, STAGES - cue_map.segments)
 
     @classmethod
     def latency_of(cls, cue_map):
         """Clocks from ``start`` to the clock ``busy`` has fallen with the results."""
-        return 2 * cue_map.segments + cls.gap_of(cue_map) + STAGES
+        period = cue_map.segments + cls.gap_of(cue_map)
+        return (1 + B_PASSES) * period - cls.gap_of(cue_map) + STAGES
 
     @property
     def latency(self):
         """:meth:`latency_of` this mapper's map."""
-        return self.latency_of(self.cue_map)
+        return self.latency_of(self.params)
 
     def elaborate(self, platform):
-        cm = self.cue_map
+        cm = self.params
         k_seg, ks, f = cm.segments, cm.stereo_segments, cm.cue_fmt.frac_bits
         m = Module()
 
-        # --- issue: A's items at steps 0 … K−1, B's at K + gap … 2K + gap − 1 ----------
-        last_step = 2 * k_seg + self.gap_of(cm) + STAGES - 2
-        step = Signal(range(last_step + 1))
+        # --- issue: pass 0 (camera A) at steps 0 … K−1, pass p at p·(K + gap) + k -------
+        period = k_seg + self.gap_of(cm)
+        k_bits = max(1, (period - 1).bit_length())
+        item = Signal(k_bits)                       # position in the pass (K + gap steps)
+        pass_ = Signal(range(B_PASSES + 2))         # B_PASSES + 1: issue over, draining
+        drain = Signal(range(STAGES))
         with m.If(self.start):
-            m.d.sync += [self.busy.eq(1), step.eq(0)]
+            m.d.sync += [self.busy.eq(1), item.eq(0), pass_.eq(0), drain.eq(0)]
         with m.Elif(self.busy):
-            m.d.sync += step.eq(step + 1)
-            with m.If(step == last_step):
-                m.d.sync += self.busy.eq(0)
-        b_first = k_seg + self.gap_of(cm)
-        issue_a = self.busy & (step < k_seg)
-        issue_b = self.busy & (step >= b_first) & (step < b_first + k_seg)
-        k0 = Mux(issue_a, step, step - b_first)[:max(1, (k_seg - 1).bit_length())]
+            with m.If(pass_ == B_PASSES + 1):
+                m.d.sync += drain.eq(drain + 1)
+                with m.If(drain == STAGES - 2):
+                    m.d.sync += self.busy.eq(0)
+            with m.Elif((item == period - 1)
+                        | ((pass_ == B_PASSES) & (item == k_seg - 1))):
+                m.d.sync += [item.eq(0), pass_.eq(pass_ + 1)]
+            with m.Else():
+                m.d.sync += item.eq(item + 1)
+        issue = self.busy & (pass_ <= B_PASSES) & (item < k_seg)
+        k0 = item[:max(1, (k_seg - 1).bit_length())]
+        role_b = pass_ != 0
 
-        # stage 1: the position (twice A's column), camera B's moved by A's cue
+        # stage 1: the position (twice A's column), camera B's moved by the previous
+        # pass's cue (camera A's in pass 1, its own after)
         pos_fmt = cm.position_fmt
         centre = Array(Const(t << f, pos_fmt.shape()) for t in cm.temporal)[k0]
-        moved = Array(self.cue_a[k] for k in range(k_seg))[k0]
+        from_b = pass_ > 1
+        moved = Mux(from_b, Array(self.cue_b[k] for k in range(k_seg))[k0],
+                    Array(self.cue_a[k] for k in range(k_seg))[k0])
+        moved_ok = Mux(from_b, self.usable_b.bit_select(k0, 1),
+                       self.usable_a.bit_select(k0, 1))
         v1, b1, k1, ok1 = Signal(), Signal(), Signal.like(k0), Signal()
         x1 = Signal(pos_fmt.shape())
-        m.d.sync += [v1.eq(issue_a | issue_b), b1.eq(issue_b), k1.eq(k0),
-                     ok1.eq(~issue_b | self.usable_a.bit_select(k0, 1)),
-                     x1.eq(centre + Mux(issue_b, moved << 1, 0))]
+        m.d.sync += [v1.eq(issue), b1.eq(role_b), k1.eq(k0),
+                     ok1.eq(~role_b | moved_ok),
+                     x1.eq(centre + Mux(role_b, moved << 1, 0))]
 
         # stage 2: clamp, interval, distance; the interval's cues and reciprocal
         s_lo, s_hi = cm.stereo[0] << f, cm.stereo[-1] << f

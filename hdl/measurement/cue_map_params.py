@@ -11,8 +11,8 @@ Taking stereo segment ``k·K_s // K``'s disparity for temporal segment ``k`` of 
 cameras therefore gives each segment the depth of other columns, a bias of 7e-5 rad in
 θx on the papers' motion (docs/e2e_gap.md section 9). The map instead interpolates the
 pair's stereo cues linearly at the segment's **centre column** (centre 0), as camera A
-sees it: camera A's own centre, and camera B's centre moved right by camera A's cue of
-the same segment.
+sees it: camera A's own centre, and camera B's centre moved right by the cue there
+(a fixed point, reached in :data:`B_PASSES` passes).
 
 Arithmetic (raw integers of the formats below, bit-exact in model and gateware):
 
@@ -40,7 +40,12 @@ from golden.descriptor import segment_bounds
 from hdl.fixed import Rounding, QFormat, SQ, UQ, check_format
 from hdl.descriptor.params import RowDescriptorParams
 
-__all__ = ["CueMap", "WEIGHT_FMT"]
+__all__ = ["CueMap", "WEIGHT_FMT", "B_PASSES"]
+
+#: Camera B's passes: it sees the point at A's column ``u_A = u_B + d(u_A)``; pass 1
+#: moves its centre by camera A's cue there (``d`` at ``u_B``, off by ``d``'s change
+#: over ``d`` columns), pass 2 by pass 1's cue (off by the change over that error).
+B_PASSES = 2
 
 #: The interpolation weight: 16 fraction bits, an error of at most 2**-16 of the two
 #: cues' difference (below the 1/1024-pixel cue step for differences under 64 px).

@@ -1,6 +1,7 @@
 """Runs the measurement router cocotb bench: synthetic streams (format extremes,
 missing cameras and pairs, misaligned and lost rows) on Verilator and Icarus, and real
-simulated rows through the emulator's lane models on Verilator."""
+simulated rows through the emulator's lane models on Verilator (the hardware path's
+K = K_s = 8, so the cue mappers interpolate real cues)."""
 
 import os
 import pickle
@@ -13,7 +14,7 @@ from golden.scene import default_scene_spec
 from golden.simulator import simulate
 from golden.trajectory import make_trajectory
 from hdl.measurement.router import MeasurementRouter
-from hdl.pipeline_config import PipelineConfig
+from emulator.hardware_path import hardware_config
 from emulator.hdl_sim.runner import BUILD_ROOT, run_cocotb
 
 from sim_tests.measurement.measurement_router.stimulus import NARROW, expected, lane_streams
@@ -37,7 +38,7 @@ def test_router_real_rows():
     dataset = simulate(rig, default_scene_spec(seed), make_trajectory("paper"),
                        FRAMES / 120, seed=seed)
     params, tickets, temporal, stereo = lane_streams(
-        PipelineConfig.for_rig(rig), dataset, FRAMES, PAIRS, np.random.default_rng(seed))
+        hardware_config(rig), dataset, FRAMES, PAIRS, np.random.default_rng(seed))
     want, status = expected(params, tickets, temporal, stereo)
     weighted = sum(t["conf"] != 0 for t in want)
     print(f"{len(tickets)} row sets, {len(want)} transfers, {weighted} with weight, "
