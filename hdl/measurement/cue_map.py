@@ -2,14 +2,16 @@
 for camera A and camera B, bit-exact with :func:`emulator.measurement.cue_map.pair_cues`.
 
 The arithmetic, its formats and why it exists: :mod:`hdl.measurement.cue_map_params`.
-The gateware walks ``(1 + B_PASSES)·K`` items through a five-stage pipeline, one item
+The gateware walks ``(1 + B_PASSES)·K`` items through a six-stage pipeline, one item
 per clock: camera A's K segments, then each of camera B's passes (whose position needs
 the previous pass's cue of the same segment, so a pass waits until that result is
-written when K < 5). One multiplier forms the weight, one the interpolation step; the
+written when K < 6). One multiplier forms the weight, one the interpolation step; the
 constants (segment centres, reciprocals) are small tables indexed by the item.
 """
 
-from amaranth.hdl import Array, Const, Module, Mux, Signal
+from types import SimpleNamespace
+
+from amaranth.hdl import Array, Const, Module, Mux, Signal, Value
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -19,7 +21,20 @@ from hdl.measurement.cue_map_params import B_PASSES, WEIGHT_FMT, CueMap
 __all__ = ["CueMapper"]
 
 #: Pipeline registers from an item's issue to its written result.
-STAGES = 5
+STAGES = 6
+
+
+def _register(m, stage, **values):
+    """One pipeline register: each value (or ``(value, shape)``) into a Signal named
+    after it and the stage, loaded every clock; returns them as attributes."""
+    out = {}
+    for name, value in values.items():
+        value, shape = value if isinstance(value, tuple) else (value, None)
+        value = Value.cast(value)
+        reg = Signal(shape if shape is not None else value.shape(), name=f"{name}{stage}")
+        m.d.sync += reg.eq(value)
+        out[name] = reg
+    return SimpleNamespace(**out)
 
 
 class CueMapper(wiring.Component):
@@ -114,64 +129,58 @@ class CueMapper(wiring.Component):
                     Array(self.cue_a[k] for k in range(k_seg))[k0])
         moved_ok = Mux(from_b, self.usable_b.bit_select(k0, 1),
                        self.usable_a.bit_select(k0, 1))
-        v1, b1, k1, ok1 = Signal(), Signal(), Signal.like(k0), Signal()
-        x1 = Signal(pos_fmt.shape())
-        m.d.sync += [v1.eq(issue), b1.eq(role_b), k1.eq(k0),
-                     ok1.eq(~role_b | moved_ok),
-                     x1.eq(centre + Mux(role_b, moved << 1, 0))]
+        tag = {"v": issue, "b": role_b, "k": k0}
+        p1 = _register(m, 1, **tag, ok=~role_b | moved_ok,
+                       x=(centre + Mux(role_b, moved << 1, 0), pos_fmt.shape()))
+        tag = {"v": p1.v, "b": p1.b, "k": p1.k, "ok": p1.ok}
 
-        # stage 2: clamp, interval, distance; the interval's cues and reciprocal
+        # stage 2: clamp; the interval from the inner centres (the clamp cannot change
+        # a comparison with them), beside it rather than after
         s_lo, s_hi = cm.stereo[0] << f, cm.stereo[-1] << f
-        xc = Mux(x1 < s_lo, s_lo, Mux(x1 > s_hi, s_hi, x1))
-        j = sum(xc >= (s << f) for s in cm.stereo[1:-1]) if ks > 2 else Const(0, 1)
-        far_j = j + 1 if ks > 1 else j
+        inner = [p1.x >= (c << f) for c in cm.stereo[1:-1]]
+        p2 = _register(m, 2, **tag,
+                       x=(Mux(p1.x < s_lo, s_lo, Mux(p1.x > s_hi, s_hi, p1.x)),
+                          pos_fmt.shape()),
+                       j=(sum(inner) if inner else 0, range(max(2, ks - 1))))
+        tag = {"v": p2.v, "b": p2.b, "k": p2.k, "ok": p2.ok}
+
+        # stage 3: distance from the interval's left centre; its cues and reciprocal
+        far_j = p2.j + 1 if ks > 1 else p2.j
         stereo_cues = Array(self.cues[i] for i in range(ks))
-        base = Array(Const(s << f, pos_fmt.shape()) for s in cm.stereo)[j]
-        v2, b2, k2, ok2 = Signal(), Signal(), Signal.like(k0), Signal()
-        d2 = Signal(cm.distance_fmt.shape())
-        r2 = Signal(cm.reciprocal_fmt.shape())
-        near2, far2 = Signal(cm.cue_fmt.shape()), Signal(cm.cue_fmt.shape())
-        un2, uf2 = Signal(), Signal()
-        m.d.sync += [v2.eq(v1), b2.eq(b1), k2.eq(k1), ok2.eq(ok1),
-                     d2.eq(xc - base),
-                     near2.eq(stereo_cues[j]), far2.eq(stereo_cues[far_j]),
-                     un2.eq(self.usable.bit_select(j, 1)),
-                     uf2.eq(self.usable.bit_select(far_j, 1))]
-        if ks > 1:
-            m.d.sync += r2.eq(Array(Const(r, cm.reciprocal_fmt.shape())
-                                    for r in cm.reciprocal)[j])
+        base = Array(Const(c << f, pos_fmt.shape()) for c in cm.stereo)[p2.j]
+        reciprocal = (Array(Const(r, cm.reciprocal_fmt.shape()) for r in cm.reciprocal)[p2.j]
+                      if ks > 1 else 0)
+        cue = cm.cue_fmt.shape()
+        p3 = _register(m, 3, **tag, d=(p2.x - base, cm.distance_fmt.shape()),
+                       r=(reciprocal, cm.reciprocal_fmt.shape()),
+                       near=(stereo_cues[p2.j], cue), far=(stereo_cues[far_j], cue),
+                       un=self.usable.bit_select(p2.j, 1),
+                       uf=self.usable.bit_select(far_j, 1))
+        tag = {"v": p3.v, "b": p3.b, "k": p3.k, "ok": p3.ok, "near": p3.near,
+               "far": p3.far, "un": p3.un, "uf": p3.uf}
 
-        # stage 3: the weight
-        exact, fmt = hdl_mul(d2, cm.distance_fmt, r2, cm.reciprocal_fmt)
-        v3, b3, k3, ok3 = Signal(), Signal(), Signal.like(k0), Signal()
-        w3 = Signal(WEIGHT_FMT.shape())
-        near3, far3 = Signal.like(near2), Signal.like(far2)
-        un3, uf3 = Signal(), Signal()
-        m.d.sync += [v3.eq(v2), b3.eq(b2), k3.eq(k2), ok3.eq(ok2), near3.eq(near2),
-                     far3.eq(far2), un3.eq(un2), uf3.eq(uf2),
-                     w3.eq(hdl_resize(exact, fmt, WEIGHT_FMT, Rounding.FLOOR,
-                                      Overflow.ERROR))]
+        # stage 4: the weight
+        exact, fmt = hdl_mul(p3.d, cm.distance_fmt, p3.r, cm.reciprocal_fmt)
+        p4 = _register(m, 4, **tag, w=(hdl_resize(exact, fmt, WEIGHT_FMT, Rounding.FLOOR,
+                                                   Overflow.ERROR), WEIGHT_FMT.shape()))
 
-        # stage 4: near + w · (far − near), exact
+        # stage 5: near + w · (far − near), exact
         diff = Signal(cm.difference_fmt.shape())
-        m.d.comb += diff.eq(far3 - near3)
-        step_v, step_fmt = hdl_mul(w3, WEIGHT_FMT, diff, cm.difference_fmt)
-        total_v, total_fmt = hdl_add(near3, cm.cue_fmt, step_v, step_fmt)
-        v4, b4, k4, ok4 = Signal(), Signal(), Signal.like(k0), Signal()
-        total4 = Signal(total_fmt.shape())
-        near4, far4 = Signal.like(near2), Signal.like(far2)
-        un4, uf4 = Signal(), Signal()
-        m.d.sync += [v4.eq(v3), b4.eq(b3), k4.eq(k3), ok4.eq(ok3), near4.eq(near3),
-                     far4.eq(far3), un4.eq(un3), uf4.eq(uf3), total4.eq(total_v)]
+        m.d.comb += diff.eq(p4.far - p4.near)
+        step_v, step_fmt = hdl_mul(p4.w, WEIGHT_FMT, diff, cm.difference_fmt)
+        total_v, total_fmt = hdl_add(p4.near, cm.cue_fmt, step_v, step_fmt)
+        tag = {name: getattr(p4, name) for name in ("v", "b", "k", "ok", "near", "far",
+                                                     "un", "uf")}
+        p5 = _register(m, 5, **tag, total=(total_v, total_fmt.shape()))
 
-        # stage 5: round, or the one usable cue alone; write the item's result
-        rounded = hdl_resize(total4, total_fmt, cm.cue_fmt, Rounding.HALF_EVEN,
+        # stage 6: round, or the one usable cue alone; write the item's result
+        rounded = hdl_resize(p5.total, total_fmt, cm.cue_fmt, Rounding.HALF_EVEN,
                              Overflow.ERROR)
-        value = Mux(un4 & uf4, rounded, Mux(un4, near4, far4))
-        has = ok4 & (un4 | uf4)
+        value = Mux(p5.un & p5.uf, rounded, Mux(p5.un, p5.near, p5.far))
+        has = p5.ok & (p5.un | p5.uf)
         for k in range(k_seg):
             for role, cues, usable in ((0, self.cue_a, self.usable_a),
                                        (1, self.cue_b, self.usable_b)):
-                with m.If(v4 & (b4 == role) & (k4 == k)):
+                with m.If(p5.v & (p5.b == role) & (p5.k == k)):
                     m.d.sync += [cues[k].eq(Mux(has, value, 0)), usable[k].eq(has)]
         return m
