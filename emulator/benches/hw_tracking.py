@@ -85,6 +85,8 @@ def hardware_path(dataset, progress=False, motion_gain=DEFAULT_MOTION_GAIN):
     figures["solved_fraction"] = float(np.mean(np.isfinite(steps[:, 0])))
     figures["rows"] = int(len(frames))
     figures["loop_delay_rows"] = path.loop_delay_rows
+    figures["segments"] = path.config.router.temporal.segments
+    figures["stereo_segments"] = path.config.router.stereo.segments
     if motion_gain == "information":
         figures["gain_flagged"] = path.result.loop["counts"]["gain_flagged"]
     figures["emulator_s"] = time.perf_counter() - start
@@ -207,10 +209,14 @@ def report(figures):
 |---|---|---|
 {checks}
 """)
-        delay = f[f"{rig}.{next(iter(MOTIONS))}.loop_delay_rows"]
+        first = f"{rig}.{next(iter(MOTIONS))}."
+        delay = f[f"{first}loop_delay_rows"]
+        lanes = (f"K = {f[first + 'segments']} temporal and K_s = "
+                 f"{f[first + 'stereo_segments']} stereo segments. "
+                 if f"{first}segments" in f else "")
         sections.append(f"""## {rig}
 
-Loop delay {delay} row(s). Per-row one-frame motion Y against truth, RMS per axis:
+{lanes}Loop delay {delay} row(s). Per-row one-frame motion Y against truth, RMS per axis:
 
 | run | Tx / Ty / Tz (cm) | θx / θy / θz (rad) |
 |---|---|---|
