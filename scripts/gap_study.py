@@ -85,20 +85,39 @@ def patched(module, name, value):
         setattr(module, name, old)
 
 
-def float_solver_patch(config):
-    """tracking_loop.solve_rows -> float64 solve quantized into step_fmt."""
+def _solve_patch(solve):
+    """The closed loop's solve replaced by ``solve(pose_rows) -> StepResult``: the loop
+    accumulates the fixed-point system (the information gain still reads it) and then
+    solves; the rows are caught where they are accumulated."""
     import emulator.pose.tracking_loop as tl
+    caught = {}
+    accumulate = tl.accumulate
+
+    def catch(params, coef_raw, rows):
+        caught["rows"] = rows
+        return accumulate(params, coef_raw, rows)
+
+    def solve_system(params, normal, rhs, overrun, pivot_log2=None):
+        return solve(caught["rows"])
+    stack = contextlib.ExitStack()
+    stack.enter_context(patched(tl, "accumulate", catch))
+    stack.enter_context(patched(tl, "solve_system", solve_system))
+    return stack
+
+
+def float_solver_patch(config):
+    """The loop's solve -> float64 solve quantized into step_fmt."""
     from emulator.e2e import float_steps
     from emulator.pose_solver import StepResult
     fmt = config.router.solver.step_fmt
 
-    def solve(params, coef_raw, rows):
+    def solve(rows):
         step = float_steps(config, rows)
         ok = np.all(np.isfinite(step), axis=1)
         raw = np.array([[int(fmt.quantize(v)) for v in s] if o else [0] * 6
                         for s, o in zip(step, ok)], dtype=np.int64)
         return StepResult(step=raw, flags=np.where(ok, 0, 1))
-    return patched(tl, "solve_rows", solve)
+    return _solve_patch(solve)
 
 
 class _Current:
@@ -235,7 +254,6 @@ def coefficient_patch(dataset, config, how):
     run-time window centre (the lane's actual compared columns): ``how`` "centre": at
     the segments' centre columns; "mean": averaged over every column of the segment;
     "zero": the store's columns (centre 0), the float_solver swap's control."""
-    import emulator.pose.tracking_loop as tl
     from golden.descriptor import segment_bounds
     from golden.pose_lsq import ShiftCoefficients, shift_coefficients, solve_step
     from emulator.pose_solver import StepResult
@@ -261,7 +279,7 @@ def coefficient_patch(dataset, config, how):
         return tables[key]
     fmt = solver.step_fmt
 
-    def solve(params, coef_raw, pose_rows):
+    def solve(pose_rows):
         centres = _Current.centres
         row = int(pose_rows.row[0])
         coef = np.stack([table(slot // k, int(centres[slot // k]))[slot % k, row]
@@ -276,7 +294,7 @@ def coefficient_patch(dataset, config, how):
         return StepResult(step=raw, flags=np.where(ok, 0, 1))
     stack = contextlib.ExitStack()
     stack.enter_context(_track_frame())
-    stack.enter_context(patched(tl, "solve_rows", solve))
+    stack.enter_context(_solve_patch(solve))
     return stack
 
 
