@@ -60,8 +60,9 @@ def _cue_patch(config, cue_of):
     """The router's cue of each temporal segment replaced by ``cue_of(k, shift, cues)``
     (float pixels, or None: the segment gets no weight): ``k`` the temporal segment,
     ``shift`` how far right of its own columns camera A sees them (0 for camera A; for
-    camera B the pair's disparity, the cue the router gives the segment today, stereo
-    segment ``k·K_s // K``), ``cues`` the pair's usable cues by stereo segment (float)."""
+    camera B the pair's disparity of stereo segment ``k·K_s // K``, the router's cue
+    before the cue map), ``cues`` the pair's usable cues by stereo segment (float).
+    Applied to today's router it overrides the cue map's cues."""
     import emulator.pipeline as pl
     from emulator.measurement.router import usable_cues
     lane, stereo = config.router.temporal, config.router.stereo
@@ -94,7 +95,7 @@ def _bounds(lane):
 def column_cue_patch(config):
     """Each temporal segment's cue: the overlap-weighted mean of the usable stereo cues
     over the segment's columns (centre 0) as camera A sees them, instead of stereo
-    segment ``k·K_s // K`` alone, whose columns start at the stereo lane's first
+    segment ``k·K_s // K`` alone (the router's rule before the cue map), whose columns start at the stereo lane's first
     comparable column (76 on stereo20, 26 for the temporal lanes). Beyond the stereo
     lane's columns the nearest end segment; none usable: no weight."""
     temporal = _bounds(config.router.temporal)
