@@ -28,7 +28,7 @@ test: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) $(PYTEST_ARGS)
 
 bench: $(STAMP)
-	$(VENV)/bin/rowtrack bench --write-docs docs/results
+	$(VENV)/bin/rowtrack bench --jobs $(JOBS) --write-docs docs/results
 	$(VENV)/bin/rowtrack synth-report --write-docs docs/results
 
 clean:

@@ -12,6 +12,7 @@ Figures are measured, never typed in. To add a benchmark, write the module and l
 
 import datetime
 import importlib
+import inspect
 import platform
 
 #: name -> module
@@ -43,13 +44,17 @@ def _is_extra(key, extra):
     return key.split(".", 1)[0] in extra
 
 
-def measure(name):
+def measure(name, jobs=1):
     """Run benchmark ``name``; returns its figures with keys prefixed by ``name.``.
+    ``jobs``: processes for a benchmark whose ``measure`` takes ``jobs`` (its runs are
+    independent); the others run in this one.
 
     A benchmark that measures another part too (the top benchmark runs the host tool)
     lists those prefixes in ``EXTRA_PREFIXES``; its keys under them stay as they are.
     """
-    figures = importlib.import_module(BENCHES[name]).measure()
+    module = importlib.import_module(BENCHES[name])
+    parallel = "jobs" in inspect.signature(module.measure).parameters
+    figures = module.measure(jobs=jobs) if parallel else module.measure()
     extra = _extra_prefixes(name)
     return {key if _is_extra(key, extra) else f"{name}.{key}": value
             for key, value in figures.items()}

@@ -22,7 +22,11 @@ against which an estimate that tracks must stay within
 loop_delay_rows=<the same delay>)`` on the same sequence.
 """
 
+import functools
+import multiprocessing
+import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
@@ -102,20 +106,42 @@ def golden_b(dataset, loop_delay_rows, motion_gain=DEFAULT_MOTION_GAIN):
     return _axes("golden_b_", np.array(metrics["rms_t_cm"]) / 100, metrics["rms_r_rad"])
 
 
-def measure(rigs=RIGS, motions=tuple(MOTIONS), progress=False):
+def measure(rigs=RIGS, motions=tuple(MOTIONS), progress=False, jobs=1):
     """Per rig and motion: the hardware path with each gain law of :data:`GAINS` (the
     default unprefixed, the scalar one under ``scalar.``), each beside golden (b) with the
-    same delay and gain law."""
+    same delay and gain law. ``jobs`` > 1 runs the (rig, motion, gain law) runs in that
+    many processes (each simulates its sequence again: the runs are independent and
+    deterministic, so the figures do not depend on ``jobs``)."""
+    runs = [(rig, motion, gain) for rig in rigs for motion in motions for gain in GAINS]
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, not {jobs}")
+    if jobs == 1 or len(runs) < 2:
+        results = [_measure_run(*run, progress=progress) for run in runs]
+    else:
+        with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            results = list(pool.map(_measure_run, *zip(*runs)))
     figures = {}
-    for rig in rigs:
-        for motion in motions:
-            dataset = noisy_sequence(rig, motion, MOTIONS[motion])
-            for gain, prefix in GAINS.items():
-                hw = hardware_path(dataset, progress, gain)
-                hw.update(golden_b(dataset, hw["loop_delay_rows"], gain))
-                figures.update({f"{rig}.{motion}.{prefix}{key}": value
-                                for key, value in hw.items()})
+    for (rig, motion, gain), hw in zip(runs, results):
+        figures.update({f"{rig}.{motion}.{GAINS[gain]}{key}": value
+                        for key, value in hw.items()})
     return figures
+
+
+@functools.lru_cache(maxsize=1)
+def _sequence(rig, motion):
+    return noisy_sequence(rig, motion, MOTIONS[motion])
+
+
+def _measure_run(rig, motion, gain, progress=False):
+    """One run of :func:`measure`: the hardware path and golden (b) (unprefixed
+    figures); a line on standard error when it is done (runs take minutes each)."""
+    start = time.perf_counter()
+    dataset = _sequence(rig, motion)
+    hw = hardware_path(dataset, progress, gain)
+    hw.update(golden_b(dataset, hw["loop_delay_rows"], gain))
+    print(f"[hw_tracking] {rig} {motion} {gain} gain: "
+          f"{time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)
+    return hw
 
 
 # --- report -------------------------------------------------------------------------------

@@ -24,6 +24,9 @@ def add_arguments(parser):
                              "DIR/figures.json (after a change to a page's text), keeping "
                              "each page's measurement line")
     parser.add_argument("--list", action="store_true", help="list the benchmarks and exit")
+    parser.add_argument("--jobs", type=int, default=1, metavar="N",
+                        help="processes for the benchmarks made of independent runs "
+                             "(hw_tracking); the figures do not depend on it (default 1)")
 
 
 def run(args):
@@ -36,13 +39,15 @@ def run(args):
     if unknown:
         raise UsageError(f"unknown benchmark {unknown[0]!r}; "
                          f"benchmarks are: {', '.join(bench.names())}")
+    if args.jobs < 1:
+        raise UsageError(f"--jobs must be at least 1, not {args.jobs}")
     if args.render_docs:
         return _render_docs(bench, args.render_docs, selected)
     figures = {}
     with _stdout_to_stderr():
         for name in selected:
             print(f"[bench] {name} ...", file=sys.stderr, flush=True)
-            figures.update(bench.measure(name))
+            figures.update(bench.measure(name, args.jobs))
     if args.write_docs:
         args.write_docs.mkdir(parents=True, exist_ok=True)
         for name in selected:

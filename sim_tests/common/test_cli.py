@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+import types
 
 import pytest
 
@@ -64,7 +65,6 @@ def test_missing_simulator_tool_is_a_clear_error(monkeypatch):
 
 
 def test_bench_keys_are_prefixed_except_declared_extras(monkeypatch):
-    import types
     from emulator import bench
     fake = types.ModuleType("fake_bench")
     fake.EXTRA_PREFIXES = ("host",)
@@ -82,7 +82,6 @@ def test_bench_json_keeps_standard_output_for_the_figures(monkeypatch, capfd):
     as a child process would) goes to standard error; standard output is the JSON."""
     import json
     import os
-    import types
     from emulator import bench
     from emulator.cli import main
 
@@ -98,6 +97,37 @@ def test_bench_json_keeps_standard_output_for_the_figures(monkeypatch, capfd):
     out, err = capfd.readouterr()
     assert json.loads(out) == {"fixed.lut": 5}
     assert "build chatter" in err and "make: Entering directory" in err
+
+
+def test_bench_jobs_reach_the_benchmarks_that_take_them(monkeypatch, capfd):
+    """``--jobs N`` goes to a benchmark whose ``measure`` takes ``jobs`` (hw_tracking's
+    independent runs); the others run as before; fewer than one is a usage error."""
+    from emulator import bench
+    seen = []
+    parallel, serial = types.ModuleType("parallel_bench"), types.ModuleType("serial_bench")
+    parallel.measure = lambda jobs=1: seen.append(jobs) or {"runs": jobs}
+    serial.measure = lambda: {"lut": 5}
+    for name, module in (("fixed", parallel), ("dt", serial)):
+        monkeypatch.setitem(sys.modules, module.__name__, module)
+        monkeypatch.setitem(bench.BENCHES, name, module.__name__)
+    assert main(["bench", "--only", "fixed", "--only", "dt", "--jobs", "3", "--json"]) == 0
+    assert json.loads(capfd.readouterr().out) == {"fixed.runs": 3, "dt.lut": 5}
+    assert seen == [3]
+    assert main(["bench", "--only", "fixed", "--jobs", "0"]) == 2
+    assert "--jobs must be at least 1, not 0" in capfd.readouterr().err and seen == [3]
+
+
+def test_hw_tracking_runs_are_keyed_by_rig_motion_and_gain_law(monkeypatch):
+    """hw_tracking's ``measure`` keys each (rig, motion, gain law) run's figures the same
+    way whichever way the runs are spread (``jobs``); ``jobs`` < 1 is refused."""
+    from emulator.benches import hw_tracking
+    monkeypatch.setattr(hw_tracking, "_measure_run",
+                        lambda rig, motion, gain, progress=False: {"gain": gain})
+    figures = hw_tracking.measure(rigs=("r",), motions=("paper",))
+    assert figures == {f"r.paper.{prefix}gain": gain
+                       for gain, prefix in hw_tracking.GAINS.items()}
+    with pytest.raises(ValueError, match="jobs must be at least 1, not 0"):
+        hw_tracking.measure(rigs=("r",), motions=("paper",), jobs=0)
 
 
 def test_run_rejects_bad_input_in_a_real_process(tmp_path):
