@@ -11,7 +11,11 @@ average away), their standard deviation its noise.
 
 Usage: ``PYTHONPATH=. .venv/bin/python scripts/bias_study.py [--segments 8]
 [--stereo-segments 8] [--frames 4] [--only name,name]`` on hw_tracking's stereo20 paper
-sequence (12 frames, noise σ = 2; the first ``--frames`` used). Runs (``--only``):
+sequence (12 frames, noise σ = 2; the first ``--frames`` used). ``--window W`` also
+prints the errors' slow part, what a filter passes: the RMS of their ``W``-row moving
+means within each frame, and how alike those means are from frame to frame (the mean
+correlation of the frames' ``W``-row means: near 1, an error pattern fixed to the row,
+which the paper motion's constant rates repeat every frame). Runs (``--only``):
 
 * ``golden_b``: golden (b) with ``segments`` (its own depth: 16 blocks, per pixel);
 * ``hw``: the hardware path (:func:`emulator.hardware_path.closed_loop` settings) with
@@ -20,6 +24,9 @@ sequence (12 frames, noise σ = 2; the first ``--frames`` used). Runs (``--only`
   (each camera's own true disparity over its segment's compared columns / camera A's
   true disparity over the stereo segment, for both cameras); ``oracle_own_a`` /
   ``oracle_own_b``: "own" for camera A (B) of each pair, "stereo" for the other;
+* ``float_match`` / ``float_solver``: the hardware path with gap_study's swaps of the
+  lanes' matcher or the solve for float64; ``depth_weight``: with gap_study's float
+  depth-sensitivity weight (golden (b)'s, σ_d 1 px, 0.3 px);
 * ``column_cue``: the hardware path with each temporal segment's cue taken from the
   stereo segments its columns overlap (:func:`column_cue_patch`), the measured cues;
   ``centre_cue``: the same cues interpolated at the segment's centre column
@@ -136,12 +143,29 @@ def centre_cue_patch(config):
     return _cue_patch(config, cue_of)
 
 
+def slow_part(error, frames, window):
+    """Per axis: the RMS of the ``window``-row moving means of ``error`` (rows, 6) within
+    each of ``frames`` equal frames, and the mean correlation of those means between
+    frames (NaN with one frame)."""
+    per_frame = error.reshape(frames, -1, error.shape[1])
+    kernel = np.ones(window) / window
+    means = np.array([[np.convolve(f[:, a], kernel, "valid") for a in range(f.shape[1])]
+                      for f in per_frame])                           # (frames, 6, n)
+    rms = np.sqrt(np.mean(means**2, axis=(0, 2)))
+    if frames < 2:
+        return rms, np.full(len(rms), np.nan)
+    upper = np.triu_indices(frames, 1)
+    alike = np.array([np.corrcoef(means[:, a])[upper].mean() for a in range(means.shape[1])])
+    return rms, alike
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--segments", type=int, default=8)
     ap.add_argument("--stereo-segments", type=int, default=8)
     ap.add_argument("--frames", type=int, default=4)
     ap.add_argument("--only", default=None)
+    ap.add_argument("--window", type=int, default=None, metavar="W")
     args = ap.parse_args(argv)
     from emulator.benches.hw_tracking import MOTIONS
     from emulator.benches.tracker import _first_frames, noisy_sequence
@@ -162,6 +186,10 @@ def main(argv=None):
             dataset, config, lambda c: gap_study.oracle_cue_patch(dataset, c, own_role="A")),
         "oracle_own_b": lambda: hardware_steps(
             dataset, config, lambda c: gap_study.oracle_cue_patch(dataset, c, own_role="B")),
+        "float_match": lambda: hardware_steps(
+            dataset, config, lambda c: gap_study.float_match_patch(dataset, c)),
+        "float_solver": lambda: hardware_steps(dataset, config, gap_study.float_solver_patch),
+        "depth_weight": lambda: hardware_steps(dataset, config, gap_study.depth_weight_patch),
         "column_cue": lambda: hardware_steps(dataset, config, column_cue_patch),
         "centre_cue": lambda: hardware_steps(dataset, config, centre_cue_patch),
     }
@@ -175,11 +203,16 @@ def main(argv=None):
         start = time.time()
         frames, rows, steps = runs[name]()
         error = (steps - true_steps(dataset, frames, rows)) * UNITS
-        error = error[np.all(np.isfinite(error), axis=1)]
-        for label, values in (("mean", error.mean(axis=0)), ("std", error.std(axis=0))):
+        finite = np.all(np.isfinite(error), axis=1)
+        lines = [("mean", error[finite].mean(axis=0)), ("std", error[finite].std(axis=0))]
+        if args.window:
+            slow, alike = slow_part(np.where(finite[:, None], error, 0.0),
+                                    args.frames - 1, args.window)
+            lines += [("slow", slow), ("alike", alike)]
+        for label, values in lines:
             print(f"{name:14s} {label:4s} " + " ".join(f"{v:+8.4f}" for v in values),
                   flush=True)
-        print(f"{name:14s} rows {len(error)}, {time.time() - start:.0f} s", flush=True)
+        print(f"{name:14s} rows {finite.sum()}, {time.time() - start:.0f} s", flush=True)
 
 
 if __name__ == "__main__":

@@ -217,9 +217,11 @@ def float_match_patch(dataset, config):
                 continue
             bits, strong = desc(row.camera, frame)
             ref, _ = desc(row.camera, frame - 1)
-            m = match(bits[row.row][None], ref[source][None], lane.descriptor, lane.match,
-                      int(row.centre), cur_strong=strong[row.row][None])
+            source = np.broadcast_to(source, (lane.segments,))
             for k in range(lane.segments):
+                # each segment is compared with its own followed row
+                m = match(bits[row.row][None], ref[source[k]][None], lane.descriptor,
+                          lane.match, int(row.centre), cur_strong=strong[row.row][None])
                 rec = out[r * lane.segments + k]
                 if rec["no_reference"]:
                     continue
