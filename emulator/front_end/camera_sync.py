@@ -56,6 +56,8 @@ class CameraSyncModel:
         self.idle = [0] * n
         self.rearm = False
         self.skew = [self._no_skew() for _ in range(n)]
+        #: The events registered on entry (none after reset).
+        self.held = [{name: 0 for name, _ in params.event_layout()} for _ in range(n)]
         self.status = {"desync": [False] * n, "lost": [False] * n,
                        "desync_count": [0] * n, "lost_count": [0] * n,
                        "frame_skew": [0] * n, "row_skew": [0] * n}
@@ -65,6 +67,9 @@ class CameraSyncModel:
         return {"frame_valid": 0, "frame_skew": 0, "row_valid": 0, "row": 0, "row_skew": 0}
 
     def step(self, events):
+        """Advance one cycle with this cycle's ``events``; the monitor sees the previous
+        cycle's (the gateware registers them on entry)."""
+        events, self.held = self.held, [dict(ev) for ev in events]
         p, cfg, st = self.p, self.cfg, self.status
         n = p.n_cameras
         count_mask = (1 << p.count_bits) - 1

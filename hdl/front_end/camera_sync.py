@@ -77,6 +77,12 @@ def front_status_layout(params):
     })
 
 
+def same(a, b):
+    """``a == b`` as "no bit differs": synthesis maps it to a tree of LUTs (2 levels for
+    16 bits) where ``==`` came out as a 5-LUT chain (issue 17, LUT levels)."""
+    return ~(a ^ b).any()
+
+
 class CameraSync(wiring.Component):
     """Trigger generator, time base and skew monitor of the camera cluster.
 
@@ -101,8 +107,10 @@ class CameraSync(wiring.Component):
         Skew measurements against the master, as strobes (the master's stay zero).
     status : Out(sync_status_layout(params))
 
-    Latency: a skew is measured in the cycle after the later of the two events arrives,
-    and the flags and counters follow it by one more clock. The trigger outputs are
+    Latency: the events are registered on entry; a skew is measured in the second cycle
+    after the later of the two events arrives, and the flags and counters follow it by
+    one more clock (a lost camera is flagged one clock after its timeout, counted from
+    the registered events). The trigger outputs are
     registered: they rise one clock after the period counter wraps.
     """
 
@@ -153,25 +161,30 @@ class CameraSync(wiring.Component):
 
     def _monitor(self, m):
         p = self.params
-        master = self.events[p.master]
+        # The events are registered on entry: the camera inputs' decode stays out of the
+        # pairing's compare chains (issue 17: ≤ 8 LUT levels through the front end).
+        events = []
+        for k, ev in enumerate(self.events):
+            held = Signal(p.event_layout(), name=f"event{k}")
+            m.d.sync += held.eq(ev)
+            events.append(held)
+        master = events[p.master]
         m_frame = Signal(p.frame_bits)
         m_frame_t = Signal(p.timestamp_bits)
         m_row = Signal(p.row_bits)
         m_row_t = Signal(p.timestamp_bits)
         # The master's latest syncs, including this cycle's.
-        mf = wire(m, Mux(master.frame_start, master.frame, m_frame), "mf")
         mf_t = wire(m, Mux(master.frame_start, master.frame_time, m_frame_t), "mf_t")
-        mr = wire(m, Mux(master.row_start, master.row, m_row), "mr")
         mr_t = wire(m, Mux(master.row_start, master.row_time, m_row_t), "mr_t")
         with m.If(master.frame_start):
             m.d.sync += [m_frame.eq(master.frame), m_frame_t.eq(master.frame_time)]
         with m.If(master.row_start):
             m.d.sync += [m_row.eq(master.row), m_row_t.eq(master.row_time)]
 
-        for k, ev in enumerate(self.events):
+        for k, ev in enumerate(events):
             self._lost(m, k, ev)
             if k != p.master:
-                self._pair(m, k, ev, master, mf, mf_t, mr, mr_t)
+                self._pair(m, k, ev, master, (m_frame, mf_t), (m_row, mr_t))
 
     def _lost(self, m, k, ev):
         p, cfg, status = self.params, self.cfg, self.status
@@ -185,10 +198,18 @@ class CameraSync(wiring.Component):
         with m.If(lost_now & ~status.lost[k]):
             m.d.sync += status.lost_count[k].eq(status.lost_count[k] + 1)
 
-    def _pair(self, m, k, ev, master, mf, mf_t, mr, mr_t):
+    def _pair(self, m, k, ev, master, frame_of_master, row_of_master):
         """Pair camera ``k``'s syncs with the master's; the master's event of a cycle is
-        taken before the camera's."""
+        taken before the camera's. ``frame_of_master`` and ``row_of_master``: the master's
+        held frame (row) number and the time of its latest, this cycle's included.
+
+        A camera event matches the master's latest (this cycle's event if any, else the
+        held one) when no master event of this cycle was matched by camera ``k``'s pending
+        one; both cases are compared beside each other and the master's event picks one,
+        so the compares do not follow each other (issue 17, LUT levels)."""
         p, cfg, status = self.params, self.cfg, self.status
+        m_frame, mf_t = frame_of_master
+        m_row, mr_t = row_of_master
         fm_pend = Signal(name=f"fm_pend{k}")    # master frame start awaits camera k
         fc_pend = Signal(name=f"fc_pend{k}")    # camera k frame start awaits master
         fc_frame = Signal(p.frame_bits, name=f"fc_frame{k}")
@@ -199,11 +220,14 @@ class CameraSync(wiring.Component):
         rc_t = Signal(p.timestamp_bits, name=f"rc_t{k}")
 
         # Frame starts, matched by frame number.
-        f_hit_m = wire(m, master.frame_start & fc_pend & (fc_frame == master.frame),
+        f_hit_m = wire(m, master.frame_start & fc_pend & same(fc_frame, master.frame),
                        f"f_hit_m{k}")
         fm_pend1 = wire(m, Mux(master.frame_start, ~f_hit_m, fm_pend), f"fm_pend1_{k}")
         fc_pend1 = fc_pend & ~f_hit_m
-        f_hit_c = wire(m, ev.frame_start & fm_pend1 & (mf == ev.frame), f"f_hit_c{k}")
+        f_hit_c = wire(m, ev.frame_start & Mux(master.frame_start,
+                                               ~f_hit_m & same(master.frame, ev.frame),
+                                               fm_pend & same(m_frame, ev.frame)),
+                       f"f_hit_c{k}")
         frame_hit = f_hit_m | f_hit_c
         # Both candidate skews are computed and the hit picks one: the match compare then
         # runs beside the subtraction instead of in front of it (issue 17, LUT levels).
@@ -216,11 +240,14 @@ class CameraSync(wiring.Component):
         # Row starts, matched by row index; a frame start on either side forgets rows.
         frame_edge = master.frame_start | ev.frame_start
         rc_pend0 = wire(m, rc_pend & ~frame_edge, f"rc_pend0_{k}")
-        r_hit_m = wire(m, master.row_start & rc_pend0 & (rc_row == master.row), f"r_hit_m{k}")
+        r_hit_m = wire(m, master.row_start & rc_pend0 & same(rc_row, master.row), f"r_hit_m{k}")
         rm_pend1 = wire(m, Mux(master.row_start, ~r_hit_m, rm_pend & ~master.frame_start),
                         f"rm_pend1_{k}")
         rc_pend1 = rc_pend0 & ~r_hit_m
-        r_hit_c = wire(m, ev.row_start & rm_pend1 & (mr == ev.row), f"r_hit_c{k}")
+        r_hit_c = wire(m, ev.row_start & Mux(master.row_start,
+                                             ~r_hit_m & same(master.row, ev.row),
+                                             rm_pend & ~master.frame_start & same(m_row, ev.row)),
+                       f"r_hit_c{k}")
         row_hit = r_hit_m | r_hit_c
         row_skew = wire(m, Mux(r_hit_m, self._skew(rc_t, master.row_time),
                                self._skew(ev.row_time, mr_t)), f"row_skew{k}")

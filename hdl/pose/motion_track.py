@@ -116,6 +116,12 @@ class MotionTrack(wiring.Component):
         alpha = self.alpha << (rfmt.frac_bits - p.gain_fmt.frac_bits)
         rate = hdl_resize(product, product_fmt, fmt, Rounding.HALF_EVEN, Overflow.ERROR)
         pull = hdl_resize(product, product_fmt, pull_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
+        # the pull's rounding (with the axis's c), v = c + pull and Y = u + v each end in
+        # a register: one saturating sum per clock, no axis select before it, keeps the
+        # paths within 8 LUT levels
+        pulled = Signal(pull_fmt.shape())
+        carried = Signal(fmt.shape())
+        moved = Signal(fmt.shape())
         # P · c: the integer P times c's raw value, a raw value of motion_fmt's fraction
         filled_fmt = SQ(product_fmt.width - fmt.frac_bits, fmt.frac_bits)
         trend = row.trend[axis]
@@ -238,12 +244,18 @@ class MotionTrack(wiring.Component):
                 m.d.sync += [a_operand.eq(alpha), b_operand.eq(row.target[axis] - rest - carry[axis])]
                 m.next = "PULL_PRODUCT"
             with m.State("PULL_PRODUCT"):
+                m.next = "PULL_ROUND"
+            with m.State("PULL_ROUND"):            # a·(m − u − c) rounded, c of the axis
+                m.d.sync += [pulled.eq(pull), carried.eq(carry[axis])]
+                m.next = "PULL_MOVE"
+            with m.State("PULL_MOVE"):             # v = c + pull
+                moved_value, moved_out = limit(carried + pulled, wider(5))
+                m.d.sync += [moved.eq(moved_value), clamped.eq(clamped | moved_out)]
                 m.next = "PULL_SUM"
-            with m.State("PULL_SUM"):
-                moved, moved_out = limit(carry[axis] + pull, wider(5))
+            with m.State("PULL_SUM"):              # Y = u + v
                 value, out = limit(rest + moved, wider(2))
                 m.d.sync += [increment[axis].eq(moved), motion[axis].eq(value),
-                             clamped.eq(clamped | moved_out | out), axis.eq(axis + 1)]
+                             clamped.eq(clamped | out), axis.eq(axis + 1)]
                 with m.If(axis == 5):
                     m.next = "WRITE"
                 with m.Else():
