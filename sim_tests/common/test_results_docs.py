@@ -52,7 +52,7 @@ def test_write_docs_replaces_all_old_figures_of_a_benchmark(tmp_path, monkeypatc
     benchmarks' figures stay."""
     (tmp_path / "figures.json").write_text(json.dumps(
         {"fixed.gone": 1, "fixed.kept": 2, "simulator.other": 3}))
-    monkeypatch.setattr(bench, "measure", lambda name: {"fixed.kept": 5, "fixed.new": 6})
+    monkeypatch.setattr(bench, "measure", lambda name, jobs=1: {"fixed.kept": 5, "fixed.new": 6})
     monkeypatch.setattr(bench, "report", lambda name, figures, measured=None: "page\n")
     assert main(["bench", "--only", "fixed", "--write-docs", str(tmp_path), "--json"]) == 0
     assert json.loads((tmp_path / "figures.json").read_text()) == {
