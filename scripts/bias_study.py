@@ -144,14 +144,19 @@ def centre_cue_patch(config):
 
 
 def slow_part(error, frames, window):
-    """Per axis: the RMS of the ``window``-row moving means of ``error`` (rows, 6) within
-    each of ``frames`` equal frames, and the mean correlation of those means between
-    frames (NaN with one frame)."""
+    """Per axis: the RMS of the ``window``-row moving means of ``error`` (rows, 6; a row
+    not solved is NaN and left out of its windows' means) within each of ``frames`` equal
+    frames, and the mean correlation of those means between frames (NaN with one frame)."""
     per_frame = error.reshape(frames, -1, error.shape[1])
-    kernel = np.ones(window) / window
-    means = np.array([[np.convolve(f[:, a], kernel, "valid") for a in range(f.shape[1])]
-                      for f in per_frame])                           # (frames, 6, n)
-    rms = np.sqrt(np.mean(means**2, axis=(0, 2)))
+    solved = np.isfinite(per_frame)
+    kernel = np.ones(window)
+
+    def moving(values):
+        return np.array([[np.convolve(f[:, a], kernel, "valid") for a in range(f.shape[1])]
+                         for f in values])                           # (frames, 6, n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = moving(np.where(solved, per_frame, 0.0)) / moving(solved.astype(float))
+    rms = np.sqrt(np.nanmean(means**2, axis=(0, 2)))
     if frames < 2:
         return rms, np.full(len(rms), np.nan)
     upper = np.triu_indices(frames, 1)
@@ -206,7 +211,7 @@ def main(argv=None):
         finite = np.all(np.isfinite(error), axis=1)
         lines = [("mean", error[finite].mean(axis=0)), ("std", error[finite].std(axis=0))]
         if args.window:
-            slow, alike = slow_part(np.where(finite[:, None], error, 0.0),
+            slow, alike = slow_part(np.where(finite[:, None], error, np.nan),
                                     args.frames - 1, args.window)
             lines += [("slow", slow), ("alike", alike)]
         for label, values in lines:

@@ -218,10 +218,13 @@ def float_match_patch(dataset, config):
             bits, strong = desc(row.camera, frame)
             ref, _ = desc(row.camera, frame - 1)
             source = np.broadcast_to(source, (lane.segments,))
+            # each segment is compared with its own followed row: one match per row used
+            matched = {int(s): match(bits[row.row][None], ref[s][None], lane.descriptor,
+                                     lane.match, int(row.centre),
+                                     cur_strong=strong[row.row][None])
+                       for s in np.unique(source)}
             for k in range(lane.segments):
-                # each segment is compared with its own followed row
-                m = match(bits[row.row][None], ref[source[k]][None], lane.descriptor,
-                          lane.match, int(row.centre), cur_strong=strong[row.row][None])
+                m = matched[int(source[k])]
                 rec = out[r * lane.segments + k]
                 if rec["no_reference"]:
                     continue
