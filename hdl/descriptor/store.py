@@ -34,6 +34,7 @@ from amaranth.lib.wiring import In, Out
 
 from hdl.descriptor.layouts import descriptor_layout, pair_layout
 from hdl.descriptor.params import REFERENCE_WORD_BITS, check_lane_params
+from hdl.logic import same
 
 __all__ = ["ReferenceStore", "COUNT_BITS"]
 
@@ -264,30 +265,35 @@ class ReferenceStore(wiring.Component):
         if self.follow:
             m.d.comb += tags_wr.data.row.eq(item.meta.row)
 
-        s1_valid, s1_ok = Signal(), Signal()
+        # what the tag check needs of the item is worked out on entry to s1, so that
+        # after the tag read only the two compares and the flags remain (issue 17: the
+        # frame's subtraction and the bounds took the path to 12 LUT levels in the top)
+        s1_valid, s1_served, s1_checked = Signal(), Signal(), Signal()
         s1 = Signal(pair_layout(p))
+        s1_previous = Signal(p.frame_bits)
         s1_expected = Signal(p.row_bits)
         missing = Signal()          # followed: a checked column of this row had no reference
         with m.If(advance):
             m.d.sync += [s1_valid.eq(self.i.valid), s1.cur.eq(item.bits[0]),
                          s1.ref.eq(ref_bit), s1.strong.eq(item.strong[0]),
                          s1.pos.eq(item.pos), s1.first.eq(item.first), s1.last.eq(item.last),
-                         s1.meta.eq(item.meta), s1_ok.eq(at["ok"])]
+                         s1.meta.eq(item.meta), s1_served.eq(at["ok"] & in_frame),
+                         s1_checked.eq(item.pos >= p.radius),
+                         s1_previous.eq(item.meta.frame - 1)]
             tag = tags_rd.data
-            previous = (s1.meta.frame - 1)[:p.frame_bits]
-            served = s1_ok & (s1.meta.row < p.height)
-            stale = ~tag.valid | (tag.frame != previous)
+            stale = ~tag.valid | ~same(tag.frame, s1_previous)
             out = self.o.payload
-            m.d.sync += [self.o.valid.eq(s1_valid), out.eq(s1), out.ref.eq(s1.ref & served)]
+            m.d.sync += [self.o.valid.eq(s1_valid), out.eq(s1),
+                         out.ref.eq(s1.ref & s1_served)]
             if self.follow:
                 # each column checks the slot of its own word's segment; the row has a
                 # reference when every checked column had one (final with the last)
-                checked = s1.pos >= p.radius
-                lacking = missing | (checked & (stale | (tag.row != s1_expected) | ~served))
+                lacking = missing | (s1_checked & (stale | ~same(tag.row, s1_expected) |
+                                                   ~s1_served))
                 m.d.sync += [s1_expected.eq(at["expected_row"]),
-                             out.no_reference.eq(~checked | lacking)]
+                             out.no_reference.eq(~s1_checked | lacking)]
                 with m.If(s1_valid):
                     m.d.sync += missing.eq(Mux(s1.last, 0, lacking))
             else:
-                m.d.sync += out.no_reference.eq(stale | ~served)
+                m.d.sync += out.no_reference.eq(stale | ~s1_served)
         return m

@@ -24,6 +24,7 @@ from hdl.front_end.camera_input import CameraInput, saturating_increment, wire
 from hdl.front_end.params import CameraParams
 from hdl.fixed import Overflow, Rounding, SQ, hdl_resize
 from hdl.front_end.row_aligner import RowAligner
+from hdl.logic import same
 from hdl.streams import dvp_signature
 
 __all__ = ["CameraSync", "CameraFrontEnd", "sync_config_layout", "sync_status_layout",
@@ -75,12 +76,6 @@ def front_status_layout(params):
         "sync": sync_status_layout(params), "align": params.align_status_layout(),
         "inputs": data.ArrayLayout(params.input_status_layout(), params.n_cameras),
     })
-
-
-def same(a, b):
-    """``a == b`` as "no bit differs": synthesis maps it to a tree of LUTs (2 levels for
-    16 bits) where ``==`` came out as a 5-LUT chain (issue 17, LUT levels)."""
-    return ~(a ^ b).any()
 
 
 class CameraSync(wiring.Component):
