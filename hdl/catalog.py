@@ -23,6 +23,7 @@ BLOCKS = {
     "row_aligner": "hdl.front_end.row_aligner:RowAligner",
     "camera_front": "hdl.front_end.camera_sync:CameraFrontEnd",
     "pose_solver": "hdl.pose_solver:PoseSolver",
+    "gain_solver": "hdl.pose_solver:default_gain_solver",
     "forecast": "hdl.pose.forecast:default_forecast",
     "status_unit": "hdl.pose.status_unit:default_status_unit",
     "prior_store": "hdl.pose.prior_store:default_prior_store",

@@ -16,7 +16,7 @@ The algorithm, formats and error budget are in ``docs/pose/pose_solver.md``; the
 bit-accurate model is :mod:`emulator.pose_solver`.
 """
 
-from amaranth.hdl import Module, Mux, Signal
+from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out, connect
@@ -29,7 +29,7 @@ from hdl.pose.program import UPPER
 from hdl.pose.params import PoseFlag, PoseSolverParams
 
 __all__ = ["PoseSolver", "PoseSolverParams", "PoseFlag",
-           "measurement_layout", "record_layout", "counters_layout"]
+           "measurement_layout", "record_layout", "counters_layout", "default_gain_solver"]
 
 
 class PoseSolver(wiring.Component):
@@ -157,7 +157,7 @@ class PoseSolver(wiring.Component):
     def _wire_prior(self, m, acc, engine):
         """The information gain's prior: the engine's reads of the first 21 sums (N) pass
         through the prior store, whose ``M = N + Λ'`` fill a buffer the normalizer reads
-        and whose diagonal gives ``M``'s exponents (by cycle 27 of the program, before
+        and whose diagonal gives ``M``'s exponents (by cycle 28 of the program, before
         the normalizer reaches M at cycle 33); the record's flags keep or drop ``Λ'``."""
         p, g = self.params, self.gain
         m.submodules.prior = prior = self._prior
@@ -181,11 +181,28 @@ class PoseSolver(wiring.Component):
         m.d.comb += [write.en.eq(prior.o.valid), write.addr.eq(index),
                      write.data.eq(prior.o.payload.value),
                      read.addr.eq(engine.m_index), engine.m_data.eq(read.data)]
+        # a diagonal entry's leading one is registered first, its exponent and clamp
+        # written a clock later (issue 17: both in one clock were 11 LUT levels)
         low, high = p.exponent_range[0], prior_exponent_high(g)
         frac, width = p.normal_fmt.frac_bits, total_fmt(g).width
-        top = leading_one(prior.o.payload.value, width)
+        top = Signal(range(width), name="prior_top")
+        diagonal = Signal(6, name="prior_diagonal")
+        m.d.sync += [top.eq(leading_one(prior.o.payload.value, width)),
+                     diagonal.eq(Cat(prior.o.valid & (index == UPPER.index((i, i)))
+                                     for i in range(6)))]
         exponent = -((frac - 1 - top) >> 1)
         clamped = Mux(exponent < low, low, Mux(exponent > high, high, exponent))
         for i in range(6):
-            with m.If(prior.o.valid & (index == UPPER.index((i, i)))):
+            with m.If(diagonal[i]):
                 m.d.sync += engine.m_exponents[i].eq(clamped)
+
+
+def default_gain_solver():
+    """The closed loop's solver of the board rig (``stereo8-board``, its polynomial store)
+    with the information gain (prior store, gain program): the catalog's build, for
+    Verilog and synthesis."""
+    from golden.rig import preset
+    from hdl.pipeline_config import PipelineConfig
+    config = PipelineConfig.for_rig(preset("stereo8-board"))
+    gain = config.forecast(motion_gain="information")
+    return PoseSolver(gain.solver, config.coef_store, gain=gain)

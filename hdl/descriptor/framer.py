@@ -8,6 +8,7 @@ from amaranth.lib.wiring import In, Out
 
 from hdl.descriptor.layouts import descriptor_layout, framed_layout
 from hdl.descriptor.params import check_lane_params
+from hdl.logic import same
 
 __all__ = ["RowFramer", "StereoJoin", "saturate_centre", "saturate_half_width"]
 
@@ -179,8 +180,10 @@ class StereoJoin(wiring.Component):
         a, b = self.a.payload, self.b.payload
         mode = Signal(2)          # 0: at a boundary, 1: pairing, 2: dropping a, 3: dropping b
         both = self.a.valid & self.b.valid
-        same_frame = a.meta.frame == b.meta.frame
-        same = same_frame & (a.meta.row == b.meta.row)
+        # "no bit differs" maps to a LUT tree where ``==`` gave a chain (issue 17: the
+        # stereo slices into ``mode`` were 11 LUT levels in the top)
+        same_frame = same(a.meta.frame, b.meta.frame)
+        same_row = same_frame & same(a.meta.row, b.meta.row)
         frame_gap = (a.meta.frame - b.meta.frame)[:p.frame_bits]
         # same_frame, not frame_gap == 0: the same test without the subtraction's carry
         # in front of it; and which row is older is registered, off the ready path
@@ -189,9 +192,9 @@ class StereoJoin(wiring.Component):
         a_older = Signal()              # of the heads of the clock before
         settled = Signal()              # the heads differed a clock ago: a_older is theirs
         m.d.sync += a_older.eq(frame_gap[-1] | (same_frame & (a.meta.row < b.meta.row)))
-        differ = (mode == 0) & both & ~same
+        differ = (mode == 0) & both & ~same_row
         m.d.sync += settled.eq(differ & ~settled)
-        pairing = (mode == 1) | ((mode == 0) & same)
+        pairing = (mode == 1) | ((mode == 0) & same_row)
         drop_a = (mode == 2) | (differ & settled & a_older)
         drop_b = (mode == 3) | (differ & settled & ~a_older)
         advance = ~self.o.valid | self.o.ready
