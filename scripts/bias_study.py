@@ -31,6 +31,23 @@ which the paper motion's constant rates repeat every frame). Runs (``--only``):
   stereo segments its columns overlap (:func:`column_cue_patch`), the measured cues;
   ``centre_cue``: the same cues interpolated at the segment's centre column
   (:func:`centre_cue_patch`).
+* ``coverage``: the hardware path with no weight for a temporal segment whose columns,
+  as camera A sees them, lie less than half inside the stereo lane's compared columns
+  (:func:`coverage_patch`; golden (b) has no depth there and takes no measurement).
+* ``row_residual``: the hardware path with each shift corrected by ``r·∂s/∂y``, ``r``
+  how far the segment's followed row is from its exact displacement across rows
+  (:func:`row_residual_patch`).
+* golden side, each one of the hardware's simplifications inside golden (b)
+  (:func:`golden_swap`): ``gb_mean_depth`` (design rows from the segment's mean
+  ``R + T·ρ``, one depth per segment), ``gb_mean_depth_linear`` (that and the linear
+  predicted shift with the reference-time factor: the hardware's measurement model),
+  ``gb_word_rows`` (each 36-column reference word from the row of the segment of its
+  middle column, as the followed store reads it).
+
+``--by-camera`` (with the hardware runs) splits each row's Ty error into the cameras'
+shares (:func:`camera_shares`: the float solve of the row's judged measurements, the
+error of each measurement against the true motion through the solve's gain) and prints
+each camera's mean, slow part and frame likeness.
 """
 
 import argparse
@@ -48,7 +65,11 @@ UNITS = np.array([100, 100, 100, 1e4, 1e4, 1e4])
 
 def golden_steps(dataset, segments):
     """(frames, rows, raw measured steps) of golden (b) with a frozen forecast."""
-    result = gap_study.golden_b(dataset, segments=segments, **FROZEN)
+    return _golden_rows(dataset, gap_study.golden_b(dataset, segments=segments, **FROZEN))
+
+
+def _golden_rows(dataset, result):
+    """(frames, rows, raw measured steps) of a golden (b) result, frames ≥ 1."""
     height = dataset.rig.cameras[0].height
     frames = len(dataset.cameras[0].rows)
     fr = np.repeat(np.arange(1, frames), height)
@@ -63,9 +84,10 @@ def hardware_steps(dataset, config, patch=None):
     return run[3]
 
 
-def _cue_patch(config, cue_of):
+def _cue_patch(config, cue_of, keep_cue=False):
     """The router's cue of each temporal segment replaced by ``cue_of(k, shift, cues)``
-    (float pixels, or None: the segment gets no weight): ``k`` the temporal segment,
+    (float pixels, or None: the segment gets no weight; with ``keep_cue`` a value keeps
+    the router's cue): ``k`` the temporal segment,
     ``shift`` how far right of its own columns camera A sees them (0 for camera A; for
     camera B the pair's disparity of stereo segment ``k·K_s // K``, the router's cue
     before the cue map), ``cues`` the pair's usable cues by stereo segment (float).
@@ -87,7 +109,8 @@ def _cue_patch(config, cue_of):
             shift = cues.get((a, k * stereo.segments // lane.segments), 0.0) if a != n else 0.0
             cue = cue_of(k, shift, {j: c for (pair, j), c in cues.items() if pair == a})
             if cue is not None and not edge[(n, k)]:
-                t["cue"] = int(fmt.quantize(cue))
+                if not keep_cue:
+                    t["cue"] = int(fmt.quantize(cue))
             else:
                 t["conf"] = 0
         return out
@@ -143,6 +166,134 @@ def centre_cue_patch(config):
     return _cue_patch(config, cue_of)
 
 
+def coverage_patch(config, least=0.5):
+    """No weight for a temporal segment whose columns, as camera A sees them (camera B's
+    moved right by the pair's cue, as :func:`_cue_patch` gives it), lie less than
+    ``least`` inside the stereo lane's compared columns; the router's cues otherwise."""
+    temporal = _bounds(config.router.temporal)
+    stereo = _bounds(config.router.stereo)
+    first, last = stereo[0][0], stereo[-1][1]
+
+    def cue_of(k, shift, cues):
+        lo, hi = temporal[k][0] + shift, temporal[k][1] + shift
+        inside = max(0.0, min(hi, last) - max(lo, first)) / (hi - lo)
+        return None if inside < least else 0.0
+    return _cue_patch(config, cue_of, keep_cue=True)
+
+
+def row_residual_patch(config):
+    """Each measured shift corrected by ``r·∂s/∂y`` (float): ``r`` = the segment's
+    followed row minus its exact source row ``row − across``, ``∂s/∂y`` half the
+    difference of the forecast's predicted shifts of the rows below and above."""
+    import emulator.pose.tracking_loop as tl
+    original = tl.TrackingLoopModel.close
+
+    def close(self, transfers, slot, row):
+        if transfers and self.prediction is not None:
+            p, forecast = self.params, self.forecast
+            cue = np.zeros(p.solver.slots, dtype=np.int64)
+            cue[[t["slot"] for t in transfers]] = [t["cue"] for t in transfers]
+            motion, unit = self.prediction["motion"], 1 << p.displacement_fmt.frac_bits
+            r = self.prediction["segment_rows"].ravel() - (row - self.prediction["across"] / unit)
+            below, _ = forecast._displacements(p.solver, self.coef_raw,
+                                               min(row + 1, p.height - 1), cue, motion)
+            above, _ = forecast._displacements(p.solver, self.coef_raw, max(row - 1, 0),
+                                               cue, motion)
+            slope = (below - above) / 2 / unit * (1 << p.solver.shift_fmt.frac_bits)
+            transfers = [{**t, "shift": int(np.rint(t["shift"] - r[t["slot"]] *
+                                                    slope[t["slot"]]))}
+                         for t in transfers]
+        return original(self, transfers, slot, row)
+    return gap_study.patched(tl.TrackingLoopModel, "close", close)
+
+
+def golden_swap(name):
+    """Golden (b) with one of the hardware's simplifications (the ``gb_*`` runs of the
+    module docstring but ``gb_mean_depth_linear``'s linear prediction), as a context
+    manager."""
+    import inspect
+    import textwrap
+    from golden import tracker as gt
+    from golden.tracker_geometry import segment_means
+    if name == "gb_word_rows":
+        source = textwrap.dedent(inspect.getsource(gt.Tracker._segment_rows))
+        exact = "by_column = segment_of(np.arange(cam.width) + centres[:, None])"
+        if exact not in source:
+            raise RuntimeError("golden.tracker._segment_rows changed: update gb_word_rows")
+        source = source.replace(exact, (
+            "words = np.minimum(np.arange(cam.width) // 36, "
+            "(cam.width - 2 * self.desc.radius) // 36 - 1)\n"
+            "    by_column = segment_of(36 * words + 18 + centres[:, None])"))
+        space = dict(vars(gt))
+        exec(source, space)
+        return gap_study.patched(gt.Tracker, "_segment_rows", space["_segment_rows"])
+    equations = gt.Tracker._equations
+
+    def mean_depth(self, e):
+        equations(self, e)
+        table = self.design_tables[e.camera]
+        usable = np.isfinite(e.inverse_depth) & np.isfinite(e.predicted)
+        stride = self.params.geometry_stride
+        lo, hi = -(-e.lo // stride), -(-e.hi // stride)
+        zero = table.rows(e.rows, np.zeros_like(e.inverse_depth))
+        unit = table.rows(e.rows, np.ones_like(e.inverse_depth))
+        rotation, _ = segment_means(zero, usable, lo, hi)
+        translation, _ = segment_means(unit - zero, usable, lo, hi)
+        depth, _ = segment_means(np.where(usable, e.inverse_depth, 0.0), usable, lo, hi)
+        e.design = rotation + translation * depth[..., None]
+    return gap_study.patched(gt.Tracker, "_equations", mean_depth)
+
+
+def golden_swap_steps(dataset, segments, name):
+    """(frames, rows, raw measured steps) of golden (b), frozen forecast, with a swap."""
+    linear = "time" if name == "gb_mean_depth_linear" else None
+    with golden_swap("gb_word_rows" if name == "gb_word_rows" else "gb_mean_depth"):
+        result = gap_study.golden_b(dataset, segments=segments, linear=linear, **FROZEN)
+    return _golden_rows(dataset, result)
+
+
+def camera_shares(dataset, config, patch=None):
+    """(frames, rows, steps, shares): a hardware run with a frozen forecast and each
+    row's error split into the cameras' shares (rows, cameras, 6; NaN where the row's
+    float solve is singular), float: the weighted least-squares solve of the row's judged
+    measurements (the solver's design rows from ``config.table`` and the cue), each
+    measurement's error against the true motion carried through the solve's gain."""
+    import emulator.pose.tracking_loop as tl
+    from emulator.e2e import true_steps
+    taken, frame = [], {"index": 0, "row": -1}
+    original = tl.TrackingLoopModel.close
+
+    def close(self, transfers, slot, row):
+        if row < frame["row"]:
+            frame["index"] += 1
+        frame["row"] = row
+        judged, level = original(self, transfers, slot, row)
+        s = self.params.solver
+        if judged:
+            taken.append((frame["index"], row, np.array([t["slot"] for t in judged]),
+                          *(fmt.to_float(np.array([t[key] for t in judged])) for key, fmt in
+                            (("shift", s.shift_fmt), ("conf", s.conf_fmt),
+                             ("cue", s.cue_fmt)))))
+        return judged, level
+    with gap_study.patched(tl.TrackingLoopModel, "close", close):
+        frames, rows, steps = hardware_steps(dataset, config, patch)
+    segments = config.router.temporal.segments
+    cameras, height = len(dataset.rig.cameras), dataset.rig.cameras[0].height
+    shares = np.full((len(dataset.cameras[0].rows), height, cameras, 6), np.nan)
+    for f, row, slots, shift, conf, cue in taken:
+        coef = config.table[slots, row]
+        a = np.concatenate([coef[:, 0:3] * cue[:, None],
+                            coef[:, 6:9] + coef[:, 3:6] * cue[:, None]], axis=1)
+        normal = (a * conf[:, None]).T @ a
+        if f < 1 or np.linalg.cond(normal) > 1e12:
+            continue
+        error = shift - a @ true_steps(dataset, np.array([f]), np.array([row]))[0]
+        each = np.linalg.solve(normal, (a * (conf * error)[:, None]).T).T
+        shares[f, row] = 0.0
+        np.add.at(shares[f, row], slots // segments, each)
+    return frames, rows, steps, shares[frames, rows]
+
+
 def slow_part(error, frames, window):
     """Per axis: the RMS of the ``window``-row moving means of ``error`` (rows, 6; a row
     not solved is NaN and left out of its windows' means) within each of ``frames`` equal
@@ -171,7 +322,11 @@ def main(argv=None):
     ap.add_argument("--frames", type=int, default=4)
     ap.add_argument("--only", default=None)
     ap.add_argument("--window", type=int, default=None, metavar="W")
+    ap.add_argument("--by-camera", action="store_true",
+                    help="also each camera's share of the Ty error (runs hw, coverage)")
     args = ap.parse_args(argv)
+    if args.by_camera and not args.window:
+        ap.error("--by-camera needs --window")
     from emulator.benches.hw_tracking import MOTIONS
     from emulator.benches.tracker import _first_frames, noisy_sequence
     from emulator.e2e import true_steps
@@ -197,7 +352,12 @@ def main(argv=None):
         "depth_weight": lambda: hardware_steps(dataset, config, gap_study.depth_weight_patch),
         "column_cue": lambda: hardware_steps(dataset, config, column_cue_patch),
         "centre_cue": lambda: hardware_steps(dataset, config, centre_cue_patch),
+        "coverage": lambda: hardware_steps(dataset, config, coverage_patch),
+        "row_residual": lambda: hardware_steps(dataset, config, row_residual_patch),
+        **{name: (lambda name=name: golden_swap_steps(dataset, args.segments, name))
+           for name in ("gb_mean_depth", "gb_mean_depth_linear", "gb_word_rows")},
     }
+    patches = {"hw": None, "coverage": coverage_patch}
     wanted = list(runs) if args.only is None else args.only.split(",")
     unknown = sorted(set(wanted) - set(runs))
     if unknown:
@@ -206,7 +366,11 @@ def main(argv=None):
           " errors of the raw steps in cm and 1e-4 rad (Tx Ty Tz θx θy θz)", flush=True)
     for name in wanted:
         start = time.time()
-        frames, rows, steps = runs[name]()
+        shares = None
+        if args.by_camera and name in patches:
+            frames, rows, steps, shares = camera_shares(dataset, config, patches[name])
+        else:
+            frames, rows, steps = runs[name]()
         error = (steps - true_steps(dataset, frames, rows)) * UNITS
         finite = np.all(np.isfinite(error), axis=1)
         lines = [("mean", error[finite].mean(axis=0)), ("std", error[finite].std(axis=0))]
@@ -217,7 +381,18 @@ def main(argv=None):
         for label, values in lines:
             print(f"{name:14s} {label:4s} " + " ".join(f"{v:+8.4f}" for v in values),
                   flush=True)
+        if shares is not None:
+            _print_shares(name, shares[:, :, 1] * UNITS[1], args.frames - 1, args.window)
         print(f"{name:14s} rows {finite.sum()}, {time.time() - start:.0f} s", flush=True)
+
+
+def _print_shares(name, shares, frames, window):
+    """Each camera's Ty share (rows, cameras): its mean, slow part and frame likeness."""
+    for n in range(shares.shape[1]):
+        share = shares[:, n]
+        slow, alike = slow_part(share[:, None], frames, window)
+        print(f"{name:14s} camera {n:2d} Ty mean {np.nanmean(share):+.4f} "
+              f"slow {slow[0]:.4f} alike {alike[0]:+.2f}", flush=True)
 
 
 if __name__ == "__main__":
