@@ -33,7 +33,8 @@ def pair_cues(cue_map, cues):
     """``(camera A's, camera B's)`` mapped cues of every temporal segment (lists of raw
     cue or None) from the pair's stereo cues ``cues`` (raw or None per stereo segment):
     A's at its segment centre ``T_k``, B's at ``T_k`` moved right by the cue there
-    (``B_PASSES`` passes, the first with A's cue)."""
+    (``B_PASSES`` passes, the first with A's cue); None where the final position is not
+    :meth:`~CueMap.covered` by the stereo lane."""
     if len(cues) != cue_map.stereo_segments:
         raise ValueError(f"cues must hold {cue_map.stereo_segments} stereo segments, "
                          f"not {len(cues)}")
@@ -41,6 +42,10 @@ def pair_cues(cue_map, cues):
     own = [map_cue(cue_map, centre << f, cues) for centre in cue_map.temporal]
     moved = own
     for _ in range(B_PASSES):
-        moved = [None if c is None else map_cue(cue_map, (centre << f) + 2 * c, cues)
-                 for centre, c in zip(cue_map.temporal, moved)]
-    return own, moved
+        position = [None if c is None else (centre << f) + 2 * c
+                    for centre, c in zip(cue_map.temporal, moved)]
+        moved = [None if x is None else map_cue(cue_map, x, cues) for x in position]
+    return ([c if cue_map.covered(centre << f) else None
+             for centre, c in zip(cue_map.temporal, own)],
+            [c if x is not None and cue_map.covered(x) else None
+             for x, c in zip(position, moved)])

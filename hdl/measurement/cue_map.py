@@ -59,7 +59,9 @@ class CueMapper(wiring.Component):
     cue_a, cue_b : Out(ArrayLayout(cue_fmt, K))
     usable_a, usable_b : Out(K)
         Camera A's and camera B's mapped cue of each temporal segment and whether it
-        has one (a cue without ``usable`` is 0).
+        has one (a cue without ``usable`` is 0; none outside the stereo lane's columns,
+        ``CueMap.covered``: camera B's passes move by the held results before that
+        test).
     """
 
     def __init__(self, cue_map):
@@ -124,11 +126,14 @@ class CueMapper(wiring.Component):
         # pass's cue (camera A's in pass 1, its own after)
         pos_fmt = cm.position_fmt
         centre = Array(Const(t << f, pos_fmt.shape()) for t in cm.temporal)[k0]
+        # each pass's results, before the coverage test: camera B's passes move by them
+        held = {role: [Signal(cm.cue_fmt.shape(), name=f"held_{role}{k}")
+                       for k in range(k_seg)] for role in "ab"}
+        held_ok = {role: Signal(k_seg, name=f"held_ok_{role}") for role in "ab"}
         from_b = pass_ > 1
-        moved = Mux(from_b, Array(self.cue_b[k] for k in range(k_seg))[k0],
-                    Array(self.cue_a[k] for k in range(k_seg))[k0])
-        moved_ok = Mux(from_b, self.usable_b.bit_select(k0, 1),
-                       self.usable_a.bit_select(k0, 1))
+        moved = Mux(from_b, Array(held["b"])[k0], Array(held["a"])[k0])
+        moved_ok = Mux(from_b, held_ok["b"].bit_select(k0, 1),
+                       held_ok["a"].bit_select(k0, 1))
         tag = {"v": issue, "b": role_b, "k": k0}
         p1 = _register(m, 1, **tag, ok=~role_b | moved_ok,
                        x=(centre + Mux(role_b, moved << 1, 0), pos_fmt.shape()))
@@ -138,11 +143,12 @@ class CueMapper(wiring.Component):
         # a comparison with them), beside it rather than after
         s_lo, s_hi = cm.stereo[0] << f, cm.stereo[-1] << f
         inner = [p1.x >= (c << f) for c in cm.stereo[1:-1]]
+        tag["inside"] = cm.covered(p1.x)
         p2 = _register(m, 2, **tag,
                        x=(Mux(p1.x < s_lo, s_lo, Mux(p1.x > s_hi, s_hi, p1.x)),
                           pos_fmt.shape()),
                        j=(sum(inner) if inner else 0, range(max(2, ks - 1))))
-        tag = {"v": p2.v, "b": p2.b, "k": p2.k, "ok": p2.ok}
+        tag = {"v": p2.v, "b": p2.b, "k": p2.k, "ok": p2.ok, "inside": p2.inside}
 
         # stage 3: distance from the interval's left centre; its cues and reciprocal
         far_j = p2.j + 1 if ks > 1 else p2.j
@@ -156,8 +162,8 @@ class CueMapper(wiring.Component):
                        near=(stereo_cues[p2.j], cue), far=(stereo_cues[far_j], cue),
                        un=self.usable.bit_select(p2.j, 1),
                        uf=self.usable.bit_select(far_j, 1))
-        tag = {"v": p3.v, "b": p3.b, "k": p3.k, "ok": p3.ok, "near": p3.near,
-               "far": p3.far, "un": p3.un, "uf": p3.uf}
+        tag = {"v": p3.v, "b": p3.b, "k": p3.k, "ok": p3.ok, "inside": p3.inside,
+               "near": p3.near, "far": p3.far, "un": p3.un, "uf": p3.uf}
 
         # stage 4: the weight
         exact, fmt = hdl_mul(p3.d, cm.distance_fmt, p3.r, cm.reciprocal_fmt)
@@ -169,8 +175,8 @@ class CueMapper(wiring.Component):
         m.d.comb += diff.eq(p4.far - p4.near)
         step_v, step_fmt = hdl_mul(p4.w, WEIGHT_FMT, diff, cm.difference_fmt)
         total_v, total_fmt = hdl_add(p4.near, cm.cue_fmt, step_v, step_fmt)
-        tag = {name: getattr(p4, name) for name in ("v", "b", "k", "ok", "near", "far",
-                                                     "un", "uf")}
+        tag = {name: getattr(p4, name) for name in ("v", "b", "k", "ok", "inside", "near",
+                                                     "far", "un", "uf")}
         p5 = _register(m, 5, **tag, total=(total_v, total_fmt.shape()))
 
         # stage 6: round, or the one usable cue alone; write the item's result
@@ -178,9 +184,13 @@ class CueMapper(wiring.Component):
                              Overflow.ERROR)
         value = Mux(p5.un & p5.uf, rounded, Mux(p5.un, p5.near, p5.far))
         has = p5.ok & (p5.un | p5.uf)
+        kept = has & p5.inside
         for k in range(k_seg):
             for role, cues, usable in ((0, self.cue_a, self.usable_a),
                                        (1, self.cue_b, self.usable_b)):
+                name = "ab"[role]
                 with m.If(p5.v & (p5.b == role) & (p5.k == k)):
-                    m.d.sync += [cues[k].eq(Mux(has, value, 0)), usable[k].eq(has)]
+                    m.d.sync += [held[name][k].eq(Mux(has, value, 0)),
+                                 held_ok[name][k].eq(has),
+                                 cues[k].eq(Mux(kept, value, 0)), usable[k].eq(kept)]
         return m

@@ -31,6 +31,16 @@ Arithmetic (raw integers of the formats below, bit-exact in model and gateware):
    ``cue_fmt``; the convex combination cannot overflow (the model raises if it did).
    One usable: that one. None: no cue (the segment gets no weight). With one stereo
    segment every temporal segment takes it.
+6. **Coverage.** A segment whose final position ``X`` (step 1 before the clamp: camera
+   A's centre, camera B's after its last pass) lies outside ``[F, L]``, twice the stereo
+   lane's first and last compared columns (:attr:`CueMap.first`, :attr:`CueMap.last`,
+   ``<< f``), has no cue, whatever the clamped interpolation gave: the stereo lane
+   measures no depth there (on stereo20 camera A's temporal segment 0, columns 26–98,
+   lies two thirds left of column 76), and the end segment's cue, measured 50–100
+   columns away, biased the floor pair's Ty by a pattern repeated every frame
+   (docs/e2e_gap.md section 12). Golden (b) takes no measurement there either (too few
+   pixels with depth). Camera B's passes still move by the clamped cues; only the final
+   cue is dropped.
 """
 
 from dataclasses import dataclass
@@ -66,12 +76,16 @@ class CueMap:
 
     Build with :meth:`for_lanes`. Attributes: ``temporal`` (``T_k``, twice the temporal
     segments' centre columns at centre 0), ``stereo`` (``S_j``, the stereo segments'),
+    ``first`` and ``last`` (``F``, ``L``: twice the stereo lane's first and last compared
+    columns),
     ``reciprocal`` (raw ``R_j`` in ``reciprocal_fmt``, one per interval), and the
     formats ``cue_fmt``, ``position_fmt``, ``distance_fmt``, ``reciprocal_fmt``,
     ``difference_fmt`` (``c_{j+1} − c_j``).
     """
     temporal: tuple
     stereo: tuple
+    first: int
+    last: int
     reciprocal: tuple
     cue_fmt: QFormat
     position_fmt: QFormat
@@ -89,18 +103,25 @@ class CueMap:
                 raise TypeError(f"{name} must be a RowDescriptorParams, not {lane!r}")
         check_format("cue_fmt", cue_fmt, signed=False)
         t, s = _doubled_centres(temporal), _doubled_centres(stereo)
+        compared = segment_bounds(stereo.width, stereo.descriptor, stereo.match)
         f = cue_fmt.frac_bits
         pitches = [b - a for a, b in zip(s, s[1:])]
         widest = max(pitches, default=1)
         top = max(t) + 2 * (1 << cue_fmt.int_bits)
         reciprocal_fmt = UQ(0, WEIGHT_FMT.frac_bits + widest.bit_length() + GUARD_BITS)
         return cls(
-            temporal=t, stereo=s,
+            temporal=t, stereo=s, first=2 * compared[0][0], last=2 * (compared[-1][1] - 1),
             reciprocal=tuple(int(reciprocal_fmt.quantize(1 / p, Rounding.FLOOR))
                              for p in pitches),
             cue_fmt=cue_fmt, position_fmt=UQ(top.bit_length(), f),
             distance_fmt=UQ(widest.bit_length(), f), reciprocal_fmt=reciprocal_fmt,
             difference_fmt=SQ(cue_fmt.int_bits + 1, f))
+
+    def covered(self, position):
+        """Whether raw position ``position`` (``position_fmt``) is within the stereo
+        lane's compared columns (step 6): a plain int, or an Amaranth value."""
+        f = self.cue_fmt.frac_bits
+        return (position >= self.first << f) & (position <= self.last << f)
 
     @property
     def segments(self):

@@ -43,6 +43,12 @@ def float_cue(temporal, stereo, column, cues):
     return near + w * (far - near)
 
 
+def float_covered(stereo, column):
+    """Whether ``column`` (camera A's) is within the stereo lane's compared columns."""
+    bounds = segment_bounds(stereo.width, stereo.descriptor, stereo.match)
+    return bounds[0][0] <= column <= bounds[-1][1] - 1
+
+
 @pytest.mark.parametrize("segments, stereo_segments", [(8, 8), (4, 4), (4, 2), (2, 8),
                                                        (8, 1), (1, 3)])
 def test_matches_the_float_interpolation(segments, stereo_segments):
@@ -60,23 +66,26 @@ def test_matches_the_float_interpolation(segments, stereo_segments):
         floats = [None if r is None else CUE.to_float(r) for r in raw]
         for k, column in enumerate(centres):
             want = float_cue(temporal, stereo, column, floats)
-            assert (want is None) == (own[k] is None)
+            held = map_cue(cue_map, cue_map.temporal[k] << CUE.frac_bits, raw)
+            assert (want is None) == (held is None)
+            assert own[k] == (held if float_covered(stereo, column) else None)
             if want is None:
                 assert moved[k] is None
                 continue
             usable = [f for f in floats if f is not None]
             # rounding to the cue step, the weight's step and the reciprocal's floor
             bound = CUE.lsb / 2 + (max(usable) - min(usable)) * (2 * WEIGHT_FMT.lsb)
-            pairs = [(own[k], want)]
-            cue = own[k]                    # camera B's passes, each against the float
+            pairs = [(held, want)]
+            cue = held                      # camera B's passes, each against the float
             for _ in range(B_PASSES):
-                expect = float_cue(temporal, stereo, column + CUE.to_float(cue), floats)
+                position = column + CUE.to_float(cue)
+                expect = float_cue(temporal, stereo, position, floats)
                 cue = map_cue(cue_map, (cue_map.temporal[k] << CUE.frac_bits) + 2 * cue, raw)
                 assert (expect is None) == (cue is None)
                 if cue is None:
                     break
                 pairs.append((cue, expect))
-            assert cue == moved[k]
+            assert moved[k] == (cue if float_covered(stereo, position) else None)
             for got, expect in pairs:
                 assert abs(CUE.to_float(got) - expect) <= bound
                 worst = max(worst, abs(CUE.to_float(got) - expect))
@@ -92,9 +101,34 @@ def test_ends_take_the_end_cue_exactly_and_equal_cues_stay_exact():
     assert map_cue(cue_map, cue_map.position_fmt.max_raw, cues) == 8000
     for j, centre in enumerate(cue_map.stereo):                 # at a centre: its cue
         assert map_cue(cue_map, centre << f, cues) == cues[j]
+    centres = [(lo + hi - 1) / 2 for lo, hi in segment_bounds(
+        temporal.width, temporal.descriptor, temporal.match)]
+
+    def covered(value, shift):
+        return [value if float_covered(stereo, c + shift) else None for c in centres]
     flat = [CUE.max_raw] * 8
-    assert pair_cues(cue_map, flat) == ([CUE.max_raw] * 8, [CUE.max_raw] * 8)
-    assert pair_cues(cue_map, [0] * 8) == ([0] * 8, [0] * 8)
+    assert pair_cues(cue_map, flat) == (covered(CUE.max_raw, 0),
+                                        covered(CUE.max_raw, CUE.max_value))
+    assert pair_cues(cue_map, [0] * 8) == (covered(0, 0), covered(0, 0))
+
+
+def test_segments_outside_the_stereo_columns_have_no_cue():
+    """stereo20's lanes (K = K_s = 8): camera A's segment 0 (columns 26–98) lies mostly
+    left of the stereo lane's first compared column (76) and gets no cue; camera B's
+    segment 0, which sees those points 30 px further right, keeps one, moved by A's
+    clamped cue; a cue large enough to move B's last segment past the lane's last
+    column drops it."""
+    temporal, stereo = lanes(8, 8)
+    cue_map = CueMap.for_lanes(temporal, stereo, CUE)
+    assert (cue_map.first, cue_map.last) == (2 * 76, 2 * 633)
+    thirty = int(CUE.quantize(30.0))
+    own, moved = pair_cues(cue_map, [thirty] * 8)
+    assert own == [None] + [thirty] * 7
+    assert moved == [thirty] * 8
+    far = int(CUE.quantize(100.0))
+    own, moved = pair_cues(cue_map, [far] * 8)
+    assert own == [None] + [far] * 7
+    assert moved == [far] * 7 + [None]                  # centre 576.5 + 100 > 633
 
 
 def test_extremes_do_not_overflow():
@@ -104,7 +138,7 @@ def test_extremes_do_not_overflow():
     cue_map = CueMap.for_lanes(temporal, stereo, CUE)
     for cues in ([0, CUE.max_raw] * 4, [CUE.max_raw, 0] * 4):
         own, moved = pair_cues(cue_map, cues)
-        assert all(0 <= c <= CUE.max_raw for c in own + moved)
+        assert all(0 <= c <= CUE.max_raw for c in own + moved if c is not None)
     top = (cue_map.temporal[-1] << CUE.frac_bits) + 2 * CUE.max_raw
     assert top <= cue_map.position_fmt.max_raw
     assert max(b - a for a, b in zip(cue_map.stereo, cue_map.stereo[1:])) << CUE.frac_bits \
