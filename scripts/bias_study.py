@@ -33,7 +33,9 @@ which the paper motion's constant rates repeat every frame). Runs (``--only``):
   (:func:`centre_cue_patch`).
 * ``coverage``: the hardware path with no weight for a temporal segment whose columns,
   as camera A sees them, lie less than half inside the stereo lane's compared columns
-  (:func:`coverage_patch`; golden (b) has no depth there and takes no measurement).
+  (:func:`coverage_patch`; golden (b) has no depth there and takes no measurement;
+  the float study behind the product's cue-map coverage test of stop 38, which makes
+  this run a no-op on later checkouts).
 * ``row_residual``: the hardware path with each shift corrected by ``r·∂s/∂y``, ``r``
   how far the segment's followed row is from its exact displacement across rows
   (:func:`row_residual_patch`).
