@@ -76,10 +76,14 @@ def test_cue_is_the_pairs_disparity_mapped_to_each_cameras_segment_centres():
     for a, b in PARAMS.pairs:
         raw = [round((10 + a * 5 + 3 * j + 16 / (1 << F)) * (1 << 10)) for j in range(2)]
         own, moved = pair_cues(PARAMS.cue_map, raw)
-        assert [t["cue"] for t in out[4 * a:4 * a + 4]] == own
-        assert [t["cue"] for t in out[4 * b:4 * b + 4]] == moved
+        for camera, cues in ((a, own), (b, moved)):
+            got = out[4 * camera:4 * camera + 4]
+            # a segment the stereo lane does not cover has no cue (0) and no weight
+            assert [t["cue"] for t in got] == [c or 0 for c in cues]
+            assert [t["conf"] for t in got] == [0 if c is None else 96 << 2   # UQ(2, 6) →
+                                                for c in cues]                # UQ(2, 8)
         assert moved != own             # camera B's columns sit further right in A's
-    assert all(t["conf"] == 96 << 2 for t in out)      # UQ(2, 6) → UQ(2, 8), exact
+        assert own[0] is None and None not in own[1:]   # A's first segment: uncovered
 
 
 def _spoil(stereo, temporal, spoil, segments):
@@ -100,6 +104,18 @@ def _spoil(stereo, temporal, spoil, segments):
         next(m for m in temporal if m["camera"] == 2 and m["segment"] == 0)["edge_hit"] = 1
 
 
+#: Camera A's first segment of each pair: left of the stereo lane's first compared column
+#: (the cue map's coverage test), no cue and no weight in every row.
+UNCOVERED = {4 * a for a, _ in PARAMS.pairs}
+
+
+def test_segments_outside_the_stereo_columns_get_no_weight():
+    temporal, stereo = full_row()
+    out = route_row(PARAMS, temporal, stereo)
+    assert {t["slot"] for t in out if t["conf"] == 0} == UNCOVERED
+    assert all(t["cue"] == 0 for t in out if t["slot"] in UNCOVERED)
+
+
 @pytest.mark.parametrize("spoil", ["no_stereo", "stereo_zero_conf", "stereo_edge",
                                    "negative_disparity", "temporal_edge"])
 def test_unusable_measurements_get_zero_weight_but_are_sent(spoil):
@@ -109,7 +125,7 @@ def test_unusable_measurements_get_zero_weight_but_are_sent(spoil):
     assert len(out) == 16
     zero = {t["slot"] for t in out if t["conf"] == 0}
     # no usable stereo segment left in pair (2, 3): cameras 2 and 3 get no weight
-    assert zero == ({2 * 4} if spoil == "temporal_edge" else set(range(8, 16)))
+    assert zero == UNCOVERED | ({2 * 4} if spoil == "temporal_edge" else set(range(8, 16)))
     assert all(t["cue"] == 0 for t in out if t["slot"] >= 8) != (spoil == "temporal_edge")
 
 
@@ -120,8 +136,9 @@ def test_one_unusable_stereo_segment_lends_its_neighbours_cue(spoil):
     stereo[3]["shift"] = 24                    # pair (2, 3), stereo segment 1
     _spoil(stereo, temporal, spoil, (0,))
     out = route_row(PARAMS, temporal, stereo)
-    assert all(t["conf"] for t in out)
-    assert {t["cue"] for t in out[8:]} == {(24 << 10) + (16 << 10 >> F)}
+    assert all(t["conf"] for t in out if t["slot"] not in UNCOVERED)
+    assert {t["cue"] for t in out[8:] if t["slot"] not in UNCOVERED} == \
+        {(24 << 10) + (16 << 10 >> F)}
 
 
 def test_missing_camera_and_missing_row():
@@ -185,6 +202,6 @@ def test_a_failed_stereo_segment_takes_the_fallback_cue():
     out = route_row(PARAMS, temporal, stereo, fallback)
     own = round((20 + 16 / (1 << F)) * (1 << 10))
     a, b = pair_cues(PARAMS.cue_map, [own, 12345])
-    assert [t["cue"] for t in out[:8]] == a + b
-    assert all(t["conf"] > 0 for t in out[:8])
+    assert [t["cue"] for t in out[:8]] == [c or 0 for c in a + b]
+    assert all((t["conf"] > 0) == (t["slot"] not in UNCOVERED) for t in out[:8])
     assert all(t["cue"] == 0 and t["conf"] == 0 for t in out[8:])
