@@ -262,6 +262,7 @@ def camera_shares(dataset, config, patch=None):
     measurement's error against the true motion carried through the solve's gain."""
     import emulator.pose.tracking_loop as tl
     from emulator.e2e import true_steps
+    from golden.pose_lsq import ShiftCoefficients, design_rows, normal_equations
     taken, frame = [], {"index": 0, "row": -1}
     original = tl.TrackingLoopModel.close
 
@@ -283,10 +284,8 @@ def camera_shares(dataset, config, patch=None):
     cameras, height = len(dataset.rig.cameras), dataset.rig.cameras[0].height
     shares = np.full((len(dataset.cameras[0].rows), height, cameras, 6), np.nan)
     for f, row, slots, shift, conf, cue in taken:
-        coef = config.table[slots, row]
-        a = np.concatenate([coef[:, 0:3] * cue[:, None],
-                            coef[:, 6:9] + coef[:, 3:6] * cue[:, None]], axis=1)
-        normal = (a * conf[:, None]).T @ a
+        a = design_rows(ShiftCoefficients.from_table(config.table[slots, row]), cue)
+        normal, _ = normal_equations(a, shift, conf)
         if f < 1 or np.linalg.cond(normal) > 1e12:
             continue
         error = shift - a @ true_steps(dataset, np.array([f]), np.array([row]))[0]
