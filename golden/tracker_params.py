@@ -9,7 +9,7 @@ from .descriptor import DescriptorParams, MatchParams
 from .temporal_filter import SCALE_CEILING
 
 __all__ = ["REFERENCES", "DEPTHS", "SOLVERS", "MOTION_GAINS", "DEFAULT_MOTION_GAIN", "POSE_ALPHA",
-           "BOUNDARIES", "TrackerParams", "TrackResult"]
+           "DISPARITY_SIGMA", "SHIFT_SIGMA", "BOUNDARIES", "TrackerParams", "TrackResult"]
 
 REFERENCES = ("homography", "previous")
 DEPTHS = ("auto", "stereo", "overlap", "oracle")
@@ -21,6 +21,10 @@ DEFAULT_MOTION_GAIN = "information"
 #: The pose track's pull towards each measured pose (``TrackerParams.pose_alpha``; the
 #: hardware's motion track takes the same default).
 POSE_ALPHA = 0.02
+#: The depth-sensitivity weight's disparity error and matching error, pixels
+#: (``TrackerParams.disparity_sigma``, ``.shift_sigma``; the hardware's consistency stage
+#: takes their ratio).
+DISPARITY_SIGMA, SHIFT_SIGMA = 1.0, 0.3
 BOUNDARIES = ("partial", "none")
 
 
@@ -173,8 +177,8 @@ class TrackerParams:
     scale_floor: float = 0.1
     scale_smoothing: float = 0.1
     scale_ceiling: float = SCALE_CEILING
-    disparity_sigma: float = 1.0
-    shift_sigma: float = 0.3
+    disparity_sigma: float = DISPARITY_SIGMA
+    shift_sigma: float = SHIFT_SIGMA
     consistency_k: float = 4.0
     consistency_share: float = 0.5
     consistency_always: bool = False

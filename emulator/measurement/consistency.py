@@ -13,13 +13,18 @@ its channel's scale alone), after the camera's reference-time factor
 ``time_fmt``) has scaled its shift (half-even, saturated into ``shift_fmt``, counted);
 a camera with ``|Δ| > max_row_offset`` gets zero confidence (counted):
 
+0. depth weight (:meth:`ConsistencyModel.depth_weight`): ``u = d`` the cue and ``v =
+   (σ_d/s)·p_T`` the register ``depth_ratio`` times the translation part of the
+   predicted shift, each half-even into ``depth_term_fmt``; ``w_d = ⌊u²·2^F / (u² +
+   v²)⌋`` into ``ratio_fmt`` (one when both are 0); the confidence becomes ``conf ·
+   w_d`` (half-even into ``conf_fmt``);
 1. innovation ``r = shift − predicted`` (exact, then half-even and saturated into
    ``innovation_fmt``, counted);
 2. ``kσ`` (exact product); ``outlier = |r| > kσ``;
 3. one division, floor into ``ratio_fmt``: ``q = min(|r|, kσ) / max(|r|, kσ)``. An
    inlier has ``|r|/kσ = q`` and weight 1; an outlier has ``|r|/kσ ≥ 1`` and the Huber
    weight ``kσ/|r| = q``;
-4. confidence ``conf · weight`` (half-even into ``conf_fmt``); an outlier's shift is
+4. confidence ``conf · w_d · weight`` (each product half-even into ``conf_fmt``); an outlier's shift is
    replaced by the prediction (half-even, saturated into ``shift_fmt``, counted);
 5. scale: ``u = min(|r|/kσ, 1)²``, ``ρ/c_k = 1 − (1 − u)³`` (each product half-even
    into ``ratio_fmt``), factor ``f = (1 − λ) + λc_k · ρ/c_k`` (half-even into
@@ -76,15 +81,32 @@ class ConsistencyModel:
                        "scale_saturated": 0, "shift_saturated": 0, "outliers": 0,
                        "gated_rows": 0}
 
-    def judge(self, channel, shift, predicted, conf):
+    def depth_weight(self, cue, translation):
+        """Depth weights (raw ``ratio_fmt``) of measurements with cues ``cue`` (raw
+        ``solver.cue_fmt``) whose predicted shifts have the translation parts
+        ``translation`` (raw ``predicted_fmt``): step 0 of the module docstring."""
+        p, term = self.params, self.params.depth_term_fmt
+        u = resize(np.asarray(cue, dtype=np.int64), p.solver.cue_fmt, term,
+                   Rounding.HALF_EVEN, Overflow.ERROR)
+        v = resize(*mul(np.asarray(translation, dtype=np.int64), p.predicted_fmt,
+                        p.depth_ratio_raw, p.depth_ratio_fmt), term,
+                   Rounding.HALF_EVEN, Overflow.ERROR)
+        a = np.where((u == 0) & (v == 0), 1, u * u)
+        return (a << p.ratio_fmt.frac_bits) // (a + v * v)
+
+    def judge(self, channel, shift, predicted, conf, depth_weight=None):
         """The verdict on measurements of distinct channels (raw int arrays: ``shift``
         ``solver.shift_fmt``, ``predicted`` ``predicted_fmt``, ``conf``
-        ``solver.conf_fmt``); updates those channels' scales. Returns a dict of raw
-        arrays: ``shift``, ``conf`` (after weight and replacement, before the row's
+        ``solver.conf_fmt``, ``depth_weight`` ``ratio_fmt`` from :meth:`depth_weight`;
+        None: one); updates those channels' scales. Returns a dict of raw
+        arrays: ``shift``, ``conf`` (after the weights and replacement, before the row's
         gates), ``innovation`` (``innovation_fmt``), ``outlier`` and ``weight``
-        (``ratio_fmt``)."""
+        (the Huber weight, ``ratio_fmt``)."""
         p, s = self.params, self.params.solver
         channel, conf = np.asarray(channel), np.asarray(conf, dtype=np.int64)
+        weighted = conf if depth_weight is None else resize(
+            *mul(conf, s.conf_fmt, np.asarray(depth_weight, dtype=np.int64), p.ratio_fmt),
+            s.conf_fmt, Rounding.HALF_EVEN, Overflow.ERROR)
         predicted = np.asarray(predicted, dtype=np.int64)
         negated = SQ(p.predicted_fmt.int_bits + 1, p.predicted_fmt.frac_bits)
         exact, exact_fmt = add(np.asarray(shift, dtype=np.int64), s.shift_fmt, -predicted,
@@ -104,7 +126,7 @@ class ConsistencyModel:
         weight = np.where(outlier, q, one)
         t = np.where(outlier, one, q)
         ok = conf > 0
-        out_conf = resize(*mul(conf, s.conf_fmt, weight, p.ratio_fmt), s.conf_fmt,
+        out_conf = resize(*mul(weighted, s.conf_fmt, weight, p.ratio_fmt), s.conf_fmt,
                           Rounding.HALF_EVEN, Overflow.ERROR)
         replacement = resize(predicted, p.predicted_fmt, s.shift_fmt, Rounding.HALF_EVEN,
                              Overflow.SATURATE)
@@ -158,12 +180,13 @@ class ConsistencyModel:
             out != resize(*product, fmt, Rounding.HALF_EVEN, Overflow.WRAP)))
         return out
 
-    def apply(self, transfers, predicted, delta):
+    def apply(self, transfers, predicted, delta, translation):
         """One row of router transfers (dicts in stream order, the row's slots distinct)
-        with the forecast's predicted shift of every slot (raw ``predicted_fmt``,
-        (slots,)) and each segment's row offset ``delta = source − row`` (slots,): the
+        with the forecast's predicted shift of every slot and its translation part (raw
+        ``predicted_fmt``, (slots,) each) and each segment's row offset ``delta = source −
+        row`` (slots,): the
         transfers the solver gets (copies) and the verdict of :meth:`judge` plus
-        ``gated`` (the row failed the gates), ``conf_in`` (the confidences the judge
+        ``depth_weight`` (raw ``ratio_fmt``), ``gated`` (the row failed the gates), ``conf_in`` (the confidences the judge
         took: a channel whose source row was too far enters with 0) and
         ``determinable`` (at least ``min_cameras`` cameras have transfers and a source
         row within ``max_row_offset``: the row could step had they matched, the
@@ -178,7 +201,9 @@ class ConsistencyModel:
         delta = np.where(far, 0, delta)
         shift = self.to_one_frame([t["shift"] for t in transfers], delta)
         conf_in = np.where(far, 0, [t["conf"] for t in transfers])
-        verdict = self.judge(channel, shift, np.asarray(predicted)[channel], conf_in)
+        depth = self.depth_weight([t["cue"] for t in transfers],
+                                  np.asarray(translation)[channel])
+        verdict = self.judge(channel, shift, np.asarray(predicted)[channel], conf_in, depth)
         conf = verdict["conf"]
         cameras = np.unique(channel[conf > 0] // p.segments)
         gated = conf.max() < p.min_confidence_raw or len(cameras) < p.min_cameras
@@ -186,5 +211,5 @@ class ConsistencyModel:
         near = np.unique(channel[~far] // p.segments)
         out = [{**t, "shift": int(sh), "conf": 0 if gated else int(c)}
                for t, sh, c in zip(transfers, verdict["shift"], conf)]
-        return out, {**verdict, "gated": gated, "conf_in": conf_in,
+        return out, {**verdict, "gated": gated, "conf_in": conf_in, "depth_weight": depth,
                      "determinable": len(near) >= p.min_cameras}

@@ -12,7 +12,8 @@ to be read, composed of the blocks' own models:
    wrote it);
 2. :meth:`TrackingLoopModel.close`: with a consistency stage, the row's transfers are
    judged (:meth:`ConsistencyModel.apply`) against the predicted shift of each
-   measurement, ``a·Ŷ`` with the measurement's own cue and the row's forecast ``Ŷ``, and
+   measurement, ``a·Ŷ`` with the measurement's own cue and the row's forecast ``Ŷ``
+   (and weighed by its translation part ``a_T·T̂``, the depth weight), and
    each camera's row offset ``source − row`` of the row's forecast; the cue store keeps
    every non-zero cue; the solver's step of the judged row (none if flagged: a gated
    row has all confidences 0, so EMPTY) updates the forecast's filter;
@@ -97,9 +98,10 @@ class TrackingLoopModel:
         if self.consistency is not None and transfers:
             cue = np.zeros(self.params.solver.slots, dtype=np.int64)
             cue[[t["slot"] for t in transfers]] = [t["cue"] for t in transfers]
-            predicted = self.forecast.predict(slot, row, cue)["shift"]
+            predicted = self.forecast.predict(slot, row, cue)
             delta = self.prediction["segment_rows"].ravel() - row
-            transfers, verdict = self.consistency.apply(transfers, predicted, delta)
+            transfers, verdict = self.consistency.apply(transfers, predicted["shift"], delta,
+                                                        predicted["translation"])
             self.row_counts = row_counts(verdict["conf_in"], verdict,
                                          self.params.solver.slots)
         for t in transfers:

@@ -11,6 +11,10 @@ docstring lists every step and rounding; formats in
   test with ``kσ`` (a register after each, for the 8 LUT levels of ``docs/timing.md``)
   and the ratio division, then the output register. The two divisions share one
   :class:`SerialDivider`;
+* beside it, the *depth weight* ``d² / (d² + ((σ_d/s) p_T)²)``: the product and the
+  squares in registers while the judge scales the shift, then its own
+  :class:`SerialDivider`, started a clock before the ratio division so that the
+  confidence times the weight is registered when the ratio arrives (no clock added);
 * an *updater* that runs the scale recursion (four product stages, a
   :class:`SerialSqrt`, rounding, ceiling, floor) of the previous measurement while the judge works
   on the next one; the judge waits only if the next measurement's channel is the one
@@ -49,11 +53,13 @@ HE, SAT, WRAP, ERR = Rounding.HALF_EVEN, Overflow.SATURATE, Overflow.WRAP, Overf
 def judge_layout(params):
     """One measurement with what the forecast says about it: the solver's
     ``measurement_layout`` fields, its ``predicted`` shift (``predicted_fmt``, the
-    forecast's ``a·Ŷ`` with the measurement's own cue) and its segment's row offset
+    forecast's ``a·Ŷ`` with the measurement's own cue), that shift's ``translation``
+    part (``predicted_fmt``, ``a_T·T̂``) and its segment's row offset
     ``delta = source − row`` (signed, ``row_bits + 1``: the previous frame's row its
     lane segment read)."""
     fields = dict(measurement_layout(params.solver).members)
     fields.update(predicted=params.predicted_fmt.shape(),
+                  translation=params.predicted_fmt.shape(),
                   delta=signed(params.solver.row_bits + 1))
     return data.StructLayout(fields)
 
@@ -65,7 +71,8 @@ def settings_layout(params):
         "huber_k": params.k_fmt.width, "scale_initial": params.scale_fmt.width,
         "scale_floor": params.scale_fmt.width, "scale_ceiling": params.scale_fmt.width,
         "keep": params.gain_fmt.width, "lam_ck": params.gain_fmt.width,
-        "min_confidence": params.solver.conf_fmt.width, "min_cameras": range(params.cameras + 1)})
+        "min_confidence": params.solver.conf_fmt.width, "min_cameras": range(params.cameras + 1),
+        "depth_ratio": params.depth_ratio_fmt.width})
 
 
 def settings_init(params):
@@ -75,7 +82,7 @@ def settings_init(params):
             "scale_floor": params.floor_raw, "scale_ceiling": params.ceiling_raw,
             "keep": params.keep_raw,
             "lam_ck": params.lam_ck_raw, "min_confidence": params.min_confidence_raw,
-            "min_cameras": params.min_cameras}
+            "min_cameras": params.min_cameras, "depth_ratio": params.depth_ratio_raw}
 
 
 def counts_layout():
@@ -196,6 +203,13 @@ class ConsistencyStage(wiring.Component):
         self.square_fmt = square
         self.wide_fmt = QFormat(False, square.int_bits + p.gain_fmt.int_bits, square.frac_bits)
         self.sqrt = SerialSqrt(self.wide_fmt.width, self.bits_per_clock)
+        term = p.depth_term_fmt
+        self.depth_square_width = 2 * (term.width - 1)
+        self.depth_divider = SerialDivider(self.depth_square_width + p.ratio_fmt.frac_bits,
+                                           self.depth_square_width + 1,
+                                           p.ratio_fmt.frac_bits + 1, self.bits_per_clock)
+        # its quotient has no more bits than the ratio division's (which also holds
+        # the time factor), so a clock's lead makes it ready first
         # clocks: TAKE, CAMERA (the products), SCALE, INNOVATION, JUDGE (starts the
         # divider), its steps, the verdict; a measurement with a new camera or row offset
         # goes CAMERA (starts the division P/(P − Δ)), its steps, the factor, then CAMERA
@@ -208,6 +222,7 @@ class ConsistencyStage(wiring.Component):
         m = Module()
         p, s = self.params, self.params.solver
         m.submodules.divider = div = self.divider
+        m.submodules.depth_divider = depth_div = self.depth_divider
         m.submodules.sqrt = sqrt = self.sqrt
         m.submodules.scale = scale = self.scale_memory
         read, write = scale.read_port(domain="comb"), scale.write_port()
@@ -275,12 +290,32 @@ class ConsistencyStage(wiring.Component):
         is_outlier = _net(m, Mux(r < 0, r_aligned + b < 0, r_aligned > b), "is_outlier")
         ratio_den = _net(m, Mux((r == 0) & (ks == 0), 1, Mux(is_outlier, a, b)), "ratio_den")
 
+        # the depth weight, from the latched measurement and the setting (they hold from
+        # CAMERA on): 1: the cue on the weight's grid and (σ_d/s)·p_T exact; 2: the
+        # second rounded, both squared (the judge's SCALE); the division started in
+        # INNOVATION
+        term = p.depth_term_fmt
+        d_u = Signal(term.shape())
+        v_product, v_fmt = hdl_mul(meas.translation, p.predicted_fmt, cfg.depth_ratio,
+                                   p.depth_ratio_fmt)
+        d_v = Signal(v_product.shape())
+        m.d.sync += [d_u.eq(hdl_resize(meas.cue, s.cue_fmt, term, HE, ERR)),
+                     d_v.eq(v_product)]
+        v_rounded = _net(m, hdl_resize(d_v, v_fmt, term, HE, ERR), "depth_v")
+        d_a, d_b = (Signal(self.depth_square_width, name=n) for n in ("depth_a", "depth_b"))
+        m.d.sync += [d_a.eq(d_u * d_u), d_b.eq(v_rounded * v_rounded)]
+        d_a1 = _net(m, Mux((d_a == 0) & (d_b == 0), 1, d_a), "depth_a1")
+        depth_w = _net(m, depth_div.quotient[:p.ratio_fmt.width], "depth_w")
+        conf_d = Signal(s.conf_fmt.width)        # conf · w_d, ready with the ratio
+        m.d.sync += conf_d.eq(hdl_resize(*hdl_mul(conf, s.conf_fmt, depth_w, p.ratio_fmt),
+                                         s.conf_fmt, HE, ERR))
+
         # the verdict of the division
         q = _net(m, div.quotient[:p.ratio_fmt.width], "q")
         weight = _net(m, Mux(outlier, q, one), "weight")
         t = _net(m, Mux(outlier, one, q), "t")
         ok = _net(m, conf != 0, "ok")
-        judged, judged_fmt = hdl_mul(conf, s.conf_fmt, weight, p.ratio_fmt)
+        judged, judged_fmt = hdl_mul(conf_d, s.conf_fmt, weight, p.ratio_fmt)
         judged = _net(m, judged, "judged")
         conf_out = _net(m, Mux(ok, hdl_resize(judged, judged_fmt, s.conf_fmt, HE, ERR), 0),
                         "conf_out")
@@ -355,6 +390,9 @@ class ConsistencyStage(wiring.Component):
             with m.State("SCALE"):
                 m.next = "INNOVATION"
             with m.State("INNOVATION"):
+                m.d.comb += [depth_div.start.eq(1),
+                             depth_div.num.eq(d_a1 << p.ratio_fmt.frac_bits),
+                             depth_div.den.eq(d_a1 + d_b)]
                 m.next = "JUDGE"
             with m.State("JUDGE"):
                 m.d.comb += [div.start.eq(1), div.num.eq(Mux(is_outlier, b, a)

@@ -18,15 +18,25 @@ ratio into the confidence, an outlier (``|r| > kσ``) replaced by the prediction
 the τ²-scale recursion ``σ'² = σ²(1 − λ + λ c_k ρ(r/σ))`` with the biweight ``ρ``,
 between a floor and a ceiling (the golden's ``scale_ceiling``: without it a persistent
 bias raises the scale until it is accepted).
+Before the Huber weight, each measurement's confidence is multiplied by its *depth
+weight* (issue 18, :func:`golden.tracker_robust.depth_weights`): a stereo disparity
+error ``σ_d`` moves the predicted shift by ``|p_T| σ_d / d`` pixels, where ``p_T`` is
+the translation part of the predicted shift (the forecast's ``a_T·T̂``) and ``d`` the
+measurement's depth cue (a disparity); against the matching error ``s`` that is the
+ratio ``ρ = (σ_d/s) |p_T| / d`` and the weight ``1/(1 + ρ²) = d² / (d² + ((σ_d/s) p_T)²)``.
+Segments whose shift is mostly translation of a near surface, whose depth error
+therefore becomes shift error, count less.
 Per row it applies the golden tracker's gates (some confidence ≥ ``min_confidence``,
 at least ``min_cameras`` cameras with a confidence); the solver's own pivot check stands
 for the golden's condition-number gate.
 """
 
+import math
 from dataclasses import dataclass, replace
 
 from golden.checks import check_int, check_number
 from golden.temporal_filter import BIWEIGHT_CK, HUBER_K, SCALE_CEILING
+from golden.tracker_params import DISPARITY_SIGMA, SHIFT_SIGMA
 
 from hdl.fixed import SQ, UQ, Overflow, QFormat, Rounding, check_format
 from hdl.pose.params import PoseSolverParams
@@ -74,6 +84,14 @@ class ConsistencyParams:
         A row needs one confidence at least this (register, the solver's ``conf_fmt``).
     min_cameras : int
         ... and confidences from at least this many cameras (register).
+    depth_ratio : float
+        ``σ_d / s`` of the depth weight, the disparity error over the matching error
+        (register, ``depth_ratio_fmt``; default the golden tracker's ``disparity_sigma /
+        shift_sigma``); 0 turns the weight off (oracle depth).
+    depth_frac_bits : int
+        Fraction bits of the depth weight's operands ``d`` and ``(σ_d/s) p_T`` (half-even;
+        :attr:`depth_term_fmt`): 4 puts them on a 1/16-px grid, far finer than the
+        disparity error they weigh.
     innovation_fmt : QFormat
         Signed format of ``r`` (pixels; saturated, counted: a saturated innovation is far
         beyond any ``kσ`` the scale format allows, so the verdict is the same).
@@ -84,8 +102,10 @@ class ConsistencyParams:
         Unsigned formats of ``P`` and of the per-camera factor ``P/(P − Δ)`` (one
         division per camera and row, rounded half-even).
     k_fmt, ratio_fmt, gain_fmt : QFormat
-        Unsigned formats of ``k``, of the divider's quotient ``min(|r|, kσ)/max(|r|, kσ)``
-        (floor) and of the recursion's gains and factor.
+        Unsigned formats of ``k``, of the divider's quotients ``min(|r|, kσ)/max(|r|, kσ)``
+        and of the depth weight (floor) and of the recursion's gains and factor.
+    depth_ratio_fmt : QFormat
+        Unsigned format of ``depth_ratio``.
     """
     solver: PoseSolverParams
     segments: int
@@ -100,6 +120,8 @@ class ConsistencyParams:
     biweight_ck: float = BIWEIGHT_CK
     min_confidence: float = 1.0
     min_cameras: int = 3
+    depth_ratio: float = DISPARITY_SIGMA / SHIFT_SIGMA
+    depth_frac_bits: int = 4
     innovation_fmt: QFormat = SQ(7, 10)
     scale_fmt: QFormat = UQ(5, 11)
     frame_rows_fmt: QFormat = UQ(13, 4)
@@ -107,6 +129,7 @@ class ConsistencyParams:
     k_fmt: QFormat = UQ(3, 8)
     ratio_fmt: QFormat = UQ(1, 15)
     gain_fmt: QFormat = UQ(2, 16)
+    depth_ratio_fmt: QFormat = UQ(4, 8)
 
     def __post_init__(self):
         if not isinstance(self.solver, PoseSolverParams):
@@ -118,7 +141,7 @@ class ConsistencyParams:
         for name in ("predicted_fmt", "innovation_fmt"):
             check_format(name, getattr(self, name), signed=True)
         for name in ("scale_fmt", "k_fmt", "ratio_fmt", "gain_fmt", "frame_rows_fmt",
-                     "time_fmt"):
+                     "time_fmt", "depth_ratio_fmt"):
             check_format(name, getattr(self, name), signed=False)
         if self.ratio_fmt.int_bits < 1:
             raise ValueError(f"ratio_fmt must hold 1, not {self.ratio_fmt}")
@@ -138,6 +161,8 @@ class ConsistencyParams:
         check_number("biweight_ck", self.biweight_ck, 0, low_open=True)
         check_number("min_confidence", self.min_confidence, 0)
         check_int("min_cameras", self.min_cameras, 1, self.cameras)
+        check_number("depth_ratio", self.depth_ratio, 0, self.depth_ratio_fmt.max_value)
+        check_int("depth_frac_bits", self.depth_frac_bits, 0, 16)
         for name, value, fmt in (("huber_k", self.huber_k, self.k_fmt),
                                  ("scale_initial", self.scale_initial, self.scale_fmt),
                                  ("scale_floor", self.scale_floor, self.scale_fmt),
@@ -199,6 +224,20 @@ class ConsistencyParams:
     def lam_ck_raw(self):
         """``λ·c_k`` in ``gain_fmt``."""
         return self._raw(self.smoothing * self.biweight_ck, self.gain_fmt)
+
+    @property
+    def depth_ratio_raw(self):
+        return self._raw(self.depth_ratio, self.depth_ratio_fmt)
+
+    @property
+    def depth_term_fmt(self):
+        """Signed format of the depth weight's operands ``d`` (the cue) and ``(σ_d/s)
+        p_T``, each rounded half-even to ``depth_frac_bits``: wide enough for both at
+        their formats' extremes (no saturation; the weight is ``d² / (d² + ((σ_d/s)
+        p_T)²)`` of their squares)."""
+        cue, pred, ratio = self.solver.cue_fmt, self.predicted_fmt, self.depth_ratio_fmt
+        largest = max(cue.max_value, -pred.min_value * ratio.max_value)
+        return SQ(math.floor(math.log2(largest)) + 3, self.depth_frac_bits)
 
     @property
     def min_confidence_raw(self):

@@ -34,10 +34,11 @@ __all__ = ["MeasuredShift", "query_layout"]
 
 
 def query_layout(params, stage):
-    """A measurement (the stage's ``judge_layout`` without ``predicted``) with the row's
+    """A measurement (the stage's ``judge_layout`` without ``predicted`` and
+    ``translation``) with the row's
     forecast ``motion`` ``Ŷ`` (6 × ``motion_fmt``)."""
     fields = dict(judge_layout(stage).members)
-    del fields["predicted"]
+    del fields["predicted"], fields["translation"]
     fields["motion"] = data.ArrayLayout(params.motion_fmt.shape(), 6)
     return data.StructLayout(fields)
 
@@ -55,9 +56,11 @@ class MeasuredShift(wiring.Component):
     -------
     i : In(stream.Signature(query_layout(params, stage)))
     o : Out(stream.Signature(judge_layout(stage)))
-        The measurement with ``predicted`` (``displacement_fmt``, saturated).
+        The measurement with ``predicted`` and its translation part ``translation``
+        (the sum of the first three terms, rounded once; ``displacement_fmt``,
+        saturated).
     saturated : Out(1)
-        With ``o.valid``: ``predicted`` was saturated.
+        With ``o.valid``: ``predicted`` or ``translation`` was saturated.
     coef : Out(term_read_signature(solver))
         The solver's store (the forecast's copy), data ``solver.coef_latency`` clocks
         after the (slot, row, term).
@@ -110,9 +113,15 @@ class MeasuredShift(wiring.Component):
         m.d.sync += [cue1.eq(held.cue), y2.eq(held.motion[stages[1].term])]
         value, over = displacement_terms(m, p, s, self.coef.first, self.coef.second, stages,
                                          cue1, y2, "")
+        # the translation part: the same rounding of the sum after the third term
+        translation, translation_over = Signal.like(value), Signal()
+        with m.If(stages[5].valid & (stages[5].term == 2)):
+            m.d.sync += [translation.eq(value), translation_over.eq(over)]
         with m.If(stages[5].valid & (stages[5].term == 5)):
             m.d.sync += [self.o.valid.eq(1), self.o.payload.predicted.eq(value),
-                         self.saturated.eq(over), active.eq(0),
+                         self.o.payload.translation.eq(translation),
+                         self.saturated.eq(over | translation_over), active.eq(0),
                          *[getattr(self.o.payload, name).eq(getattr(held, name))
-                           for name in self.o.payload.shape().members if name != "predicted"]]
+                           for name in self.o.payload.shape().members
+                           if name not in ("predicted", "translation")]]
         return m

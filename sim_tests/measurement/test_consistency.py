@@ -1,6 +1,6 @@
 """emulator.measurement.consistency (the fixed-point robust consistency stage) against its
 float original golden.temporal_filter.RobustScale: scales, Huber weights, outlier
-replacement, the reference-time factor, the row gates, saturation at the formats'
+replacement, the depth weight (against golden.tracker_robust.depth_weights), the reference-time factor, the row gates, saturation at the formats'
 extremes and the parameter checks.
 
 SEED replays the randomized test (printed).
@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from golden.temporal_filter import RobustScale
+from golden.tracker_robust import depth_weights
 from hdl.fixed import SQ, UQ
 from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.pose.params import PoseSolverParams
@@ -109,6 +110,81 @@ def test_confidence_is_peak_ratio_times_weight():
     assert out["shift"][1] == 0 and out["shift"][2] == shift[2]
 
 
+#: Depth weight, fixed point vs float, for cues of 4–250 px: the operands on a 1/16-px
+#: grid move w = d²/(d² + v²) by at most |∂w/∂d|·δ + |∂w/∂v|·δ ≤ δ/d per operand
+#: (δ = 1/32 px, the grid's half step), 0.016 at the smallest cue, plus the quotient's
+#: floor (2**-15). Measured 1.6e-3 … 5.0e-3 (SEED 1, 2, 3, 5).
+DEPTH_WEIGHT_TOLERANCE = 0.016
+
+
+def test_the_depth_weight_follows_the_golden_depth_weights():
+    """Random cues (disparities, 4–250 px) and translation parts of the predicted shift
+    (±60 px): the model's weight against :func:`depth_weights` with the cue as the
+    inverse depth in units of 1/(f·B) (so σ_w = σ_d) at the same ``σ_d/s``."""
+    print(f"SEED={SEED}")
+    rng = np.random.default_rng(SEED)
+    p = params()
+    model = ConsistencyModel(p)
+    cue = rng.uniform(4, 250, 2000)
+    translation = rng.uniform(-60, 60, 2000)
+    translation[:100] = 0
+    got = p.ratio_fmt.to_float(model.depth_weight(
+        SOLVER.cue_fmt.quantize(cue), p.predicted_fmt.quantize(translation)))
+    ratio = p.depth_ratio_fmt.to_float(p.depth_ratio_raw)
+    want = depth_weights((translation / cue)[:, None], np.array([1.0]), np.full(2000, ratio),
+                         1.0)
+    error = np.abs(got - want).max()
+    print(f"largest depth-weight error {error:.2e}, weights {want.min():.3f} … {want.max()}")
+    assert error < DEPTH_WEIGHT_TOLERANCE
+    assert want.min() < 0.05 and np.all(got[:100] == 1.0)
+
+
+def test_the_depth_weight_at_the_formats_extremes():
+    """No overflow at the extremes of the cue, the translation and the ratio: a zero
+    translation weighs one (a zero ratio: every measurement), a zero cue with a translation nothing (no depth:
+    any shift), the largest translation against the smallest cue nothing, against the
+    largest cue the float's weight."""
+    s = SOLVER
+    one = 1 << params().ratio_fmt.frac_bits
+    fmt = params().predicted_fmt
+    cue = np.array([0, 0, s.cue_fmt.max_raw, 1, 1, s.cue_fmt.max_raw, s.cue_fmt.max_raw])
+    translation = np.array([0, fmt.min_raw, 0, fmt.max_raw, fmt.min_raw, fmt.min_raw,
+                            fmt.max_raw])
+    top = params(depth_ratio=params().depth_ratio_fmt.max_value)
+    for p in (params(), top):
+        w = ConsistencyModel(p).depth_weight(cue, translation)
+        assert list(w[:3]) == [one, 0, one] and list(w[3:5]) == [0, 0]
+        ratio = p.depth_ratio_fmt.to_float(p.depth_ratio_raw)
+        want = 1 / (1 + (ratio * fmt.to_float(translation[5:]) / s.cue_fmt.max_value) ** 2)
+        np.testing.assert_allclose(p.ratio_fmt.to_float(w[5:]), want, atol=2 ** -10)
+    off = ConsistencyModel(params(depth_ratio=0)).depth_weight(cue, translation)
+    assert list(off) == [one] * len(cue)                 # the weight off
+
+
+def test_the_confidence_takes_the_depth_weight_then_the_huber_weight():
+    """A translation part of ``d·s/σ_d`` (ρ = 1) halves the confidence; an outlier at
+    4 kσ then takes a quarter of that; the scale is updated as without the weight."""
+    p = params()
+    ratio = p.depth_ratio_fmt.to_float(p.depth_ratio_raw)
+    cue, conf = 40.0, 3.0          # halved, still above min_confidence (no gate)
+    sigma = p.scale_fmt.to_float(p.initial_raw)
+    shift = SOLVER.shift_fmt.quantize([0.0, 4 * sigma * p.huber_k] + [0.0] * (p.channels - 2))
+    ones = SOLVER.conf_fmt.quantize(np.full(p.channels, conf))
+    rows = transfers(shift, ones)
+    for t in rows:
+        t["cue"] = int(SOLVER.cue_fmt.quantize(cue))
+    translation = p.predicted_fmt.quantize(np.full(p.channels, cue / ratio))
+    zero = np.zeros(p.channels, dtype=int)
+    weighed, plain = ConsistencyModel(p), ConsistencyModel(p)
+    out, verdict = weighed.apply(rows, zero, zero, translation)
+    got = SOLVER.conf_fmt.to_float([t["conf"] for t in out])
+    np.testing.assert_allclose(got[:2], [conf / 2, conf / 8], atol=2 ** -7)
+    np.testing.assert_allclose(p.ratio_fmt.to_float(verdict["depth_weight"]), 0.5,
+                               atol=2e-3)
+    plain.apply(rows, zero, zero, zero)
+    assert list(weighed.scale) == list(plain.scale)
+
+
 def test_the_reference_time_factor_is_p_over_p_minus_delta():
     """A row compared with a stored row Δ rows later in the previous frame saw the motion
     of P − Δ row periods: its shift is scaled by P/(P − Δ), within half an LSB."""
@@ -128,19 +204,19 @@ def test_row_gates_need_a_confident_measurement_and_three_cameras():
     zero = np.zeros(p.channels, dtype=int)
     near = [0] * p.channels                 # every segment read its own row
     # three cameras, confident: passes
-    out, verdict = ConsistencyModel(p).apply(transfers(zero, ones, range(3)), zero, near)
+    out, verdict = ConsistencyModel(p).apply(transfers(zero, ones, range(3)), zero, near, zero)
     assert not verdict["gated"] and all(t["conf"] for t in out)
     # two cameras: gated, every confidence 0
     model = ConsistencyModel(p)
-    out, verdict = model.apply(transfers(zero, ones, range(2)), zero, near)
+    out, verdict = model.apply(transfers(zero, ones, range(2)), zero, near, zero)
     assert verdict["gated"] and not any(t["conf"] for t in out)
     assert model.counts["gated_rows"] == 1
     # four cameras but no confidence reaches min_confidence 1
     weak = SOLVER.conf_fmt.quantize(np.full(p.channels, 0.75))
-    _, verdict = ConsistencyModel(p).apply(transfers(zero, weak), zero, near)
+    _, verdict = ConsistencyModel(p).apply(transfers(zero, weak), zero, near, zero)
     assert verdict["gated"]
     _, verdict = ConsistencyModel(p.replace(min_confidence=0.5)).apply(
-        transfers(zero, weak), zero, near)
+        transfers(zero, weak), zero, near, zero)
     assert not verdict["gated"]
 
 
@@ -149,14 +225,14 @@ def test_a_camera_compared_too_far_off_gets_no_confidence():
     model = ConsistencyModel(p)
     ones = SOLVER.conf_fmt.quantize(np.full(p.channels, 1.5))
     zero = np.zeros(p.channels, dtype=int)
-    out, _ = model.apply(transfers(zero, ones), zero, np.repeat([0, 5, -4, -5], K))
+    out, _ = model.apply(transfers(zero, ones), zero, np.repeat([0, 5, -4, -5], K), zero)
     conf = np.array([t["conf"] for t in out]).reshape(CAMERAS, K)
     assert conf[[0, 2]].all() and not conf[[1, 3]].any()
     assert model.counts["far_rows"] == 2
     # per segment: one segment of camera 0 read a row too far off, camera 1's are near
     delta = np.repeat([0, 1, 0, 0], K)
     delta[1] = 5
-    out, _ = model.apply(transfers(zero, ones), zero, delta)
+    out, _ = model.apply(transfers(zero, ones), zero, delta, zero)
     conf = np.array([t["conf"] for t in out])
     assert not conf[1] and np.delete(conf, 1).all()
     assert model.counts["far_rows"] == 3
@@ -244,6 +320,10 @@ def test_the_starting_scale_is_within_floor_and_ceiling():
      "scale_ceiling must be a number at least 0.1, not 0.05"),
     ({"scale_ceiling": 40.0}, ValueError, r"scale_ceiling must be at most 31.99951171875"),
     ({"smoothing": 1e-6}, ValueError, r"smoothing·biweight_ck .* rounds to 0 in gain_fmt"),
+    ({"depth_ratio": -1.0}, ValueError, "depth_ratio must be a number between 0 and"),
+    ({"depth_ratio": 16.0}, ValueError, "depth_ratio must be a number between 0 and 15.996"),
+    ({"depth_frac_bits": 17}, ValueError,
+     "depth_frac_bits must be an integer between 0 and 16, not 17"),
 ])
 def test_bad_parameters_are_named(changes, error, message):
     with pytest.raises(error, match=message):

@@ -36,14 +36,14 @@ FIELDS = ("slot", "row", "time", "shift", "cue", "conf", "last")
 
 
 def run_stage(params, rows, *, seed, gaps, bits_per_clock=2):
-    """Rows ``(transfers, predicted, delta)`` through the gateware; returns the output
+    """Rows ``(transfers, predicted, delta, translation)`` through the gateware; returns the output
     transfers, the ``gated`` bit of each, the clocks of input and output transfers, the
     counters and the final scales."""
     dut = ConsistencyStage(params, bits_per_clock=bits_per_clock)
     rng = random.Random(seed)
     prob = 0.6 if gaps else 1.0
     layout = judge_layout(params)
-    count = sum(len(t) for t, _, _ in rows)
+    count = sum(len(t) for t, *_ in rows)
     out = {"transfers": [], "gated": [], "determinable": [], "judged": [], "outlier": [],
            "in_cycles": [], "out_cycles": []}
     clock = Signal(32)                  # the sink's clock count, for the sources' records
@@ -108,6 +108,11 @@ def test_random_rows_bit_exact(name, gaps):
     # the format's top with the large scales)
     reached = {k for k, v in model.counts.items() if v}
     assert reached == set(COUNTS)
+    # depth weights of none, some and all of the confidence
+    inputs = judge_inputs(params, rows)
+    depth = model.depth_weight([t["cue"] for t in inputs], [t["translation"] for t in inputs])
+    one = 1 << params.ratio_fmt.frac_bits
+    assert {0, one} <= set(depth.tolist()) and np.any((depth > 0) & (depth < one // 2))
     assert model.counts["gated_rows"] < len(rows)
     # rows on both sides of the determinable test
     rows_last = [d for d, t in zip(got["determinable"], got["transfers"]) if t["last"]]
@@ -139,9 +144,10 @@ def recorded():
     calls = []
 
     class Recording(ConsistencyModel):
-        def apply(self, transfers, predicted, delta):
-            calls.append(([dict(t) for t in transfers], np.array(predicted), np.array(delta)))
-            return super().apply(transfers, predicted, delta)
+        def apply(self, transfers, predicted, delta, translation):
+            calls.append(([dict(t) for t in transfers], np.array(predicted), np.array(delta),
+                          np.array(translation)))
+            return super().apply(transfers, predicted, delta, translation)
 
     original = tracking_loop.ConsistencyModel
     tracking_loop.ConsistencyModel = Recording
@@ -201,7 +207,8 @@ def test_latency(apart):
                  for k, t in enumerate([rows[0][0][0]] * SMALL.channels)]
     delta = np.repeat(np.arange(SMALL.cameras) % 3, SMALL.segments)
     delta[1::SMALL.segments] += apart
-    got = run_stage(SMALL, [(transfers, rows[0][1], delta)], seed=SEED, gaps=False)
+    got = run_stage(SMALL, [(transfers, rows[0][1], delta, rows[0][3])], seed=SEED,
+                    gaps=False)
     dut = ConsistencyStage(SMALL)
     took = [o - i for i, o in zip(got["in_cycles"], got["out_cycles"])]
     print("latency", dut.latency, "time", dut.time_clocks, "update", dut.update_clocks,

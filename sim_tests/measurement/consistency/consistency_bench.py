@@ -53,7 +53,7 @@ async def transfers_match_model(dut, traffic):
     await reset(dut)
     cocotb.start_soon(_watch_verdicts(dut, clock, gated, determinable))
     await source.send(judge_inputs(params, rows))
-    total = sum(len(t) for t, _, _ in rows)
+    total = sum(len(t) for t, *_ in rows)
     await sink.wait_for(total, timeout_cycles=200 * total)
     await ClockCycles(dut.clk, 64)     # the last measurement's scale update is counted
     got = {"transfers": [payload for _, payload in sink.received], "gated": gated,

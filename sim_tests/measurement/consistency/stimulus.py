@@ -29,8 +29,8 @@ def check_against_model(params, rows, got):
     them."""
     model = ConsistencyModel(params)
     n = 0
-    for r, (transfers, predicted, delta) in enumerate(rows):
-        want, verdict = model.apply(transfers, predicted, delta)
+    for r, (transfers, predicted, delta, translation) in enumerate(rows):
+        want, verdict = model.apply(transfers, predicted, delta, translation)
         row_gated = got["gated"][n + len(want) - 1]        # the verdict rides on `last`
         assert row_gated == verdict["gated"], f"row {r} gated"
         if "determinable" in got:
@@ -58,16 +58,18 @@ def check_against_model(params, rows, got):
 
 
 def judge_inputs(params, rows):
-    """The stage's input transfers of rows ``(transfers, predicted, delta)``: each
-    transfer with its slot's ``predicted`` shift and ``delta``."""
-    return [{**t, "predicted": int(predicted[t["slot"]]),
-             "delta": int(delta[t["slot"]])}
-            for transfers, predicted, delta in rows for t in transfers]
+    """The stage's input transfers of rows ``(transfers, predicted, delta,
+    translation)``: each transfer with its slot's ``predicted`` shift, ``delta`` and
+    ``translation``."""
+    return [{**t, "predicted": int(predicted[t["slot"]]), "delta": int(delta[t["slot"]]),
+             "translation": int(translation[t["slot"]])}
+            for transfers, predicted, delta, translation in rows for t in transfers]
 
 
 def random_rows(params, rng, count):
-    """Rows of distinct slots in slot order, every field over its format's range (and
-    beyond for the offsets: far cameras), confidences often 0 or the largest."""
+    """Rows ``(transfers, predicted, delta, translation)`` of distinct slots in slot
+    order, every field over its format's range (and beyond for the offsets: far
+    cameras), confidences often 0 or the largest."""
     s = params.solver
     rows = []
     for r in range(count):
@@ -84,6 +86,16 @@ def random_rows(params, rng, count):
         small = rng.random(params.channels) < 0.6
         predicted[small] = rng.integers(-64, 64, small.sum())
         predicted[rng.random(params.channels) < 0.05] = params.predicted_fmt.min_raw
+        # translation parts: small (weights near one), about the cue (near a half), at
+        # the format's extremes (near zero), or 0 (one)
+        fmt = params.predicted_fmt
+        translation = rng.integers(-1 << fmt.frac_bits, 1 << fmt.frac_bits, params.channels)
+        pick = rng.random(params.channels)
+        translation[pick < 0.4] = rng.integers(fmt.min_raw, fmt.max_raw + 1,
+                                               (pick < 0.4).sum())
+        translation[pick > 0.9] = 0
+        translation[(pick > 0.85) & (pick <= 0.9)] = fmt.min_raw
+        translation[(pick > 0.8) & (pick <= 0.85)] = fmt.max_raw
         delta = rng.integers(-s.rows + 1, s.rows, params.cameras)
         delta[rng.random(params.cameras) < 0.6] = 0
         delta = np.repeat(delta, params.segments)   # per segment: the camera's, or near it
@@ -96,5 +108,5 @@ def random_rows(params, rng, count):
                                                               s.cue_fmt.max_raw + 1)),
                       "conf": int(c), "last": int(k == len(slots) - 1)}
                      for k, (sl, sh, c) in enumerate(zip(slots, shift, conf))]
-        rows.append((transfers, predicted, delta))
+        rows.append((transfers, predicted, delta, translation))
     return rows
