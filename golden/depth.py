@@ -37,11 +37,7 @@ import numpy as np
 from .checks import check_int, check_number
 from .descriptor import STEREO_MATCH, match, segment_bounds
 
-__all__ = ["stereo_pairs", "DepthRange", "BlockDisparity", "StereoDepth", "MAX_JUMP"]
-
-#: Largest disparity difference (pixels) between adjacent accepted blocks that is still
-#: interpolated (:class:`StereoDepth`'s ``max_jump``; the hardware's cue map takes it too).
-MAX_JUMP = 2.0
+__all__ = ["stereo_pairs", "DepthRange", "BlockDisparity", "StereoDepth"]
 
 
 def stereo_pairs(rig, tol=1e-6):
@@ -152,7 +148,7 @@ class StereoDepth:
     """
 
     def __init__(self, rig, desc, *, blocks=16, depth_range=DEFAULT_RANGE,
-                 window=STEREO_MATCH, min_peak_ratio=1.2, max_jump=MAX_JUMP, carry_frames=3):
+                 window=STEREO_MATCH, min_peak_ratio=1.2, max_jump=2.0, carry_frames=3):
         self.pairs = stereo_pairs(rig)
         if not self.pairs:
             raise ValueError(f"rig {rig.name!r} has no rectified stereo pair (same intrinsics "

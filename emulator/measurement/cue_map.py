@@ -12,16 +12,15 @@ __all__ = ["CueMap", "map_cue", "pair_cues"]
 def map_cue(cue_map, position, cues):
     """The cue at raw ``position`` (``cue_map.position_fmt``, twice camera A's column)
     from ``cues``: raw cue of each stereo segment, None where unusable. Returns the raw
-    cue (``cue_map.cue_fmt``) or None: the interpolation, or across a depth jump or next
-    to an unusable cue the own segment's (step 5)."""
+    cue (``cue_map.cue_fmt``) or None."""
     s, f = cue_map.stereo, cue_map.cue_fmt.frac_bits
     if len(s) == 1:
         return cues[0]
     x = min(max(position, s[0] << f), s[-1] << f)
     j = sum(x >= (centre << f) for centre in s[1:-1])
     near, far = cues[j], cues[j + 1]
-    if near is None or far is None or abs(far - near) > cue_map.max_jump:
-        return far if x >= cue_map.boundary[j] << f else near
+    if near is None or far is None:
+        return far if near is None else near
     exact, fmt = mul(x - (s[j] << f), cue_map.distance_fmt,
                      cue_map.reciprocal[j], cue_map.reciprocal_fmt)
     weight = resize(exact, fmt, WEIGHT_FMT, Rounding.FLOOR, Overflow.ERROR)

@@ -11,7 +11,7 @@ constants (segment centres, reciprocals) are small tables indexed by the item.
 
 from types import SimpleNamespace
 
-from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal, Value
+from amaranth.hdl import Array, Const, Module, Mux, Signal, Value
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -139,18 +139,15 @@ class CueMapper(wiring.Component):
                        x=(centre + Mux(role_b, moved << 1, 0), pos_fmt.shape()))
         tag = {"v": p1.v, "b": p1.b, "k": p1.k, "ok": p1.ok}
 
-        # stage 2: clamp; the interval from the inner centres and which side of each
-        # boundary (the clamp cannot change a comparison with them), beside it rather
-        # than after
+        # stage 2: clamp; the interval from the inner centres (the clamp cannot change
+        # a comparison with them), beside it rather than after
         s_lo, s_hi = cm.stereo[0] << f, cm.stereo[-1] << f
         inner = [p1.x >= (c << f) for c in cm.stereo[1:-1]]
-        past = [p1.x >= (b << f) for b in cm.boundary]
         tag["inside"] = cm.covered(p1.x)
         p2 = _register(m, 2, **tag,
                        x=(Mux(p1.x < s_lo, s_lo, Mux(p1.x > s_hi, s_hi, p1.x)),
                           pos_fmt.shape()),
-                       j=(sum(inner) if inner else 0, range(max(2, ks - 1))),
-                       past=(Cat(*past) if past else 0, max(1, ks - 1)))
+                       j=(sum(inner) if inner else 0, range(max(2, ks - 1))))
         tag = {"v": p2.v, "b": p2.b, "k": p2.k, "ok": p2.ok, "inside": p2.inside}
 
         # stage 3: distance from the interval's left centre; its cues and reciprocal
@@ -164,33 +161,29 @@ class CueMapper(wiring.Component):
                        r=(reciprocal, cm.reciprocal_fmt.shape()),
                        near=(stereo_cues[p2.j], cue), far=(stereo_cues[far_j], cue),
                        un=self.usable.bit_select(p2.j, 1),
-                       uf=self.usable.bit_select(far_j, 1),
-                       own_far=p2.past.bit_select(p2.j, 1))
+                       uf=self.usable.bit_select(far_j, 1))
         tag = {"v": p3.v, "b": p3.b, "k": p3.k, "ok": p3.ok, "inside": p3.inside,
-               "near": p3.near, "far": p3.far, "un": p3.un, "uf": p3.uf,
-               "own_far": p3.own_far}
+               "near": p3.near, "far": p3.far, "un": p3.un, "uf": p3.uf}
 
         # stage 4: the weight
         exact, fmt = hdl_mul(p3.d, cm.distance_fmt, p3.r, cm.reciprocal_fmt)
         p4 = _register(m, 4, **tag, w=(hdl_resize(exact, fmt, WEIGHT_FMT, Rounding.FLOOR,
                                                    Overflow.ERROR), WEIGHT_FMT.shape()))
 
-        # stage 5: near + w · (far − near), exact; whether the cues are a jump apart
+        # stage 5: near + w · (far − near), exact
         diff = Signal(cm.difference_fmt.shape())
         m.d.comb += diff.eq(p4.far - p4.near)
         step_v, step_fmt = hdl_mul(p4.w, WEIGHT_FMT, diff, cm.difference_fmt)
         total_v, total_fmt = hdl_add(p4.near, cm.cue_fmt, step_v, step_fmt)
         tag = {name: getattr(p4, name) for name in ("v", "b", "k", "ok", "inside", "near",
-                                                     "far", "un", "uf", "own_far")}
-        p5 = _register(m, 5, **tag, total=(total_v, total_fmt.shape()),
-                       joined=p4.un & p4.uf & (diff <= cm.max_jump) & (diff >= -cm.max_jump))
+                                                     "far", "un", "uf")}
+        p5 = _register(m, 5, **tag, total=(total_v, total_fmt.shape()))
 
-        # stage 6: round, or across a jump or beside an unusable cue the own segment's;
-        # write the item's result
+        # stage 6: round, or the one usable cue alone; write the item's result
         rounded = hdl_resize(p5.total, total_fmt, cm.cue_fmt, Rounding.HALF_EVEN,
                              Overflow.ERROR)
-        value = Mux(p5.joined, rounded, Mux(p5.own_far, p5.far, p5.near))
-        has = p5.ok & Mux(p5.own_far, p5.uf, p5.un)
+        value = Mux(p5.un & p5.uf, rounded, Mux(p5.un, p5.near, p5.far))
+        has = p5.ok & (p5.un | p5.uf)
         kept = has & p5.inside
         for k in range(k_seg):
             for role, cues, usable in ((0, self.cue_a, self.usable_a),

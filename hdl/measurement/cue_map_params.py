@@ -27,16 +27,10 @@ Arithmetic (raw integers of the formats below, bit-exact in model and gateware):
    interval's reciprocal ``1 / (S_{j+1} − S_j)`` floored into
    :attr:`CueMap.reciprocal_fmt` (segments are equal parts of the row up to a column,
    so the pitches differ by one and each interval has its constant).
-5. **The golden's depth rules** (:class:`golden.depth.StereoDepth`, issue 18 item 1):
-   both cues usable and at most :data:`golden.depth.MAX_JUMP` pixels apart
-   (:attr:`CueMap.max_jump`): ``c_j + w·(c_{j+1} − c_j)`` exact, rounded half-even
-   into ``cue_fmt``; the convex combination cannot overflow (the model raises if it
-   did). Otherwise (a depth jump, an occlusion edge, or a rejected neighbour) the cue
-   of the stereo segment ``X`` lies in (its *own* segment: ``j + 1`` when ``X`` is at or
-   beyond the interval's boundary ``B_j``, twice the half column between the two
-   segments, else ``j``), and none if that one is unusable: nothing is interpolated
-   across a jump, nor spread from a neighbour into a rejected segment's columns. With
-   one stereo segment every temporal segment takes it.
+5. Both cues usable: ``c_j + w·(c_{j+1} − c_j)`` exact, rounded half-even into
+   ``cue_fmt``; the convex combination cannot overflow (the model raises if it did).
+   One usable: that one. None: no cue (the segment gets no weight). With one stereo
+   segment every temporal segment takes it.
 6. **Coverage.** A segment whose final position ``X`` (step 1 before the clamp: camera
    A's centre, camera B's after its last pass) lies outside ``[F, L]``, twice the stereo
    lane's first and last compared columns (:attr:`CueMap.first`, :attr:`CueMap.last`,
@@ -51,7 +45,6 @@ Arithmetic (raw integers of the formats below, bit-exact in model and gateware):
 
 from dataclasses import dataclass
 
-from golden.depth import MAX_JUMP
 from golden.descriptor import segment_bounds
 
 from hdl.fixed import Rounding, QFormat, SQ, UQ, check_format
@@ -83,17 +76,14 @@ class CueMap:
 
     Build with :meth:`for_lanes`. Attributes: ``temporal`` (``T_k``, twice the temporal
     segments' centre columns at centre 0), ``stereo`` (``S_j``, the stereo segments'),
-    ``boundary`` (``B_j``, twice the half column between stereo segments ``j`` and
-    ``j + 1``), ``max_jump`` (raw ``cue_fmt``), ``first`` and ``last`` (``F``, ``L``:
-    twice the stereo lane's first and last compared columns),
+    ``first`` and ``last`` (``F``, ``L``: twice the stereo lane's first and last compared
+    columns),
     ``reciprocal`` (raw ``R_j`` in ``reciprocal_fmt``, one per interval), and the
     formats ``cue_fmt``, ``position_fmt``, ``distance_fmt``, ``reciprocal_fmt``,
     ``difference_fmt`` (``c_{j+1} − c_j``).
     """
     temporal: tuple
     stereo: tuple
-    boundary: tuple
-    max_jump: int
     first: int
     last: int
     reciprocal: tuple
@@ -120,10 +110,7 @@ class CueMap:
         top = max(t) + 2 * (1 << cue_fmt.int_bits)
         reciprocal_fmt = UQ(0, WEIGHT_FMT.frac_bits + widest.bit_length() + GUARD_BITS)
         return cls(
-            temporal=t, stereo=s,
-            boundary=tuple(hi + lo - 1 for (_, hi), (lo, _) in zip(compared, compared[1:])),
-            max_jump=int(cue_fmt.quantize(MAX_JUMP, Rounding.HALF_EVEN)),
-            first=2 * compared[0][0], last=2 * (compared[-1][1] - 1),
+            temporal=t, stereo=s, first=2 * compared[0][0], last=2 * (compared[-1][1] - 1),
             reciprocal=tuple(int(reciprocal_fmt.quantize(1 / p, Rounding.FLOOR))
                              for p in pitches),
             cue_fmt=cue_fmt, position_fmt=UQ(top.bit_length(), f),

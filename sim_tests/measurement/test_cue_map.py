@@ -9,7 +9,6 @@ import os
 import numpy as np
 import pytest
 
-from golden.depth import MAX_JUMP
 from golden.descriptor import STEREO_MATCH, segment_bounds
 from hdl.descriptor.params import RowDescriptorParams
 from hdl.fixed import SQ, UQ
@@ -29,20 +28,18 @@ def lanes(segments, stereo_segments, width=640):
 
 
 def float_cue(temporal, stereo, column, cues):
-    """The float map, :func:`golden.depth.spread_blocks`'s rule at ``column``: linear
-    between the stereo segment centres around it (clamped to the end centres) when both
-    cues are usable and at most ``MAX_JUMP`` apart, else the cue of the segment the
-    column lies in (None if unusable)."""
-    bounds = segment_bounds(stereo.width, stereo.descriptor, stereo.match)
-    centres = [(lo + hi - 1) / 2 for lo, hi in bounds]
+    """The float map: linear between the stereo segment centres around ``column``,
+    clamped to the end centres, the one usable cue alone, None without one."""
+    centres = [(lo + hi - 1) / 2 for lo, hi in segment_bounds(
+        stereo.width, stereo.descriptor, stereo.match)]
     if len(centres) == 1:
         return cues[0]
     x = min(max(column, centres[0]), centres[-1])
     j = min(int(np.searchsorted(centres, x, side="right")) - 1, len(centres) - 2)
     w = (x - centres[j]) / (centres[j + 1] - centres[j])
     near, far = cues[j], cues[j + 1]
-    if near is None or far is None or abs(far - near) > MAX_JUMP:
-        return far if x >= bounds[j][1] - 0.5 else near
+    if near is None or far is None:
+        return far if near is None else near
     return near + w * (far - near)
 
 
@@ -63,10 +60,7 @@ def test_matches_the_float_interpolation(segments, stereo_segments):
     rng = np.random.default_rng(SEED)
     worst = 0.0
     for _ in range(300):
-        # smooth surfaces (steps within MAX_JUMP) with some depth jumps
-        steps = rng.uniform(-1.5 * MAX_JUMP, 1.5 * MAX_JUMP, stereo_segments)
-        steps[rng.random(stereo_segments) < 0.2] *= 20
-        values = np.clip(rng.uniform(20, 200) + np.cumsum(steps), 0, CUE.max_value)
+        values = rng.uniform(0, CUE.max_value, stereo_segments)
         raw = [None if rng.random() < 0.25 else int(CUE.quantize(v)) for v in values]
         own, moved = pair_cues(cue_map, raw)
         floats = [None if r is None else CUE.to_float(r) for r in raw]
@@ -154,20 +148,11 @@ def test_extremes_do_not_overflow():
 def test_usable_cue_rules():
     temporal, stereo = lanes(4, 2)
     cue_map = CueMap.for_lanes(temporal, stereo, CUE)
-    """A segment in an unusable stereo segment's columns has no cue (nothing spread from
-    the neighbour), nor does camera B's segment moved by it; across a depth jump (more
-    than MAX_JUMP) each segment takes its own stereo segment's cue; within it the cues
-    are interpolated."""
-    assert CUE.to_float(cue_map.max_jump) == MAX_JUMP
     assert pair_cues(cue_map, [None, None]) == ([None] * 4, [None] * 4)
-    assert pair_cues(cue_map, [None, 5000]) == ([None] * 2 + [5000] * 2,) * 2
-    assert pair_cues(cue_map, [7000, None]) == ([7000] * 2 + [None] * 2,) * 2
-    assert pair_cues(cue_map, [4000, 8000]) == ([4000] * 2 + [8000] * 2,) * 2
-    jump = cue_map.max_jump
-    apart = 4000 + jump + 1
-    assert pair_cues(cue_map, [4000, apart]) == ([4000] * 2 + [apart] * 2,) * 2
-    own, moved = pair_cues(cue_map, [4000, 4000 + jump])
-    assert len(set(own)) == 4 and own == sorted(own)          # interpolated, growing
+    assert pair_cues(cue_map, [None, 5000]) == ([5000] * 4, [5000] * 4)
+    assert pair_cues(cue_map, [7000, None]) == ([7000] * 4, [7000] * 4)
+    own, moved = pair_cues(cue_map, [4000, 8000])
+    assert own == sorted(own) and moved == sorted(moved)     # disparity grows rightwards
     assert all(b >= a for a, b in zip(own, moved))            # B's columns: further right
 
 

@@ -10,23 +10,15 @@ __all__ = ["random_rows", "real_rows", "expected"]
 
 
 def random_rows(cue_map, rng, count):
-    """``count`` rows of random cues: a fifth unusable, the rest a mix of 0, the
-    format's maximum (the extremes the arithmetic must hold), any raw value and the
-    previous segment's value moved by at most the jump bound (interpolated; exactly
-    the bound a third of the time)."""
-    top, jump = cue_map.cue_fmt.max_raw, cue_map.max_jump
+    """``count`` rows of random cues: a quarter unusable, the rest a mix of 0, the
+    format's maximum (the extremes the arithmetic must hold) and any raw value."""
+    top = cue_map.cue_fmt.max_raw
     rows = []
     for _ in range(count):
-        row = []
-        for kind in rng.integers(5, size=cue_map.stereo_segments):
-            if kind == 4 and row and row[-1] is not None:
-                step = jump * int(rng.choice([-1, 1])) if rng.random() < 1 / 3 \
-                    else int(rng.integers(-jump, jump + 1))
-                row.append(min(max(row[-1] + step, 0), top))
-            else:
-                row.append(None if kind == 0 else 0 if kind == 1 else top if kind == 2
-                           else int(rng.integers(top + 1)))
-        rows.append(row)
+        kinds = rng.integers(4, size=cue_map.stereo_segments)
+        values = rng.integers(top + 1, size=cue_map.stereo_segments)
+        rows.append([None if kind == 0 else 0 if kind == 1 else top if kind == 2
+                     else int(value) for kind, value in zip(kinds, values)])
     return rows
 
 
