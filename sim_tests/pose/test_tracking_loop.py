@@ -7,7 +7,9 @@ valid gaps and ready backpressure (SEED printed); the model's row slots are the
 generator's; a ``restart`` written while rows are forecast takes effect at the next
 frame boundary, as the model's restart there (nothing mismatched), with
 ``counters.restart_pending`` set from the write until then; the latency; the parameter
-checks. The longer runs are the cocotb bench's (sim_tests/pose/tracking_loop/)."""
+checks; MeasuredShift's predicted shift and translation part of every measurement
+as the model's (the depth weight's inputs). The longer runs are the cocotb bench's
+(sim_tests/pose/tracking_loop/)."""
 
 import os
 import random
@@ -16,6 +18,7 @@ import numpy as np
 import pytest
 from amaranth.sim import Simulator
 
+from emulator.measurement.consistency import ConsistencyModel
 from hdl.measurement.consistency import COUNTS
 from hdl.pose.tracking_loop import TrackingLoop
 from sim_tests.pose.tracking_loop.stimulus import closed_loop_case, restart_after
@@ -47,7 +50,7 @@ def run_loop(case, *, seed, gaps, limit=400000):
     prob = 0.6 if gaps else 1.0
     want_out = sum(len(e) for e in case["expected"])
     got = {"o": [], "records": [], "inputs": [], "lasts": [], "requests": [], "judged": [],
-           "predicted": [], "verdicts": [], "counts": None, "pending": [],
+           "predicted": [], "shifts": [], "verdicts": [], "counts": None, "pending": [],
            "restarting": [], "track": []}
     requests, judged, predicted = dut._requests.o, dut._stage.i, dut._shift.o
 
@@ -84,6 +87,8 @@ def run_loop(case, *, seed, gaps, limit=400000):
                 got["requests"].append(cycle)
             if ctx.get(judged.valid) and ctx.get(judged.ready):
                 got["judged"].append(cycle)
+                shift = ctx.get(judged.payload)
+                got["shifts"].append((shift.predicted, shift.translation))
             shown = ctx.get(predicted.valid)
             if shown and not was_shown:
                 got["predicted"].append(cycle)     # the clock a result appeared
@@ -147,6 +152,17 @@ def check(case, got):
     assert len(got["track"]) == len(case["track"])
     for n, (g, e) in enumerate(zip(got["track"], case["track"])):
         assert g == e, f"track row {n}: hardware {g}, model {e}"
+    # MeasuredShift's predicted shift and its translation part (the depth weight's
+    # input) of every measurement as the model's; most of them weighed below one, so
+    # the records above cover the weight
+    assert got["shifts"] == case["judged"]
+    stage = ConsistencyModel(case["stage"])
+    weights = stage.depth_weight([t["cue"] for t in case["inputs"]],
+                                 [tr for _, tr in case["judged"]])
+    one = 1 << case["stage"].ratio_fmt.frac_bits
+    print(f"depth weights {weights.min() / one:.3f} … {weights.max() / one:.3f}, "
+          f"{np.mean(weights < one):.0%} below one")
+    assert np.mean(weights < one) > 0.25
     # one verdict per measurement; the outliers are the stage's count
     verdicts = np.array(got["verdicts"])
     assert len(verdicts) == len(case["inputs"])

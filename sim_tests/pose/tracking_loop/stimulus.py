@@ -22,6 +22,7 @@ from unittest import mock
 
 import numpy as np
 
+from emulator.measurement.consistency import ConsistencyModel
 from emulator.pose.forecast import output_transfers
 from emulator.pose.tracking_loop import TrackingLoopModel
 from sim_tests.pose.forecast.stimulus import VERSION, cached
@@ -100,12 +101,21 @@ def _closed_loop(rows, frames, seed, pairs, delay, restart, gain):
         inputs.extend(dict(t) for t in transfers)
         return close(self, transfers, slot, row)
 
+    judged = []                  # each measurement's predicted shift and translation part
+    apply = ConsistencyModel.apply
+
+    def recording_apply(self, transfers, predicted, delta, translation):
+        judged.extend((int(predicted[t["slot"]]), int(translation[t["slot"]]))
+                      for t in transfers)
+        return apply(self, transfers, predicted, delta, translation)
+
     if restart is None:
         initial, restarted = true_steps(dataset, [1], [0])[0], None
     else:
         initial, restarted = np.zeros(6), (restart, true_steps(dataset, [restart], [0])[0])
     with mock.patch.object(TrackingLoopModel, "request", recording_request), \
-            mock.patch.object(TrackingLoopModel, "close", recording_close):
+            mock.patch.object(TrackingLoopModel, "close", recording_close), \
+            mock.patch.object(ConsistencyModel, "apply", recording_apply):
         out = run(config, dataset, forecast=params, initial_motion=initial,
                   consistency=stage, cue_fallback=True, restart=restarted)
     rec = out.records
@@ -118,7 +128,7 @@ def _closed_loop(rows, frames, seed, pairs, delay, restart, gain):
     return {"params": params, "stage": stage, "coefficients": coefficients,
             "row_coefficients": row_coefficients, "solver_store": config.coef_store,
             "initial": params.motion_fmt.quantize(initial), "inputs": inputs,
-            "expected": expected, "records": records,
+            "expected": expected, "records": records, "judged": judged,
             "track": [[int(v) for v in row] for row in out.loop["track"]],
             "track_saturated": int(out.loop["track_saturated"]),
             "slots": [int(v) for v in out.loop["slot"]], "rows": [int(v) for v in out.loop["row"]],
