@@ -165,9 +165,9 @@ class ForecastModel:
         ``motion_fmt`` (the gateware's ``loop.forecast_counters.motion``)."""
         return self.filter.saturated + self._saturated_queries
 
-    def _displacements(self, store, coef_raw, row, cue, motion, terms=6):
-        """Every slot's ``a·Ŷ`` (raw ``displacement_fmt``, saturated) and whether it
-        saturated; ``terms`` 3: only the translation part ``a_T·T̂``."""
+    def _terms(self, store, coef_raw, row, cue, motion):
+        """The six terms ``(1, a_i, Ŷ_i)`` of every slot's ``a·Ŷ`` (the first three the
+        translation part ``a_T·T̂``), for :func:`emulator.pose.program.dot`."""
         slots = self.params.solver.slots
         zeros = np.zeros((1, slots), dtype=np.int64)
         rows = PoseRows(slot=np.arange(slots)[None], shift=zeros, cue=np.asarray(cue)[None],
@@ -176,9 +176,18 @@ class ForecastModel:
         a = design_row(store, coef_raw, rows)
         y = [Value(np.full((1, slots), int(v), dtype=np.int64), self.params.motion_fmt)
              for v in motion]
-        value, saturated = dot(self.params.displacement_fmt,
-                               terms=[(1, a[i], y[i]) for i in range(terms)])
+        return [(1, a[i], y[i]) for i in range(6)]
+
+    def _sum(self, terms):
+        """The terms summed and rounded once into ``displacement_fmt`` (raw per slot,
+        saturated) and whether each saturated."""
+        value, saturated = dot(self.params.displacement_fmt, terms=terms)
         return np.array([int(v) for v in value.raw[0]], dtype=np.int64), saturated[0]
+
+    def _displacements(self, store, coef_raw, row, cue, motion):
+        """Every slot's ``a·Ŷ`` (raw ``displacement_fmt``, saturated) and whether it
+        saturated."""
+        return self._sum(self._terms(store, coef_raw, row, cue, motion))
 
     def _camera_means(self, raw):
         """Per camera: the mean of its K segments' raw displacements, rounded half-up to
@@ -203,9 +212,9 @@ class ForecastModel:
         cue of every segment ``cue`` (raw ``solver.cue_fmt``, (slots,)).
 
         Returns a dict: ``motion`` (6,) raw ``motion_fmt``; ``shift``, its translation
-        part ``translation`` (the three translation terms, rounded once) and ``across``
-        (slots,) raw ``displacement_fmt`` with ``shift_saturated``,
-        ``translation_saturated`` and ``across_saturated``;
+        part ``translation`` (the three translation terms, rounded once, saturated) and
+        ``across`` (slots,) raw ``displacement_fmt`` with ``shift_saturated`` and
+        ``across_saturated``;
         per camera ``centre`` and ``source_row`` (the camera mean's row: integers,
         saturated) with ``centre_saturated``/``row_saturated``; per camera and segment
         ``segment_rows`` (cameras, K), the rows the lanes read, with
@@ -213,16 +222,16 @@ class ForecastModel:
         """
         p = self.params
         motion = self.motion(slot)
-        shift, shift_sat = self._displacements(p.solver, self.coef_raw, row, cue, motion)
-        translation, translation_sat = self._displacements(p.solver, self.coef_raw, row, cue,
-                                                           motion, terms=3)
+        terms = self._terms(p.solver, self.coef_raw, row, cue, motion)
+        shift, shift_sat = self._sum(terms)
+        translation, _ = self._sum(terms[:3])
         across, across_sat = self._displacements(p.row_store, self.row_coef_raw, row, cue,
                                                  motion)
         centre = self._camera_means(shift)
         source = row - self._camera_means(across)
         segment_rows, segment_saturated = self._segment_rows(row, across)
         return {"motion": motion, "shift": shift, "shift_saturated": shift_sat,
-                "translation": translation, "translation_saturated": translation_sat,
+                "translation": translation,
                 "segment_rows": segment_rows, "segment_rows_saturated": segment_saturated,
                 "across": across, "across_saturated": across_sat,
                 "centre": np.clip(centre, -p.centre_range, p.centre_range),
