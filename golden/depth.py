@@ -37,7 +37,8 @@ import numpy as np
 from .checks import check_int, check_number
 from .descriptor import STEREO_MATCH, match, segment_bounds
 
-__all__ = ["stereo_pairs", "DepthRange", "BlockDisparity", "StereoDepth"]
+__all__ = ["stereo_pairs", "DepthRange", "DEFAULT_RANGE", "MIN_PEAK_RATIO", "BlockDisparity",
+           "StereoDepth"]
 
 
 def stereo_pairs(rig, tol=1e-6):
@@ -99,16 +100,25 @@ class DepthRange:
         check_number("focal_baseline", focal_baseline, 0, low_open=True)
         return focal_baseline / self.far, focal_baseline / self.near
 
-    def window(self, focal_baseline):
-        """Integer search window ``(shift_min, shift_max)`` of a pair: the disparity
-        range rounded outwards, widened by ``guard``."""
+    def accepted(self, focal_baseline):
+        """Integer disparities ``(low, high)`` a block's best match may have and still
+        give a depth: the disparity range rounded outwards."""
         low, high = self.disparities(focal_baseline)
-        return math.floor(low) - self.guard, math.ceil(high) + self.guard
+        return math.floor(low), math.ceil(high)
+
+    def window(self, focal_baseline):
+        """Integer search window ``(shift_min, shift_max)`` of a pair: the accepted
+        disparities widened by ``guard``."""
+        low, high = self.accepted(focal_baseline)
+        return low - self.guard, high + self.guard
 
 
 #: Default range of the stereo depth: anything from 0.5 m to infinitely far (a far wall
 #: beyond any "stereo range" still has its minimum inside the window, near disparity 0).
 DEFAULT_RANGE = DepthRange()
+
+#: A block whose peak ratio is below this is ambiguous and gives no depth.
+MIN_PEAK_RATIO = 1.2
 
 
 class BlockDisparity(NamedTuple):
@@ -148,7 +158,7 @@ class StereoDepth:
     """
 
     def __init__(self, rig, desc, *, blocks=16, depth_range=DEFAULT_RANGE,
-                 window=STEREO_MATCH, min_peak_ratio=1.2, max_jump=2.0, carry_frames=3):
+                 window=STEREO_MATCH, min_peak_ratio=MIN_PEAK_RATIO, max_jump=2.0, carry_frames=3):
         self.pairs = stereo_pairs(rig)
         if not self.pairs:
             raise ValueError(f"rig {rig.name!r} has no rectified stereo pair (same intrinsics "
@@ -182,9 +192,9 @@ class StereoDepth:
         :class:`BlockDisparity`)."""
         params = self.windows[pair]
         result = match(left_bits, right_bits, self.desc, params, cur_strong=left_strong)
-        low, high = self.depth_range.disparities(self.pairs[pair][2])
+        low, high = self.depth_range.accepted(self.pairs[pair][2])
         d = result.int_shift
-        out = result.edge_hit | (d < math.floor(low)) | (d > math.ceil(high))
+        out = result.edge_hit | (d < low) | (d > high)
         ambiguous = result.textureless | (result.peak_ratio < self.min_peak_ratio)
         accepted = ~out & ~ambiguous
         return BlockDisparity(disparity=np.where(accepted, result.shift, np.nan),

@@ -24,6 +24,7 @@ from golden.tracker_params import DEFAULT_MOTION_GAIN
 
 from hdl.front_end.params import CameraParams
 from hdl.measurement.consistency_params import ConsistencyParams
+from hdl.measurement.router_params import StereoWindow
 from hdl.pose.forecast_params import ForecastParams
 from hdl.fixed import Overflow, Rounding
 from hdl.pose.params import (DEFAULT_COEF_WIDTH, PoseSolverParams, coefficient_formats,
@@ -129,7 +130,9 @@ class PipelineConfig:
         row stored) —, the forecast's across-rows store likewise with ``row_coef_degree``,
         time stamps in clocks of ``clk_hz``. ``camera`` gives the front
         end's other widths (its count and size come from the rig); ``top_changes`` go to
-        :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``). ``closed_loop``:
+        :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``); the stereo lanes'
+        ``stereo_window`` defaults to the pairs' (:meth:`StereoWindow.for_pairs`: the
+        golden tracker's depth range and peak-ratio bound). ``closed_loop``:
         the top closes the measurement loop with the default :meth:`forecast` and
         :meth:`consistency` of the rig (``TopParams.forecast``/``.consistency``), the forecast's
         filter with ``motion_gain`` (``ForecastParams``; the open-loop pipeline takes it
@@ -157,6 +160,8 @@ class PipelineConfig:
                              f"partner, the hardware's only depth cue")
         camera = replace(camera, n_cameras=len(rig.cameras), max_width=width,
                          max_height=height)
+        top_changes.setdefault("stereo_window",
+                               StereoWindow.for_pairs([fb for _, _, fb in pairs]))
         pairs = tuple((a, b) for a, b, _ in pairs)
         shape = TopParams.for_pairs(pairs, segments=segments, camera=camera, clk_hz=clk_hz,
                                     **top_changes)

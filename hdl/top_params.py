@@ -13,6 +13,7 @@ from golden.checks import check_int
 from hdl.front_end.params import CameraParams
 from hdl.measurement.consistency_params import ConsistencyParams
 from hdl.measurement.engine_params import EngineParams
+from hdl.measurement.router_params import StereoWindow
 from hdl.output.params import PoseOutputParams
 from hdl.pose.forecast_params import ForecastParams
 from hdl.pose.params import PoseSolverParams, solver_source
@@ -44,6 +45,9 @@ class TopParams:
     stereo_segments : int
         Stereo-lane segments per row (K_s, each its own disparity; temporal segment k
         takes stereo segment ``k·K_s // K``).
+    stereo_window : StereoWindow
+        The stereo lanes' disparity window and which of their results give a depth
+        (default the fixed [10, 70]; ``PipelineConfig.for_rig`` derives it from the rig).
     solver : PoseSolverParams
         ``rows`` must be the cameras' ``max_height``, ``time_bits`` their
         ``timestamp_bits`` and ``slots`` ``n_cameras × segments``.
@@ -76,6 +80,7 @@ class TopParams:
     pairs: tuple = ((0, 1), (2, 3))
     segments: int = DEFAULT_SEGMENTS
     stereo_segments: int = 1
+    stereo_window: StereoWindow = StereoWindow()
     solver: PoseSolverParams = PoseSolverParams(slots=DEFAULT_CAMERAS * DEFAULT_SEGMENTS)
     pose_output: PoseOutputParams = PoseOutputParams(source=solver_source(PoseSolverParams()))
     uart: UartParams = UartParams()
@@ -112,7 +117,8 @@ class TopParams:
         # The engine checks pairs (every camera in one pair), segments and solver.slots.
         object.__setattr__(self, "engine", EngineParams.for_cameras(
             self.camera, self.solver, self.pairs, segments=self.segments,
-            stereo_segments=self.stereo_segments, follow=self.closed_loop,
+            stereo_segments=self.stereo_segments, stereo_window=self.stereo_window,
+            follow=self.closed_loop,
             cue_fallback=self.closed_loop))
 
     def _check_loop(self):

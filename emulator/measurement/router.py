@@ -30,9 +30,11 @@ Decisions (each one is a choice the HDL router must copy):
   ``conf_fmt``. It is set to zero (the measurement adds nothing to the normal
   equations) when the temporal segment hit the shift-window edge (its shift is a
   bound, not a measurement), when the pair has no stereo measurement of this row and
-  segment, or when that stereo measurement is unusable (zero confidence, window edge,
-  or disparity ≤ 0, i.e. no finite depth). The lanes already give zero confidence to
-  textureless, bad and reference-less segments.
+  segment, or when that stereo measurement gives no depth: its peak ratio below
+  ``stereo_window.min_ratio`` (or 0: textureless), its integer disparity outside
+  ``stereo_window.accepted`` (the window's guard bands and edges: the surface may lie
+  beyond the depth range, issue 18), or its disparity ≤ 0 (no finite depth). The lanes
+  already give zero confidence to textureless, bad and reference-less segments.
 * **Rows.** Every temporal measurement of a row is sent, zero-weight ones included,
   in slot order, ``last`` on the final one: the stream stays one transfer per
   (camera, segment) and never exceeds ``slots`` (no OVERRUN). A row none of whose
@@ -100,8 +102,12 @@ def usable_cues(params, stereo):
         return {}
     exact, _ = _exact_shifts(stereo, params.stereo)
     cue = measured_shifts(stereo, params.stereo, params.solver.cue_fmt)
+    window = params.stereo_window
+    low, high = window.accepted
+    least = window.min_confidence_raw(params.stereo.confidence_fmt)
     return {(m["camera"], m["segment"]): int(c) for m, c, e in zip(stereo, cue, exact)
-            if m["confidence"] and not m["edge_hit"] and e > 0}
+            if m["confidence"] >= least and not m["edge_hit"] and low <= m["shift"] <= high
+            and e > 0}
 
 
 def route_row(params, temporal, stereo, fallback=None):

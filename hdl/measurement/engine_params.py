@@ -11,10 +11,10 @@ sizes the lanes so that a camera beat of the front end *is* a lane's input beat.
 from dataclasses import dataclass, replace
 
 from golden.checks import check_int
-from golden.descriptor import STEREO_MATCH, MatchParams
+from golden.descriptor import MatchParams
 
 from hdl.front_end.params import CameraParams
-from hdl.measurement.router_params import RouterParams
+from hdl.measurement.router_params import RouterParams, StereoWindow
 from hdl.pose.params import PoseSolverParams
 from hdl.descriptor.params import DEFAULT_SEGMENTS, RowDescriptorParams
 
@@ -88,7 +88,8 @@ class EngineParams:
 
     @classmethod
     def for_cameras(cls, camera, solver, pairs, *, segments=DEFAULT_SEGMENTS,
-                    stereo_segments=1, follow=False, cue_fallback=False):
+                    stereo_segments=1, stereo_window=StereoWindow(), follow=False,
+                    cue_fallback=False):
         """The engine behind a camera front end with parameters ``camera``.
 
         Lanes are ``camera.max_width × camera.max_height`` with the camera beat's widths;
@@ -108,6 +109,8 @@ class EngineParams:
             raise TypeError(f"camera must be a CameraParams, not {camera!r}")
         if not isinstance(solver, PoseSolverParams):
             raise TypeError(f"solver must be a PoseSolverParams, not {solver!r}")
+        if not isinstance(stereo_window, StereoWindow):
+            raise TypeError(f"stereo_window must be a StereoWindow, not {stereo_window!r}")
         check_int("segments", segments, 1)
         check_int("stereo_segments", stereo_segments, 1)
         if solver.rows != camera.max_height:
@@ -116,7 +119,7 @@ class EngineParams:
         beat = {name: getattr(camera, source) for name, source in _BEAT_FIELDS.items()}
         lanes = {}
         for kind, match in (("temporal", MatchParams(segments=segments)),
-                            ("stereo", replace(STEREO_MATCH, segments=stereo_segments))):
+                            ("stereo", stereo_window.match(stereo_segments))):
             try:
                 lanes[kind] = RowDescriptorParams(**beat, match=match)
             except ValueError as err:
@@ -129,7 +132,8 @@ class EngineParams:
             raise TypeError(f"pairs must be a sequence of (A, B) camera pairs, not "
                             f"{pairs!r}") from err
         router = RouterParams(cameras=camera.n_cameras, pairs=pairs, solver=solver,
-                              cue_fallback=cue_fallback, **lanes)
+                              cue_fallback=cue_fallback, stereo_window=stereo_window,
+                              **lanes)
         return cls(router=router, count_bits=camera.count_bits, follow=follow)
 
     # --- shortcuts -----------------------------------------------------------------------

@@ -89,6 +89,17 @@ def _exact_shift(m, lane):
     return hdl_add(m.shift, lane.shift_fmt, m.subpixel, lane.subpixel_fmt)
 
 
+def _gives_depth(params, m, exact):
+    """A stereo measurement ``m`` gives a depth (``RouterParams.stereo_window``): peak
+    ratio at its bound, no window edge, integer disparity in the accepted range, refined
+    disparity positive (``emulator.measurement.router.usable_cues``)."""
+    window = params.stereo_window
+    low, high = window.accepted
+    least = window.min_confidence_raw(params.stereo.confidence_fmt)
+    return ((m.confidence >= least) & ~m.edge_hit & (m.shift >= low) & (m.shift <= high)
+            & (exact > 0))
+
+
 def _order(params, entry, ticket):
     """(same, older) of a buffered measurement against the ticket, frames modulo
     ``2**frame_bits`` as in :func:`emulator.measurement.router.stream_order`."""
@@ -251,8 +262,7 @@ class MeasurementRouter(wiring.Component):
                 entry.frame.eq(port.payload.frame), entry.row.eq(port.payload.row),
                 entry.cue.eq(hdl_resize(exact, fmt, p.solver.cue_fmt,
                                         Rounding.HALF_EVEN, Overflow.SATURATE)),
-                entry.usable.eq((port.payload.confidence != 0) & ~port.payload.edge_hit
-                                & (exact > 0)),
+                entry.usable.eq(_gives_depth(p, port.payload, exact)),
                 fifo.w_data.eq(entry), fifo.w_en.eq(port.valid), port.ready.eq(fifo.w_rdy),
             ]
             head = data.View(layout, fifo.r_data)

@@ -127,7 +127,12 @@ def test_consistency_needs_the_forecast(config, dataset):
 
 def test_each_temporal_segment_has_its_stereo_segment(config, dataset):
     assert config.router.stereo.segments == K
-    assert config.router.stereo.match.shift_min == 10     # STEREO_MATCH's disparities
+    # the window from the rig's f·b = 41.6 px and the golden depth range [0.5 m, ∞):
+    # disparities 0 … 84 accepted, 2-px guard bands
+    window = config.router.stereo_window
+    assert (window.shift_min, window.shift_max, window.accepted) == (-2, 86, (0, 84))
+    assert (config.router.stereo.match.shift_min, config.router.stereo.match.shift_max) \
+        == (-2, 86)
     with pytest.raises(ValueError, match="stereo_segments must be an integer at least 1, "
                                          "not 0"):
         PipelineConfig.for_rig(dataset.rig, segments=K, stereo_segments=0)

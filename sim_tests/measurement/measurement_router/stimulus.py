@@ -16,11 +16,12 @@ import dataclasses
 from emulator.measurement.router import route_tickets
 from golden.descriptor import STEREO_MATCH
 from hdl.fixed import SQ, UQ
-from hdl.measurement.router_params import RouterParams
+from hdl.measurement.router_params import RouterParams, StereoWindow
 from hdl.pose.params import PoseSolverParams
 from hdl.descriptor.params import RowDescriptorParams
 
-__all__ = ["NARROW", "measurement", "synthetic", "lane_streams", "expected", "FIELDS"]
+__all__ = ["NARROW", "GUARDED", "measurement", "synthetic", "lane_streams", "expected",
+           "FIELDS"]
 
 #: Router for the synthetic streams: four cameras, K = 4, K_s = 2, a 3-bit frame
 #: counter (wraps within a run), solver formats narrower than the lanes' (SQ(7, 0) +
@@ -33,6 +34,10 @@ NARROW = RouterParams(
                                match=dataclasses.replace(STEREO_MATCH, segments=2)),
     solver=PoseSolverParams(slots=16, rows=8, shift_fmt=SQ(4, 3), cue_fmt=UQ(5, 4),
                             conf_fmt=UQ(1, 4), time_bits=24))
+
+#: :data:`NARROW` with a stereo window that rejects more than its edges (issue 18):
+#: disparities 12 … 68 of [10, 70] give a depth, peak ratios from 1.2.
+GUARDED = dataclasses.replace(NARROW, stereo_window=StereoWindow(guard=2, min_ratio=1.2))
 
 #: The lane measurement layout's fields (``hdl.streams.row_measurement_layout``).
 FIELDS = ("camera", "frame", "row", "t_first", "segment", "shift", "subpixel",
@@ -60,27 +65,44 @@ def _raw(rng, fmt):
     return int(rng.integers(fmt.min_raw, fmt.max_raw + 1))
 
 
-def _shift(rng, lane):
+def _shift(rng, lane, window=None):
     """(shift, subpixel): mostly random raw values, sometimes a sum of exactly zero or
-    of the smallest negative step (the disparity rule's boundary)."""
+    of the smallest negative step (the disparity rule's boundary), and with a stereo
+    ``window`` sometimes an integer disparity on either side of its accepted range's
+    ends."""
     pick = rng.random()
     if pick < 0.1:
         return 0, 0
     if pick < 0.2:
         return -1, lane.subpixel_fmt.max_raw
+    if window is not None and pick < 0.4:
+        low, high = window.accepted
+        return int(rng.choice([low - 1, low, high, high + 1])), _raw(rng, lane.subpixel_fmt)
     return _raw(rng, lane.shift_fmt), _raw(rng, lane.subpixel_fmt)
 
 
-def _row_of(lane, rng, camera, frame, row, segments):
-    """``segments`` random measurements of one row of one lane (shared metadata)."""
+def _confidence(rng, lane, window=None):
+    """A raw confidence: 0, random, and with a stereo ``window`` sometimes just below or
+    at its least accepted one."""
+    pick = rng.random()
+    if pick < 0.15:
+        return 0
+    if window is not None and pick < 0.35:
+        least = window.min_confidence_raw(lane.confidence_fmt)
+        return int(rng.choice([max(least - 1, 0), least]))
+    return _raw(rng, lane.confidence_fmt)
+
+
+def _row_of(lane, rng, camera, frame, row, segments, window=None):
+    """``segments`` random measurements of one row of one lane (shared metadata); a
+    stereo lane's with its ``window``'s boundaries."""
     t_first = int(rng.integers(0, 1 << lane.timestamp_bits))
     out = []
     for k in range(segments):
-        shift, subpixel = _shift(rng, lane)
+        shift, subpixel = _shift(rng, lane, window)
         out.append(measurement(
             camera, k, frame, row, t_first=t_first, shift=shift, subpixel=subpixel,
-            confidence=0 if rng.random() < 0.15 else _raw(rng, lane.confidence_fmt),
-            edge_hit=int(rng.random() < 0.1)))
+            confidence=_confidence(rng, lane, window), edge_hit=int(rng.random() < 0.1)))
     return out
 
 
@@ -119,9 +141,10 @@ def synthetic(params, rng, tickets):
             if not clean and rng.random() < 0.1:               # a stale row in the lane
                 back = int(rng.integers(1, 2 * t_lane.height))
                 stereo[j] += _row_of(s_lane, rng, a, *_step(params, frame, row, back),
-                                     s_lane.segments)
+                                     s_lane.segments, params.stereo_window)
             if pairs >> j & 1 and (clean or rng.random() > 0.1):   # else: join lost it
-                stereo[j] += _row_of(s_lane, rng, a, frame, row, s_lane.segments)
+                stereo[j] += _row_of(s_lane, rng, a, frame, row, s_lane.segments,
+                                     params.stereo_window)
         frame, row = _step(params, frame, row, -1)
     return out, temporal, stereo
 

@@ -32,7 +32,7 @@ CACHE = Path(__file__).resolve().parents[3] / "build" / "forecast_stimulus"
 #: change (v2: the stores' contents and the model's tables apart; v3: the consistency
 #: stage's scale ceiling; v4: the forecast bench asks for the scalar gain, the default is
 #: the information gain; v6: each segment's row address, ``segment_rows``).
-VERSION = "v7"
+VERSION = "v8"
 
 
 def record(params, step=None, row=0, time=0, flags=0):
