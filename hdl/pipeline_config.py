@@ -132,7 +132,7 @@ class PipelineConfig:
         end's other widths (its count and size come from the rig); ``top_changes`` go to
         :class:`TopParams` (e.g. ``pose_output``, ``uart``, ``baud``); the stereo lanes'
         ``stereo_window`` defaults to the pairs' (:meth:`StereoWindow.for_pairs`: the
-        golden tracker's depth range and peak-ratio bound). ``closed_loop``:
+        golden tracker's depth range and guard bands). ``closed_loop``:
         the top closes the measurement loop with the default :meth:`forecast` and
         :meth:`consistency` of the rig (``TopParams.forecast``/``.consistency``), the forecast's
         filter with ``motion_gain`` (``ForecastParams``; the open-loop pipeline takes it

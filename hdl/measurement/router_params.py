@@ -8,7 +8,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 from golden.checks import check_int, check_number
-from golden.depth import DEFAULT_RANGE, MIN_PEAK_RATIO, DepthRange
+from golden.depth import DEFAULT_RANGE, DepthRange
 from golden.descriptor import STEREO_MATCH
 
 from hdl.pose.params import PoseSolverParams
@@ -29,7 +29,9 @@ class StereoWindow:
     refined disparity is positive. The default is the fixed [10, 70] window of
     :data:`golden.descriptor.STEREO_MATCH` with no guard and no ratio bound (a top built
     without a rig); :meth:`for_pairs` derives one from a rig's pairs as the golden
-    tracker's :class:`golden.depth.StereoDepth` does.
+    tracker's :class:`golden.depth.StereoDepth` does, without the golden's peak-ratio
+    bound by default (docs/measurement/measurement_router.md, "Stereo window": on the
+    hardware's wider segments it removed more good cues than bad ones).
 
     Parameters
     ----------
@@ -58,10 +60,11 @@ class StereoWindow:
     replace = replace
 
     @classmethod
-    def for_pairs(cls, focal_baselines, depth_range=DEFAULT_RANGE, min_ratio=MIN_PEAK_RATIO):
+    def for_pairs(cls, focal_baselines, depth_range=DEFAULT_RANGE, min_ratio=0.0):
         """The window of pairs with these ``f·b`` (pixels): the union of
         ``depth_range``'s per-pair windows (the lanes share one), its guard, and
-        ``min_ratio``. ``ValueError`` without a pair."""
+        ``min_ratio`` (the golden's is :data:`golden.depth.MIN_PEAK_RATIO`).
+        ``ValueError`` without a pair."""
         if not isinstance(depth_range, DepthRange):
             raise TypeError(f"depth_range must be a DepthRange, not {depth_range!r}")
         windows = [depth_range.window(fb) for fb in focal_baselines]

@@ -28,15 +28,18 @@ def test_default_is_the_fixed_window_without_extra_rules():
 @pytest.mark.parametrize("rig_name", ["stereo20", "stereo8-board", "stereo8"])
 def test_a_rigs_window_is_the_golden_stereo_depths(rig_name):
     """The hardware searches and accepts what golden (b)'s StereoDepth does: the same
-    window per pair (every pair of these rigs has one f·b), the same accepted
-    disparities and peak-ratio bound."""
+    window per pair (every pair of these rigs has one f·b) and the same accepted
+    disparities; the golden's peak-ratio bound only when asked for."""
     rig = preset(rig_name)
     golden = StereoDepth(rig, DescriptorParams())
     window = PipelineConfig.for_rig(rig).top.stereo_window
     for params, (_, _, fb) in zip(golden.windows, golden.pairs):
         assert (window.shift_min, window.shift_max) == (params.shift_min, params.shift_max)
         assert window.accepted == DEFAULT_RANGE.accepted(fb)
-    assert (window.guard, window.min_ratio) == (DEFAULT_RANGE.guard, MIN_PEAK_RATIO)
+    assert (window.guard, window.min_ratio) == (DEFAULT_RANGE.guard, 0.0)
+    fb = [fb for _, _, fb in golden.pairs]
+    assert StereoWindow.for_pairs(fb, min_ratio=MIN_PEAK_RATIO) == \
+        window.replace(min_ratio=golden.min_peak_ratio)
     lanes = PipelineConfig.for_rig(rig).router.stereo.match
     assert (lanes.shift_min, lanes.shift_max) == (window.shift_min, window.shift_max)
 
