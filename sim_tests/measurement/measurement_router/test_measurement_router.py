@@ -1,5 +1,6 @@
 """Runs the measurement router cocotb bench: synthetic streams (format extremes,
-missing cameras and pairs, misaligned and lost rows) on Verilator and Icarus, and real
+missing cameras and pairs, misaligned and lost rows) on Verilator and Icarus, with a
+guarded stereo window on Verilator, and real
 simulated rows through the emulator's lane models on Verilator (the hardware path's
 K = K_s = 8, so the cue mappers interpolate real cues)."""
 
@@ -17,7 +18,8 @@ from hdl.measurement.router import MeasurementRouter
 from emulator.hardware_path import hardware_config
 from emulator.hdl_sim.runner import BUILD_ROOT, run_cocotb
 
-from sim_tests.measurement.measurement_router.stimulus import NARROW, expected, lane_streams
+from sim_tests.measurement.measurement_router.stimulus import (GUARDED, NARROW, expected,
+                                                          lane_streams)
 
 BENCH = "sim_tests.measurement.measurement_router.router_bench"
 #: stereo20 cut to its 24 middle rows, two frames at 120 fps; the first two pairs.
@@ -28,6 +30,14 @@ ROWS, FRAMES, PAIRS = 24, 2, 2
 def test_router_synthetic(sim):
     run_cocotb(MeasurementRouter(NARROW), name="measurement_router", tag="synthetic",
                sim=sim, test_module=BENCH)
+
+
+def test_router_synthetic_guarded():
+    """A stereo window with guard bands and a peak-ratio bound (issue 18): the synthetic
+    stereo streams put disparities and confidences on both sides of its limits (the
+    real rows below rarely reach a guard band)."""
+    run_cocotb(MeasurementRouter(GUARDED), name="measurement_router", tag="guarded",
+               sim="verilator", test_module=BENCH)
 
 
 def test_router_real_rows():
