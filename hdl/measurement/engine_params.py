@@ -125,7 +125,8 @@ class EngineParams:
             except ValueError as err:
                 raise ValueError(f"camera (max_width {camera.max_width}, max_height "
                                  f"{camera.max_height}) cannot size a {kind} lane with "
-                                 f"segments={match.segments}: {err}") from err
+                                 f"segments={match.segments} and shifts [{match.shift_min}, "
+                                 f"{match.shift_max}]: {err}") from err
         try:
             pairs = tuple(tuple(pair) for pair in pairs)
         except TypeError as err:

@@ -56,7 +56,7 @@ def test_for_cameras_rejects_what_cannot_match():
     with pytest.raises(ValueError, match=r"solver.rows must be camera.max_height \(6\), not 480"):
         EngineParams.for_cameras(CAMERA, PoseSolverParams(slots=16), PAIRS)
     with pytest.raises(ValueError, match=r"camera \(max_width 128, max_height 6\) cannot size "
-                                         r"a temporal lane with segments=4: width 128"):
+                                         r"a temporal lane with segments=4 and shifts \[-20, 20\]: width 128"):
         EngineParams.for_cameras(CAMERA.replace(max_width=128), SOLVER, PAIRS)
     with pytest.raises(ValueError, match="segments must be an integer at least 1, not 0"):
         EngineParams.for_cameras(CAMERA, SOLVER, PAIRS, segments=0)

@@ -109,3 +109,18 @@ def test_router_checks_the_window_against_its_lanes():
     with pytest.raises(ValueError, match="min_ratio 9.0 is beyond the stereo lanes' "
                                          "confidence_fmt"):
         dataclasses.replace(NARROW, stereo_window=StereoWindow(min_ratio=9.0))
+
+
+def test_a_window_wider_than_the_image_is_refused_naming_it():
+    """A pair whose near limit needs more disparity than a 640-px row can compare."""
+    from hdl.front_end.params import CameraParams
+    from hdl.measurement.engine_params import EngineParams
+    from hdl.pose.params import PoseSolverParams
+    camera = CameraParams(n_cameras=2)
+    solver = PoseSolverParams(slots=8, rows=camera.max_height)
+    with pytest.raises(ValueError, match=r"cannot size a stereo lane with segments=1 and "
+                                         r"shifts \[-2, 802\]"):
+        EngineParams.for_cameras(camera, solver, ((0, 1),),
+                                 stereo_window=StereoWindow.for_pairs([400.0]))
+    with pytest.raises(TypeError, match="stereo_window must be a StereoWindow"):
+        EngineParams.for_cameras(camera, solver, ((0, 1),), stereo_window=(10, 70))
