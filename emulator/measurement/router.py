@@ -102,9 +102,7 @@ def usable_cues(params, stereo):
         return {}
     exact, _ = _exact_shifts(stereo, params.stereo)
     cue = measured_shifts(stereo, params.stereo, params.solver.cue_fmt)
-    window = params.stereo_window
-    low, high = window.accepted
-    least = window.min_confidence_raw(params.stereo.confidence_fmt)
+    least, low, high = params.depth_limits()
     return {(m["camera"], m["segment"]): int(c) for m, c, e in zip(stereo, cue, exact)
             if m["confidence"] >= least and not m["edge_hit"] and low <= m["shift"] <= high
             and e > 0}

@@ -93,9 +93,7 @@ def _gives_depth(params, m, exact):
     """A stereo measurement ``m`` gives a depth (``RouterParams.stereo_window``): peak
     ratio at its bound, no window edge, integer disparity in the accepted range, refined
     disparity positive (``emulator.measurement.router.usable_cues``)."""
-    window = params.stereo_window
-    low, high = window.accepted
-    least = window.min_confidence_raw(params.stereo.confidence_fmt)
+    least, low, high = params.depth_limits()
     return ((m.confidence >= least) & ~m.edge_hit & (m.shift >= low) & (m.shift <= high)
             & (exact > 0))
 

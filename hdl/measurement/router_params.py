@@ -190,4 +190,11 @@ class RouterParams:
             raise ValueError(f"stereo_window [{window.shift_min}, {window.shift_max}] must "
                              f"be the stereo lanes' window [{match.shift_min}, "
                              f"{match.shift_max}]")
-        window.min_confidence_raw(self.stereo.confidence_fmt)      # raises if unreachable
+        self.depth_limits()                                         # raises if unreachable
+
+    def depth_limits(self):
+        """``(least confidence raw, lowest, highest integer disparity)`` of a stereo
+        measurement that gives a depth (``stereo_window`` on the stereo lanes'
+        ``confidence_fmt``): the model's and the gateware's one rule."""
+        window = self.stereo_window
+        return (window.min_confidence_raw(self.stereo.confidence_fmt), *window.accepted)
