@@ -53,8 +53,11 @@ def _cell_counts(stat_json):
     }
 
 
-def synth_verilog(verilog_path, top, work_dir):
-    """Run ``synth_xilinx`` on ``verilog_path``; returns the figures dict."""
+def synth_verilog(verilog_path, top, work_dir, *, black_boxes=()):
+    """Run ``synth_xilinx`` on ``verilog_path``; returns the figures dict.
+
+    ``black_boxes``: modules emptied into black boxes before elaboration (their instances
+    stay as cells that count nothing; :mod:`emulator.synth_partitions`)."""
     work_dir = Path(work_dir).resolve()
     work_dir.mkdir(parents=True, exist_ok=True)
     source = Path(verilog_path).resolve()
@@ -67,7 +70,8 @@ def synth_verilog(verilog_path, top, work_dir):
     # Amaranth names the elements of array ports with wires such as `\st[0]`; once
     # flattened they collide with bit names in ABC9's symbol table and ABC exits
     # silently. Purging those unused alias wires first avoids it (no logic changes).
-    script = (f"read_verilog -sv {source.name}; "
+    boxes = "".join(f"blackbox {module}; " for module in black_boxes)
+    script = (f"read_verilog -sv {source.name}; {boxes}"
               f"hierarchy -top {top}; proc; flatten; opt_clean -purge; "
               f"synth_xilinx -family xc7 -top {top} -flatten; "
               f"tee -q -o {stat_path.name} stat -json; "

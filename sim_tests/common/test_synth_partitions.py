@@ -1,0 +1,101 @@
+"""Partitioned synthesis (emulator/synth_partitions.py), the way stereo20's top is counted:
+the Verilog is cut into modules correctly, identical instances are recognized and
+different ones refused, and on a small design the partitions add up to exactly what
+the whole design synthesizes to."""
+
+import pytest
+from amaranth.hdl import Module
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from emulator.synth import synth_verilog
+from emulator.synth_partitions import (instance_modules, lane_groups, split_modules,
+                                       synth_partitioned)
+from hdl.top_params import TopParams
+from hdl.verilog import to_verilog, write_verilog
+
+
+class _Step(wiring.Component):
+    """A register stepping through x → 3x + 1 while enabled (some LUTs and a carry)."""
+
+    def __init__(self, width):
+        self.width = width
+        super().__init__({"en": In(1), "value": Out(width)})
+
+    def elaborate(self, platform):
+        m = Module()
+        with m.If(self.en):
+            m.d.sync += self.value.eq(self.value * 3 + 1)
+        return m
+
+
+class _Lanes(wiring.Component):
+    """``lane<k>`` of the given widths and the sum of their values, registered."""
+
+    def __init__(self, widths):
+        self.widths = widths
+        super().__init__({"en": In(len(widths)), "total": Out(16)})
+
+    def elaborate(self, platform):
+        m = Module()
+        total = 0
+        for k, width in enumerate(self.widths):
+            m.submodules[f"lane{k}"] = lane = _Step(width)
+            m.d.comb += lane.en.eq(self.en[k])
+            total = total + lane.value
+        m.d.sync += self.total.eq(total)
+        return m
+
+
+def test_split_modules_finds_every_module_with_its_attributes():
+    text = to_verilog(_Lanes((8, 8, 12)), "lanes")
+    modules, header = split_modules(text)
+    assert set(modules) == {"lanes", "lanes.lane0", "lanes.lane1", "lanes.lane2"}
+    assert all(body.rstrip().endswith("endmodule") for body in modules.values())
+    assert '(* generator = "Amaranth" *)' in modules["lanes.lane1"]
+    assert "module" not in header
+    # Nothing is lost or doubled: the pieces hold every module line once.
+    assert sum(body.count("\nendmodule") + body.startswith("endmodule")
+               for body in modules.values()) == text.count("endmodule")
+    assert set(instance_modules(modules, "lanes.lane1")) == {"lanes.lane1"}
+
+
+def test_split_modules_refuses_an_unterminated_module():
+    with pytest.raises(ValueError, match="module broken has no endmodule"):
+        split_modules("module broken(a);\n  input a;\n")
+
+
+def test_partitions_add_up_to_the_whole(tmp_path):
+    design = _Lanes((8, 8, 8, 12))
+    parts = synth_partitioned(design, "lanes", {"lane": ["lane0", "lane1", "lane2"]},
+                              work_dir=tmp_path / "parts")
+    whole = synth_verilog(write_verilog(_Lanes((8, 8, 8, 12)), "lanes", tmp_path / "whole"),
+                          "lanes", tmp_path / "whole")
+    assert parts["copies"] == {"lane": 3, "rest": 1}
+    # Each part synthesized something, and the lane is counted three times.
+    assert parts["parts"]["lane"]["ff"] == 8 and parts["parts"]["rest"]["ff"] > 8
+    for key in ("lut", "ff", "dsp48", "carry4", "bram36"):
+        assert parts["total"][key] == whole[key], key
+    assert parts["total"]["lut_levels"] == whole["lut_levels"]
+
+
+def test_different_instances_are_not_counted_as_copies(tmp_path):
+    with pytest.raises(ValueError, match="instance 'lane2' of group 'lane' differs from 'lane0'"):
+        synth_partitioned(_Lanes((8, 8, 12)), "lanes", {"lane": ["lane0", "lane2"]},
+                          work_dir=tmp_path)
+
+
+def test_missing_instances_and_empty_groups_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="lanes has no instance 'lane7' \\(group 'lane'\\)"):
+        synth_partitioned(_Lanes((8, 8)), "lanes", {"lane": ["lane0", "lane7"]},
+                          work_dir=tmp_path)
+    with pytest.raises(ValueError, match="group 'lane' has no instances"):
+        synth_partitioned(_Lanes((8, 8)), "lanes", {"lane": []}, work_dir=tmp_path)
+
+
+def test_lane_groups_name_every_lane_of_the_top():
+    params = TopParams()
+    groups = lane_groups(params)
+    assert groups["temporal_lane"] == [f"engine.temporal{k}"
+                                       for k in range(params.camera.n_cameras)]
+    assert groups["stereo_lane"] == [f"engine.stereo{j}" for j in range(len(params.pairs))]
