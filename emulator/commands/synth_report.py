@@ -36,11 +36,16 @@ def add_arguments(parser):
                         help="also place and route each block with nextpnr-ecp5 (--85k, "
                              "CABGA381, out of context) and report its routed Fmax "
                              "(an ECP5-85 proxy, not the Zynq)")
+    parser.add_argument("--targets", action="store_true",
+                        help="also synthesize issue 17's targets (the board rig's top on the "
+                             "xc7z020, stereo20's on the xc7z045, in partitions) and check "
+                             "each against 80 %% of its device")
 
 
-def measure(names, *, pnr=False):
-    """``{"capacity": ..., "blocks": {name: figures}, "total": figures or None}``, and
-    with ``pnr`` ``"pnr": {name: emulator.pnr figures}``."""
+def measure(names, *, pnr=False, targets=False):
+    """``{"capacity": ..., "blocks": {name: figures}, "total": figures or None}``, with
+    ``pnr`` ``"pnr": {name: emulator.pnr figures}``, and with ``targets`` ``"targets":
+    {rig: device and emulator.top_targets.top_resources figures}``."""
     from emulator.synth import XC7Z020, synth_report
     from hdl import catalog
     blocks, routed = {}, {}
@@ -59,7 +64,35 @@ def measure(names, *, pnr=False):
               "utilization_percent": utilization}
     if pnr:
         report["pnr"] = routed
+    if targets:
+        from emulator.top_targets import TARGETS, top_resources
+        report["targets"] = {}
+        for target in TARGETS:
+            print(f"[synth] target {target.rig} on the {target.device} ...", file=sys.stderr,
+                  flush=True)
+            report["targets"][target.rig] = {
+                "device": target.device,
+                **top_resources(target, progress=lambda line: print(
+                    f"[synth] {line}", file=sys.stderr, flush=True))}
     return report
+
+
+#: Columns of the targets table.
+TARGET_FIGURES = ("lut", "lut_pct", "bram36", "bram36_pct", "dsp48", "dsp48_pct",
+                  "lut_levels", "fits")
+
+
+def targets_table(report):
+    """The Markdown table of the targets (``--targets``)."""
+    from emulator.top_targets import FIT_PCT
+    rows = [f"Each target's closed-loop top against its device; `fits`: LUT, BRAM36 and "
+            f"DSP48 each at most {FIT_PCT:g} %.", "",
+            "| rig | device | " + " | ".join(TARGET_FIGURES) + " |",
+            "|---|---" + "|---" * len(TARGET_FIGURES) + "|"]
+    for rig, figures in report["targets"].items():
+        rows.append(f"| {rig} | {figures['device']} | "
+                    + " | ".join(str(figures[k]) for k in TARGET_FIGURES) + " |")
+    return "\n".join(rows)
 
 
 def pnr_table(report):
@@ -107,7 +140,16 @@ registers, memories, DSPs and ports (carry chains and wide muxes not counted), a
 estimate of timing in place of a vendor timing report.
 
 {table(report)}
-"""
+""" + (f"""
+## Issue 17's targets
+
+`rowtrack synth-report --targets`: the board rig's top flattened as above, stereo20's in
+partitions (`emulator.synth_partitions`: the 4 GiB WebAssembly Yosys cannot flatten it;
+one temporal and one stereo lane synthesized alone and counted per copy, the rest with
+the lanes as black boxes; `lut_levels` within a partition).
+
+{targets_table(report)}
+""" if "targets" in report else "")
 
 
 def run(args):
@@ -116,7 +158,7 @@ def run(args):
     unknown = [name for name in names if name not in catalog.BLOCKS]
     if unknown:
         raise UsageError(f"unknown block {unknown[0]!r}; blocks are: {', '.join(catalog.names())}")
-    report = measure(names, pnr=args.pnr)
+    report = measure(names, pnr=args.pnr, targets=args.targets)
     if args.write_docs:
         args.write_docs.mkdir(parents=True, exist_ok=True)
         (args.write_docs / "resources.md").write_text(markdown(report))
@@ -128,6 +170,9 @@ def run(args):
         if args.pnr:
             print()
             print(pnr_table(report))
+        if args.targets:
+            print()
+            print(targets_table(report))
     if args.deep_paths:
         from emulator.lut_paths import LEVEL_TARGET, block_deep_paths
         for name in names:
