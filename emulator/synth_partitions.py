@@ -22,9 +22,10 @@ import re
 from pathlib import Path
 
 from emulator.synth import BUILD_ROOT, synth_verilog
-from hdl.verilog import write_verilog
+from hdl.verilog import to_verilog, write_verilog
 
-__all__ = ["split_modules", "instance_modules", "synth_partitioned", "lane_groups"]
+__all__ = ["split_modules", "instance_modules", "synth_partitioned", "lane_groups",
+           "breakdown_groups"]
 
 #: Figures that add up over partitions.
 ADDITIVE = ("lut", "ff", "bram36", "dsp48", "carry4", "lutram")
@@ -167,3 +168,26 @@ def lane_groups(params):
     if params.pairs:
         groups["stereo_lane"] = [f"engine.stereo{j}" for j in range(len(params.pairs))]
     return groups
+
+
+def breakdown_groups(component, name, depth=2):
+    """Groups for a per-block breakdown of ``component``: every instance ``depth`` levels
+    below the top (with its children), and every shallower one with no children, the
+    identical ones grouped (named after the first, e.g. ``engine.temporal0``); what is
+    left (the glue between them) is :func:`synth_partitioned`'s ``rest``."""
+    modules, _ = split_modules(to_verilog(component, name))
+    paths = [module[len(name) + 1:] for module in modules if module.startswith(name + ".")]
+    below = {path: [p for p in paths if p.startswith(path + ".")] for path in paths}
+    chosen = sorted((p for p in paths
+                     if p.count(".") == depth - 1 or (p.count(".") < depth - 1 and not below[p])),
+                    key=_natural)
+    groups = {}
+    for path in chosen:
+        key = _normalized(instance_modules(modules, f"{name}.{path}"), f"{name}.{path}")
+        groups.setdefault(key, []).append(path)
+    return {paths[0]: paths for paths in groups.values()}
+
+
+def _natural(path):
+    """Sort key putting ``temporal2`` before ``temporal10``."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path)]

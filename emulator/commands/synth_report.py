@@ -40,6 +40,10 @@ def add_arguments(parser):
                         help="also synthesize issue 17's targets (the board rig's top on the "
                              "xc7z020, stereo20's on the xc7z045, in partitions) and check "
                              "each against 80 %% of its device")
+    parser.add_argument("--breakdown", metavar="RIG",
+                        help="synthesize RIG's closed-loop top block by block (every "
+                             "instance two levels down, identical ones once) and list "
+                             "where its resources go")
 
 
 def measure(names, *, pnr=False, targets=False):
@@ -152,8 +156,43 @@ the lanes as black boxes; `lut_levels` within a partition).
 """ if "targets" in report else "")
 
 
+def breakdown(rig):
+    """``synth_partitioned`` of ``rig``'s closed-loop top with
+    :func:`emulator.synth_partitions.breakdown_groups`."""
+    from emulator.synth_partitions import breakdown_groups, synth_partitioned
+    from emulator.top_targets import target
+    from hdl.top import closed_loop_top
+    name = f"top_breakdown_{target(rig).rig}"
+    groups = breakdown_groups(closed_loop_top(rig), name)
+    return synth_partitioned(closed_loop_top(rig), name, groups, progress=lambda line: print(
+        f"[synth] {line}", file=sys.stderr, flush=True))
+
+
+def breakdown_table(result):
+    """Markdown table of :func:`breakdown`, the largest LUT total first."""
+    rows = ["| block | copies | lut each | lut total | ff total | bram36 total | dsp48 total "
+            "| lut_levels |", "|---|---|---|---|---|---|---|---|"]
+    copies = result["copies"]
+    order = sorted(result["parts"], key=lambda g: -copies[g] * result["parts"][g]["lut"])
+    for group in order:
+        f, n = result["parts"][group], copies[group]
+        rows.append(f"| {group} | {n} | {f['lut']} | {n * f['lut']} | {n * f['ff']} | "
+                    f"{n * f['bram36']} | {n * f['dsp48']} | {f['lut_levels']} |")
+    t = result["total"]
+    rows.append(f"| sum | | | {t['lut']} | {t['ff']} | {t['bram36']} | {t['dsp48']} | "
+                f"{t['lut_levels']} |")
+    return "\n".join(rows)
+
+
 def run(args):
     from hdl import catalog
+    if args.breakdown:
+        try:
+            result = breakdown(args.breakdown)
+        except ValueError as error:
+            raise UsageError(str(error)) from None
+        print(json.dumps(result, sort_keys=True) if args.json else breakdown_table(result))
+        return 0
     names = args.only or catalog.names()
     unknown = [name for name in names if name not in catalog.BLOCKS]
     if unknown:

@@ -9,8 +9,8 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from emulator.synth import synth_verilog
-from emulator.synth_partitions import (instance_modules, lane_groups, split_modules,
-                                       synth_partitioned)
+from emulator.synth_partitions import (breakdown_groups, instance_modules, lane_groups,
+                                       split_modules, synth_partitioned)
 from hdl.top_params import TopParams
 from hdl.verilog import to_verilog, write_verilog
 
@@ -99,3 +99,8 @@ def test_lane_groups_name_every_lane_of_the_top():
     assert groups["temporal_lane"] == [f"engine.temporal{k}"
                                        for k in range(params.camera.n_cameras)]
     assert groups["stereo_lane"] == [f"engine.stereo{j}" for j in range(len(params.pairs))]
+
+
+def test_breakdown_groups_find_the_identical_instances():
+    groups = breakdown_groups(_Lanes((8, 12, 8, 8)), "lanes", depth=1)
+    assert groups == {"lane0": ["lane0", "lane2", "lane3"], "lane1": ["lane1"]}
