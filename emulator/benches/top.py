@@ -1,14 +1,17 @@
-"""Benchmark of the SoC integration: each board's closed-loop top (resources, pins, pose
-rate, latency), the UART link's packet rate measured in simulation, and the host tool on
-a faulty pseudo-terminal link.
+"""Benchmark of the SoC integration: the closed-loop tops of issue 17's two targets
+(:mod:`emulator.top_targets`: resources on their devices, pins, pose rate, latency), the
+UART link's packet rate measured in simulation, and the host tool on a faulty
+pseudo-terminal link.
 
-Figures (prefixed ``top.`` by the registry), per board rig ``<rig>``: ``cameras``,
-``lut``, ``ff``, ``bram36``, ``dsp48``, their share of the xc7z020 (``*_pct``),
-``lut_levels``, ``io_pins``, ``io_pins_left``, ``clk_hz``, ``pose_rate_hz`` (delivered),
-``capacity_hz``, ``latency_clocks``, ``latency_us`` (co-simulated);
-``link.clocks_per_packet`` and ``link.packets_per_s`` at the board top's baud and clock;
-``host.packets_ok``, ``host.packets_bad`` (damaged packets the host counted),
-``host.packets_sent``, ``host.packets_damaged`` (what the emulator damaged) and ``host.decoder_packets_per_s``
+Figures (prefixed ``top.`` by the registry), per target rig ``<rig>``: ``cameras``,
+``lut``, ``ff``, ``bram36``, ``dsp48``, their share of the target's device (``*_pct``),
+``fits`` (LUT, BRAM36 and DSP48 within 80 %), ``lut_levels``, ``io_pins`` (and
+``io_pins_left`` on a board), ``clk_hz``, ``pose_rate_hz`` (delivered), ``capacity_hz``,
+``latency_clocks``, ``latency_us`` (co-simulated); ``partition_check.*`` (the board top
+synthesized whole and in partitions); ``link.clocks_per_packet`` and
+``link.packets_per_s`` at the board top's baud and clock; ``host.packets_ok``,
+``host.packets_bad`` (damaged packets the host counted), ``host.packets_sent``,
+``host.packets_damaged`` (what the emulator damaged) and ``host.decoder_packets_per_s``
 (the decoder alone on the same bytes: whether the host keeps up with the link).
 """
 
@@ -16,8 +19,10 @@ import time
 
 import numpy as np
 
+from dataclasses import replace
+
 from emulator.output import packets
-from emulator.synth import XC7Z020, synth_report
+from emulator.top_targets import DEVICES, FIT_PCT, TARGETS, top_resources
 
 #: Packets played into the pseudo-terminal, and the fault probabilities per packet.
 HOST_PACKETS = 2000
@@ -97,24 +102,9 @@ def _host_on_pty(params):
 
 
 EXTRA_PREFIXES = ("host",)
-#: Boards whose closed-loop top is measured (their rig's build, ``rowtrack build``); the
-#: figures are keyed by the board's rig.
-BOARDS = ("microzed-7020",)
-#: The co-simulated slice of the board rig that gives the latency and the clocks per row
-#: set: rows around the optical centre, frames (frame 0 and one tracked frame).
+#: The co-simulated slice of a rig that gives the latency and the clocks per row set: rows
+#: around the optical centre, frames (frame 0 and one tracked frame).
 SLICE_ROWS, SLICE_FRAMES, SLICE_SEED = 8, 2, 1
-
-
-def _synthesis(rig):
-    """Resources and LUT levels of ``rig``'s closed-loop top against the xc7z020 (in
-    ``rowtrack synth-report``'s ``top_closed`` directory: its result is reused when the
-    Verilog is the same)."""
-    from hdl.top import closed_loop_top
-    synth = synth_report(closed_loop_top(rig), "top_closed")
-    figures = {key: synth[key] for key in ("lut", "ff", "bram36", "dsp48", "lut_levels")}
-    for key, capacity in XC7Z020.items():
-        figures[f"{key}_pct"] = round(100 * synth[key] / capacity, 2)
-    return figures
 
 
 def _slice_timing(rig_name):
@@ -139,24 +129,52 @@ def _slice_timing(rig_name):
     return result
 
 
-def measure_board(board_name):
-    """``top.<rig>.*`` of a board's closed-loop build (module docstring)."""
-    from golden.rig import preset
+def _io_pins(top_target, cameras):
+    """``io_pins`` (and ``io_pins_left`` on a board): package pins the cameras and the
+    UART take on the target's board; without a board, the pins they need (each camera's
+    DVP signals, :data:`hdl.board.spec.CAMERA_SIGNALS` with 8 data bits, and the UART's
+    TXD)."""
     from hdl import board
+    from hdl.board.spec import CAMERA_SIGNALS
+    if top_target.board is None:
+        per_camera = len(CAMERA_SIGNALS) - 1 + 8
+        return {"io_pins": cameras * per_camera + 1}
+    spec = board.board(top_target.board)
+    return {"io_pins": len(spec.pins_used()), "io_pins_left": len(spec.pins_left())}
+
+
+def measure_target(top_target):
+    """``top.<rig>.*`` of a target's closed-loop top (module docstring)."""
+    from golden.rig import preset
     from hdl.top import board_config
-    spec = board.board(board_name)
-    rig = preset(spec.rig)
+    rig = preset(top_target.rig)
     config = board_config(rig)
     cam = rig.cameras[0]
-    timing = _slice_timing(spec.rig)
-    figures = {"cameras": len(rig.cameras), **_synthesis(spec.rig),
-               "io_pins": len(spec.pins_used()), "io_pins_left": len(spec.pins_left()),
+    timing = _slice_timing(top_target.rig)
+    resources = top_resources(top_target, progress=lambda line: print(f"[synth] {line}",
+                                                                      flush=True))
+    figures = {"cameras": len(rig.cameras), **resources,
+               **_io_pins(top_target, len(rig.cameras)),
                "clk_hz": config.top.clk_hz,
                "pose_rate_hz": round(cam.fps * cam.height),
                "capacity_hz": round(timing.clk_hz / timing.clocks_per_row_set),
                "latency_clocks": timing.latency_clocks,
                "latency_us": round(1e6 * timing.latency_clocks / timing.clk_hz, 3)}
-    return {f"{spec.rig}.{key}": value for key, value in figures.items()}
+    return {f"{top_target.rig}.{key}": value for key, value in figures.items()}
+
+
+def partition_check(top_target):
+    """The partitioned synthesis of a target that also synthesizes whole: each figure of
+    both and the difference in per cent (``partition_check.*``), what summing partitions
+    misses."""
+    whole = top_resources(top_target)
+    parts = top_resources(replace(top_target, partitioned=True))
+    figures = {}
+    for key in ("lut", "ff", "bram36", "dsp48", "lut_levels"):
+        figures[f"{key}_whole"], figures[f"{key}_parts"] = whole[key], parts[key]
+    for key in ("lut", "ff"):
+        figures[f"{key}_diff_pct"] = round(100 * (parts[key] - whole[key]) / whole[key], 2)
+    return {f"partition_check.{key}": value for key, value in figures.items()}
 
 
 def measure():
@@ -164,9 +182,10 @@ def measure():
     from hdl.top import board_config
     from golden.rig import preset
     figures = {}
-    for name in BOARDS:
-        figures.update(measure_board(name))
-    params = board_config(preset(board.board(BOARDS[0]).rig)).top
+    for top_target in TARGETS:
+        figures.update(measure_target(top_target))
+    figures.update(partition_check(TARGETS[0]))
+    params = board_config(preset(board.board(TARGETS[0].board).rig)).top
     divisor = params.uart.divisor_raw(params.clk_hz, params.baud)
     clocks = _link_clocks_per_packet(params, divisor)
     figures["link.clocks_per_packet"] = clocks
@@ -175,20 +194,34 @@ def measure():
     return figures
 
 
-def report(figures):
-    from hdl import board
-    from hdl.top import board_config
+def _target_section(top_target, figures):
     from golden.rig import preset
-    sections = []
-    for name in BOARDS:
-        spec = board.board(name)
-        params = board_config(preset(spec.rig)).top
-        cam = preset(spec.rig).cameras[0]
-        keys = sorted(k for k in figures if k.startswith(spec.rig + "."))
-        rows = "\n".join(f"| {k[len(spec.rig) + 1:]} | {figures[k]} |" for k in keys)
-        sections.append(f"""## `{spec.rig}` on the {name}
+    from hdl.top import board_config
+    params = board_config(preset(top_target.rig)).top
+    cam = preset(top_target.rig).cameras[0]
+    capacity = DEVICES[top_target.device]
+    rig = top_target.rig
+    keys = sorted(k for k in figures if k.startswith(rig + "."))
+    rows = "\n".join(f"| {k[len(rig) + 1:]} | {figures[k]} |" for k in keys)
+    if top_target.board:
+        where = (f"`rowtrack build --board {top_target.board}`'s top: "
+                 f"`hdl.top.closed_loop_top(\"{rig}\")`")
+        pins = ("`io_pins`: package pins the cameras and the UART take on the board, "
+                "`io_pins_left` of its user pins free.")
+    else:
+        where = (f"`hdl.top.closed_loop_top(\"{rig}\")` (no supported board carries its "
+                 f"cameras: [board_rig.md](../board_rig.md), \"The two targets' fit\")")
+        pins = ("`io_pins`: package pins its cameras (12 DVP signals each) and the UART "
+                "need; no board, so none are assigned.")
+    how = ("synthesized in partitions (`emulator.synth_partitions`: one temporal lane and "
+           "one stereo lane synthesized alone and counted per copy, the rest with the "
+           "lanes as black boxes; the 4 GiB WebAssembly Yosys cannot flatten this top; "
+           "`lut_levels` is the deepest path within a partition). `partition_check` below "
+           "measures what the sum misses on the board rig's top"
+           if top_target.partitioned else "flattened")
+    return f"""## `{rig}` on the {top_target.device}
 
-`rowtrack build --board {name}`'s top: `hdl.top.closed_loop_top("{spec.rig}")`,
+{where},
 {params.camera.n_cameras} cameras in {len(params.pairs)} stereo pairs,
 {cam.width}×{cam.height} at {cam.fps:g} fps, the measurement engine with
 {params.camera.n_cameras} temporal lanes of {params.segments} segments,
@@ -196,11 +229,12 @@ def report(figures):
 consistency, tracking status), the pose solver with {params.solver.slots} slots, pose
 output and register file; no PS7, pins or GP0 bridge.
 
-* Resources (`lut`, `ff`, `bram36`, `dsp48`, `*_pct` of the xc7z020: {XC7Z020['lut']}
-  LUTs, {XC7Z020['ff']} FFs, {XC7Z020['bram36']} BRAM36, {XC7Z020['dsp48']} DSP48E1) and
-  `lut_levels` (the deepest path): Yosys `synth_xilinx -family xc7`.
-* `io_pins`: package pins the cameras and the UART take on the board, `io_pins_left` of
-  its user pins free.
+* Resources (`lut`, `ff`, `bram36`, `dsp48`, `*_pct` of the {top_target.device}:
+  {capacity['lut']} LUTs, {capacity['ff']} FFs, {capacity['bram36']} BRAM36,
+  {capacity['dsp48']} DSP48E1) and `lut_levels` (the deepest path): Yosys
+  `synth_xilinx -family xc7`, {how}. `fits`: LUT, BRAM36 and DSP48 each at most
+  {FIT_PCT:g} % of the device.
+* {pins}
 * `pose_rate_hz`: pose updates the cameras deliver, one per row set: fps × rows
   ({cam.fps:g} × {cam.height}; no staggered triggers yet). `capacity_hz`: `clk_hz` / the
   clocks the engine takes per row set in the co-simulated slice, what the hardware could
@@ -214,15 +248,31 @@ output and register file; no PS7, pins or GP0 bridge.
 | figure | value |
 |---|---|
 {rows}
-""")
+"""
+
+
+def report(figures):
+    sections = "\n".join(_target_section(t, figures) for t in TARGETS)
+    check = "\n".join(f"| {k.split('.', 1)[1]} | {figures[k]} |" for k in sorted(figures)
+                       if k.startswith("partition_check."))
     rest = "\n".join(f"| {k} | {figures[k]} |" for k in sorted(figures)
                       if k.split(".", 1)[0] in ("link", "host"))
-    return f"""# SoC integration: the board tops' resources, latency and rate; UART link; host tool
+    return f"""# SoC integration: the closed-loop tops' resources, latency and rate; UART link; host tool
 
-The board rigs' closed-loop tops (issue 17). stereo20 on a larger Zynq-7000 has no
-synthesized top yet. Per-block figures: [resources.md](resources.md).
+Issue 17's two targets from the one parameterised top (`emulator.top_targets`): the
+board rig on the xc7z020 and stereo20 on the xc7z045. Per-block figures:
+[resources.md](resources.md).
 
-{chr(10).join(sections)}
+{sections}
+## Partitioned against whole synthesis
+
+`{TARGETS[0].rig}`'s top synthesized both ways: flattened (`*_whole`) and in partitions
+as stereo20's is (`*_parts`); `*_diff_pct` = (parts − whole) / whole.
+
+| figure | value |
+|---|---|
+{check}
+
 ## UART link and host tool
 
 * Link: Amaranth simulation of the pose output and UART at the board top's baud rate and
