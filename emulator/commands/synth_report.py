@@ -44,6 +44,10 @@ def add_arguments(parser):
                         help="synthesize RIG's closed-loop top block by block (every "
                              "instance two levels down, identical ones once) and list "
                              "where its resources go")
+    parser.add_argument("--depth", type=int, default=2, metavar="N",
+                        help="with --breakdown: the instances N levels below the top "
+                             "(default 2; 3 splits the lanes into framer, FIR, store and "
+                             "matcher)")
 
 
 def measure(names, *, pnr=False, targets=False):
@@ -156,14 +160,16 @@ the lanes as black boxes; `lut_levels` within a partition).
 """ if "targets" in report else "")
 
 
-def breakdown(rig):
+def breakdown(rig, depth=2):
     """``synth_partitioned`` of ``rig``'s closed-loop top with
-    :func:`emulator.synth_partitions.breakdown_groups`."""
+    :func:`emulator.synth_partitions.breakdown_groups` at ``depth``."""
     from emulator.synth_partitions import breakdown_groups, synth_partitioned
     from emulator.top_targets import target
     from hdl.top import closed_loop_top
+    if depth < 1:
+        raise ValueError(f"depth must be at least 1, not {depth}")
     name = f"top_breakdown_{target(rig).rig}"
-    groups = breakdown_groups(closed_loop_top(rig), name)
+    groups = breakdown_groups(closed_loop_top(rig), name, depth)
     return synth_partitioned(closed_loop_top(rig), name, groups, progress=lambda line: print(
         f"[synth] {line}", file=sys.stderr, flush=True))
 
@@ -188,7 +194,7 @@ def run(args):
     from hdl import catalog
     if args.breakdown:
         try:
-            result = breakdown(args.breakdown)
+            result = breakdown(args.breakdown, args.depth)
         except ValueError as error:
             raise UsageError(str(error)) from None
         print(json.dumps(result, sort_keys=True) if args.json else breakdown_table(result))
