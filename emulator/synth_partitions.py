@@ -107,8 +107,16 @@ def synth_partitioned(component, name, groups, *, work_dir=None, progress=None):
     Raises
     ------
     ValueError
-        A group is empty, an instance is missing, or a group's instances differ.
+        A group is empty or called ``rest``, an instance is missing, in two groups or
+        inside another group's instance, or a group's instances differ.
     """
+    if "rest" in groups:
+        raise ValueError("a group must not be called 'rest' (the partition of what is left)")
+    paths = sorted(path for members in groups.values() for path in members)
+    for outer, inner in zip(paths, paths[1:]):
+        if inner == outer or inner.startswith(outer + "."):
+            raise ValueError(f"instance {inner!r} is in two groups or inside {outer!r}; "
+                             f"it would be counted twice")
     work_dir = BUILD_ROOT / name if work_dir is None else Path(work_dir)
     text = Path(write_verilog(component, name, work_dir)).read_text()
     modules, header = split_modules(text)

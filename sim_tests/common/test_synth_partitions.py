@@ -93,6 +93,14 @@ def test_missing_instances_and_empty_groups_are_refused(tmp_path):
         synth_partitioned(_Lanes((8, 8)), "lanes", {"lane": []}, work_dir=tmp_path)
 
 
+def test_groups_that_would_count_an_instance_twice_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="instance 'lane0' is in two groups"):
+        synth_partitioned(_Lanes((8, 8)), "lanes", {"a": ["lane0"], "b": ["lane0", "lane1"]},
+                          work_dir=tmp_path)
+    with pytest.raises(ValueError, match="must not be called 'rest'"):
+        synth_partitioned(_Lanes((8, 8)), "lanes", {"rest": ["lane0"]}, work_dir=tmp_path)
+
+
 def test_lane_groups_name_every_lane_of_the_top():
     params = TopParams()
     groups = lane_groups(params)
