@@ -22,7 +22,7 @@ import re
 from pathlib import Path
 
 from emulator.synth import BUILD_ROOT, synth_verilog
-from hdl.verilog import to_verilog, write_verilog
+from hdl.verilog import write_verilog
 
 __all__ = ["split_modules", "instance_modules", "synth_partitioned", "lane_groups",
            "breakdown_groups"]
@@ -89,9 +89,11 @@ def synth_partitioned(component, name, groups, *, work_dir=None, progress=None):
     component : amaranth Component
     name : str
         The top's name (its build directory ``build/synth/<name>``).
-    groups : dict
+    groups : dict or callable
         ``{group name: [instance paths below the top, e.g. "engine.temporal0", ...]}``:
-        each group's instances must be identical; the first is synthesized.
+        each group's instances must be identical; the first is synthesized. A callable
+        is given the top's modules (:func:`split_modules`) and returns the groups (e.g.
+        :func:`breakdown_groups`), so the design is elaborated once.
     work_dir : path, optional
         Default ``build/synth/<name>``; each partition in a directory of its own below.
     progress : callable, optional
@@ -110,6 +112,11 @@ def synth_partitioned(component, name, groups, *, work_dir=None, progress=None):
         A group is empty or called ``rest``, an instance is missing, in two groups or
         inside another group's instance, or a group's instances differ.
     """
+    work_dir = BUILD_ROOT / name if work_dir is None else Path(work_dir)
+    text = Path(write_verilog(component, name, work_dir)).read_text()
+    modules, header = split_modules(text)
+    if callable(groups):
+        groups = groups(modules)
     if "rest" in groups:
         raise ValueError("a group must not be called 'rest' (the partition of what is left)")
     paths = sorted(path for members in groups.values() for path in members)
@@ -117,9 +124,6 @@ def synth_partitioned(component, name, groups, *, work_dir=None, progress=None):
         if inner == outer or inner.startswith(outer + "."):
             raise ValueError(f"instance {inner!r} is in two groups or inside {outer!r}; "
                              f"it would be counted twice")
-    work_dir = BUILD_ROOT / name if work_dir is None else Path(work_dir)
-    text = Path(write_verilog(component, name, work_dir)).read_text()
-    modules, header = split_modules(text)
     cut, parts, copies = set(), {}, {}
     sources = {}
     for group, paths in groups.items():
@@ -178,12 +182,13 @@ def lane_groups(params):
     return groups
 
 
-def breakdown_groups(component, name, depth=2):
-    """Groups for a per-block breakdown of ``component``: every instance ``depth`` levels
-    below the top (with its children), and every shallower one with no children, the
-    identical ones grouped (named after the first, e.g. ``engine.temporal0``); what is
-    left (the glue between them) is :func:`synth_partitioned`'s ``rest``."""
-    modules, _ = split_modules(to_verilog(component, name))
+def breakdown_groups(modules, name, depth=2):
+    """Groups for a per-block breakdown of the top ``name`` whose modules are ``modules``
+    (:func:`split_modules`): every instance ``depth`` levels below the top (with its
+    children), and every shallower one with no children, the identical ones grouped
+    (named after the first, e.g. ``engine.temporal0``); what is left (the glue between
+    them) is :func:`synth_partitioned`'s ``rest``. Pass ``lambda modules:
+    breakdown_groups(modules, name, depth)`` as its ``groups``."""
     paths = [module[len(name) + 1:] for module in modules if module.startswith(name + ".")]
     below = {path: [p for p in paths if p.startswith(path + ".")] for path in paths}
     chosen = sorted((p for p in paths

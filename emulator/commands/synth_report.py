@@ -161,17 +161,15 @@ the lanes as black boxes; `lut_levels` within a partition).
 
 
 def breakdown(rig, depth=2):
-    """``synth_partitioned`` of ``rig``'s closed-loop top with
+    """``synth_partitioned`` of ``rig``'s closed-loop top (a target's,
+    :func:`emulator.top_targets.target`) with
     :func:`emulator.synth_partitions.breakdown_groups` at ``depth``."""
     from emulator.synth_partitions import breakdown_groups, synth_partitioned
-    from emulator.top_targets import target
     from hdl.top import closed_loop_top
-    if depth < 1:
-        raise ValueError(f"depth must be at least 1, not {depth}")
-    name = f"top_breakdown_{target(rig).rig}"
-    groups = breakdown_groups(closed_loop_top(rig), name, depth)
-    return synth_partitioned(closed_loop_top(rig), name, groups, progress=lambda line: print(
-        f"[synth] {line}", file=sys.stderr, flush=True))
+    name = f"top_breakdown_{rig}"
+    return synth_partitioned(
+        closed_loop_top(rig), name, lambda modules: breakdown_groups(modules, name, depth),
+        progress=lambda line: print(f"[synth] {line}", file=sys.stderr, flush=True))
 
 
 def breakdown_table(result):
@@ -193,10 +191,14 @@ def breakdown_table(result):
 def run(args):
     from hdl import catalog
     if args.breakdown:
+        from emulator.top_targets import target
+        if args.depth < 1:
+            raise UsageError(f"depth must be at least 1, not {args.depth}")
         try:
-            result = breakdown(args.breakdown, args.depth)
+            target(args.breakdown)
         except ValueError as error:
             raise UsageError(str(error)) from None
+        result = breakdown(args.breakdown, args.depth)
         print(json.dumps(result, sort_keys=True) if args.json else breakdown_table(result))
         return 0
     names = args.only or catalog.names()

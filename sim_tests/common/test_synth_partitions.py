@@ -110,5 +110,13 @@ def test_lane_groups_name_every_lane_of_the_top():
 
 
 def test_breakdown_groups_find_the_identical_instances():
-    groups = breakdown_groups(_Lanes((8, 12, 8, 8)), "lanes", depth=1)
+    modules, _ = split_modules(to_verilog(_Lanes((8, 12, 8, 8)), "lanes"))
+    groups = breakdown_groups(modules, "lanes", depth=1)
     assert groups == {"lane0": ["lane0", "lane2", "lane3"], "lane1": ["lane1"]}
+
+
+def test_groups_can_be_formed_from_the_design_s_own_modules(tmp_path):
+    parts = synth_partitioned(_Lanes((8, 12, 8)), "lanes",
+                              lambda modules: breakdown_groups(modules, "lanes", depth=1),
+                              work_dir=tmp_path)
+    assert parts["copies"] == {"lane0": 2, "lane1": 1, "rest": 1}
