@@ -58,12 +58,10 @@ def top_resources(top_target, progress=None):
     DSP48 at most :data:`FIT_PCT`). Synthesized in ``build/synth/top_closed`` (the board
     rig, flattened) or ``build/synth/top_closed_<rig>`` (partitioned); an unchanged
     Verilog reuses its figures."""
-    from golden.rig import preset
-    from hdl.top import board_config, closed_loop_top
+    from hdl.top import closed_loop_top
     top = closed_loop_top(top_target.rig)
     if top_target.partitioned:
-        params = board_config(preset(top_target.rig)).top
-        synth = synth_partitioned(top, f"top_closed_{top_target.rig}", lane_groups(params),
+        synth = synth_partitioned(top, f"top_closed_{top_target.rig}", lane_groups(top.params),
                                   progress=progress)["total"]
     else:
         synth = synth_report(top, "top_closed")

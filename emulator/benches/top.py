@@ -132,13 +132,11 @@ def _slice_timing(rig_name):
 def _io_pins(top_target, cameras):
     """``io_pins`` (and ``io_pins_left`` on a board): package pins the cameras and the
     UART take on the target's board; without a board, the pins they need (each camera's
-    DVP signals, :data:`hdl.board.spec.CAMERA_SIGNALS` with 8 data bits, and the UART's
-    TXD)."""
+    :data:`hdl.board.spec.PINS_PER_CAMERA`, and the UART's TXD)."""
     from hdl import board
-    from hdl.board.spec import CAMERA_SIGNALS
+    from hdl.board.spec import PINS_PER_CAMERA
     if top_target.board is None:
-        per_camera = len(CAMERA_SIGNALS) - 1 + 8
-        return {"io_pins": cameras * per_camera + 1}
+        return {"io_pins": cameras * PINS_PER_CAMERA + 1}
     spec = board.board(top_target.board)
     return {"io_pins": len(spec.pins_used()), "io_pins_left": len(spec.pins_left())}
 
@@ -178,14 +176,13 @@ def partition_check(top_target):
 
 
 def measure():
-    from hdl import board
     from hdl.top import board_config
     from golden.rig import preset
     figures = {}
     for top_target in TARGETS:
         figures.update(measure_target(top_target))
     figures.update(partition_check(TARGETS[0]))
-    params = board_config(preset(board.board(TARGETS[0].board).rig)).top
+    params = board_config(preset(TARGETS[0].rig)).top
     divisor = params.uart.divisor_raw(params.clk_hz, params.baud)
     clocks = _link_clocks_per_packet(params, divisor)
     figures["link.clocks_per_packet"] = clocks
@@ -196,6 +193,7 @@ def measure():
 
 def _target_section(top_target, figures):
     from golden.rig import preset
+    from hdl.board.spec import PINS_PER_CAMERA
     from hdl.top import board_config
     params = board_config(preset(top_target.rig)).top
     cam = preset(top_target.rig).cameras[0]
@@ -211,8 +209,8 @@ def _target_section(top_target, figures):
     else:
         where = (f"`hdl.top.closed_loop_top(\"{rig}\")` (no supported board carries its "
                  f"cameras: [board_rig.md](../board_rig.md), \"The two targets' fit\")")
-        pins = ("`io_pins`: package pins its cameras (12 DVP signals each) and the UART "
-                "need; no board, so none are assigned.")
+        pins = (f"`io_pins`: package pins its cameras ({PINS_PER_CAMERA} DVP signals each) "
+                f"and the UART need; no board, so none are assigned.")
     how = ("synthesized in partitions (`emulator.synth_partitions`: one temporal lane and "
            "one stereo lane synthesized alone and counted per copy, the rest with the "
            "lanes as black boxes; the 4 GiB WebAssembly Yosys cannot flatten this top; "

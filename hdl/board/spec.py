@@ -11,10 +11,13 @@ from dataclasses import dataclass
 
 from amaranth.build import Attrs, Clock, Pins, Resource, Subsignal
 
-__all__ = ["CameraPins", "BoardSpec", "CAMERA_SIGNALS"]
+__all__ = ["CameraPins", "BoardSpec", "CAMERA_SIGNALS", "DATA_PINS", "PINS_PER_CAMERA"]
 
 #: A DVP camera's signals, in the order of :class:`CameraPins`.
 CAMERA_SIGNALS = ("pclk", "vsync", "href", "data", "fsin")
+#: A camera's data pins (8-bit pixels), and the package pins a camera takes.
+DATA_PINS = 8
+PINS_PER_CAMERA = len(CAMERA_SIGNALS) - 1 + DATA_PINS
 
 
 @dataclass(frozen=True)
@@ -80,8 +83,8 @@ class BoardSpec:
 
     def __post_init__(self):
         for k, cam in enumerate(self.cameras):
-            if len(cam.data) != 8:
-                raise ValueError(f"camera {k} of {self.name} must have 8 data pins, "
+            if len(cam.data) != DATA_PINS:
+                raise ValueError(f"camera {k} of {self.name} must have {DATA_PINS} data pins, "
                                  f"not {len(cam.data)}")
             if self.resolve(cam.pclk) not in self.clock_capable:
                 raise ValueError(f"pclk of camera {k} on {self.name} must be a clock-capable "
