@@ -106,7 +106,7 @@ def window_bounds(half_widths, params):
 def _windowed_peaks(costs, first, last, params):
     """:func:`golden.descriptor.cost_peaks` of ``(N, K, n)`` costs with the shifts
     outside each row's run-time window ``first … last`` ``(N,)`` read as the matcher's
-    ``top`` (above every cost: a segment is shorter than ``width − 2R``) and the edge
+    ``top`` (above every cost: ``cost_fmt`` holds ``max_segment_cost + 1``) and the edge
     at the run-time window's ends; the arithmetic of :mod:`hdl.descriptor.matcher`."""
     index = np.arange(params.n_shifts)
     outside = (index < first[:, None, None]) | (index > last[:, None, None])

@@ -6,7 +6,7 @@ import cocotb
 import numpy as np
 
 from emulator.hdl_sim.clocking import reset, start_clock
-from emulator.hdl_sim.row_stimulus import frame_beats, inject_faults, moving_rows
+from emulator.hdl_sim.row_stimulus import frame_beats, inject_faults, moving_rows, square_rows
 from emulator.hdl_sim.streams import StreamSink, StreamSource
 
 __all__ = ["split_rows", "make_stimulus", "Lane"]
@@ -28,18 +28,23 @@ def make_stimulus(params, kind, rng, dataset_rows=None):
 
     ``textured``: moving random texture, frame numbers wrapping; ``faults``: the same
     with short, long, interrupted, flagged rows and stray beats; ``dataset``: rows of
-    the golden simulator (``dataset_rows``, (F, H', W') uint8), cropped to the lane.
+    the golden simulator (``dataset_rows``, (F, H', W') uint8), cropped to the lane;
+    ``square``: square waves whose shifts by a multiple of the period cost whole
+    segments (:func:`~emulator.hdl_sim.row_stimulus.square_rows`), at centres within
+    ``±centre_range``.
     """
     h, w = params.height, params.width
     if kind == "dataset":
         frames = dataset_rows[:, :h, :w]
+    elif kind == "square":
+        frames = square_rows(3, h, w)
     else:
         frames, _ = moving_rows(rng, 4 if kind == "faults" else 3, h, w)
     beats = frame_beats(frames, frame0=(1 << params.frame_bits) - 2)
     if kind == "faults":
         beats = inject_faults(rng, beats, w, 5)
     rows = split_rows(beats)
-    span = params.centre_range + 2                   # also exercise the saturation
+    span = params.centre_range + (0 if kind == "square" else 2)   # also the saturation
     centres = [int(c) for c in rng.integers(-span, span + 1, len(rows))]
     return rows, centres
 

@@ -8,7 +8,7 @@ and the benchmark build the same streams from the same seeds.
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-__all__ = ["moving_rows", "periodic_rows", "row_beats", "frame_beats", "inject_faults",
+__all__ = ["moving_rows", "periodic_rows", "square_rows", "row_beats", "frame_beats", "inject_faults",
            "simulator_dataset"]
 
 
@@ -43,6 +43,20 @@ def periodic_rows(rng, n_frames, height, width, period=9):
     phase = rng.uniform(0, period, (n_frames, height, 1))
     rows = 128 + 90 * np.sin(2 * np.pi * (x - phase) / period)
     return np.clip(np.round(rows), 0, 255).astype(np.uint8)
+
+
+def square_rows(n_frames, height, width, period=16):
+    """Rows of a square wave (``period`` pixels, half 0, half 255) that moves by half a
+    period per frame: each frame's descriptor bits are the complement of the previous
+    frame's (the kernel sums to zero and is symmetric about a column, the wave's edges
+    lie between columns, so no response is 0), and every shift that is a multiple of
+    ``period`` costs a whole segment: the largest cost a matcher holds."""
+    if period % 2:
+        raise ValueError(f"period must be even, not {period}")
+    x = np.arange(width)
+    phase = (np.arange(n_frames) * period // 2)[:, None, None]
+    rows = np.where((x + phase) % period < period // 2, 255, 0)
+    return np.broadcast_to(rows, (n_frames, height, width)).astype(np.uint8)
 
 
 def row_beats(pixels, *, camera, frame, row, t_first=0, flags=0):

@@ -271,7 +271,7 @@ class ShiftMatcher(wiring.Component):
 
         # read: one group of costs per step into the lane registers (an index outside
         # the run-time window, or ≥ n (padding): ``top``, above every cost, since a
-        # segment is shorter than ``width − 2R``); steps 1 … G (pass 1) and G + 2 … 2G + 1
+        # cost is at most ``max_segment_cost``); steps 1 … G (pass 1) and G + 2 … 2G + 1
         # (pass 2)
         group = Signal(max(groups - 1, 1).bit_length())
         reading = during(1, groups) | during(groups + 2, 2 * groups + 1)

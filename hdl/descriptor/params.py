@@ -305,9 +305,21 @@ class RowDescriptorParams:
         return int(self.strong_fmt.quantize(self.descriptor.strong_response, Rounding.HALF_EVEN))
 
     @property
+    def max_segment_cost(self):
+        """The largest Hamming cost of one shift over one segment: the longest segment
+        at any centre the hardware uses (``⌈(hi − lo) / K⌉`` columns of
+        :meth:`compare_range`; the bounds ``lo + (hi − lo)·k // K`` differ by at most
+        that)."""
+        k, r = self.segments, self.centre_range
+        return max(-(-(hi - lo) // k)
+                   for lo, hi in map(self.compare_range, range(-r, r + 1)))
+
+    @property
     def cost_fmt(self):
-        """Hamming cost of one shift over one segment (at most ``width − 2R``)."""
-        return UQ((self.width - 2 * self.radius).bit_length(), 0)
+        """Hamming cost of one shift over one segment, wide enough that its all-ones
+        value (the matcher's ``top``, read for shifts outside the run-time window) is
+        above :attr:`max_segment_cost`."""
+        return UQ((self.max_segment_cost + 1).bit_length(), 0)
 
     @property
     def centre_fmt(self):

@@ -18,14 +18,14 @@ from amaranth.sim import Simulator
 
 from emulator.row_descriptor import StereoLaneModel, TemporalLaneModel
 from emulator.descriptor.framer import frame_rows
-from emulator.descriptor.matcher import measure_segments
-from golden.descriptor import STEREO_MATCH, MatchParams
+from emulator.descriptor.matcher import descriptor_bits, hamming_costs, measure_segments
+from golden.descriptor import STEREO_MATCH, MatchParams, segment_bounds
 from hdl.fixed import SQ, UQ
 from hdl.descriptor.matcher import SerialDivider
 from hdl.descriptor.fir import DescriptorFIR
 from hdl.row_descriptor import RowDescriptor, StereoRowDescriptor, connect_shared_bits
 from hdl.descriptor.params import STEREO_640X480, TEMPORAL_640X480, RowDescriptorParams
-from emulator.hdl_sim.row_stimulus import (frame_beats, inject_faults,
+from emulator.hdl_sim.row_stimulus import (frame_beats, inject_faults, square_rows,
                                                       moving_rows, row_beats)
 from emulator.hdl_sim.payload import pack, unpack
 
@@ -150,6 +150,26 @@ def test_quantized_kernel():
         assert err[p.radius] <= len(k) * p.coeff_fmt.lsb / 2
 
 
+@pytest.mark.parametrize("params", [
+    SMALL, SMALL_STEREO, TEMPORAL_640X480, STEREO_640X480,
+    SMALL.replace(match=MatchParams(segments=1)),
+    SMALL.replace(centre_range=0, match=MatchParams(shift_min=-3, shift_max=5, segments=3)),
+    TEMPORAL_640X480.replace(width=511, match=MatchParams(segments=3)),
+    TEMPORAL_640X480.replace(centre_range=200, match=MatchParams(segments=1)),
+])
+def test_cost_format_holds_the_longest_segment(params):
+    """``max_segment_cost`` is the longest segment golden cuts at any centre the lane
+    uses (so it is reached: the square-wave test below), and ``cost_fmt``'s all-ones
+    ``top`` lies above it, so no counter wraps and no cost ties with ``top``."""
+    r = params.centre_range
+    longest = max(hi - lo for c in range(-r, r + 1)
+                  for lo, hi in segment_bounds(params.width, params.descriptor,
+                                               params.match, c))
+    assert params.max_segment_cost == longest
+    assert (1 << params.cost_fmt.width) - 1 > longest
+    assert (1 << (params.cost_fmt.width - 1)) - 1 <= longest      # no wider than needed
+
+
 @pytest.mark.parametrize("params, lane", [(TEMPORAL_640X480, RowDescriptor),
                                            (STEREO_640X480, StereoRowDescriptor)])
 def test_default_lanes_fit_the_latency_budget(params, lane):
@@ -267,6 +287,22 @@ def test_temporal_lane_matches_model(traffic):
         lasts = [c for c, b in zip(accepted["i"], beats) if b["last"]]
         check_latency(outputs, lasts, dut)
         assert accepted["i"] == list(range(accepted["i"][0], accepted["i"][0] + len(beats)))
+
+
+def test_temporal_lane_at_the_largest_cost():
+    """Square-wave rows moving by half a period per frame: the shifts that are multiples
+    of the period cost whole segments, the largest cost ``cost_fmt`` holds; the lane
+    still matches the model (a narrower counter would wrap to a false minimum)."""
+    frames = square_rows(3, SMALL.height, SMALL.width)
+    bits, _ = descriptor_bits(frames, SMALL)
+    costs = hamming_costs(bits[1], bits[0], 0, SMALL)
+    assert costs.max() == SMALL.max_segment_cost
+    beats = frame_beats(frames, frame0=65534)
+    centres = [0] * len(beats)
+    expected = TemporalLaneModel(SMALL).run(beats, centres)
+    outputs, _ = simulate(RowDescriptor(SMALL), {"i": beats}, centres, len(expected),
+                          seed=SEED, valid_prob=0.8, ready_prob=0.7)
+    assert [m for _, m in outputs] == expected, f"SEED={SEED}"
 
 
 def test_temporal_lane_bad_input():

@@ -31,7 +31,7 @@ def dataset_rows(params):
 
 
 @cocotb.parametrize(traffic=["full_rate", "gaps_and_backpressure"],
-                    rows=["textured", "faults", "dataset"])
+                    rows=["textured", "faults", "dataset", "square"])
 async def temporal_lane_matches_model(dut, traffic, rows):
     params = load_params()
     busy = traffic == "full_rate"
