@@ -29,6 +29,11 @@ XC7Z020 = {"lut": 53200, "ff": 106400, "bram36": 140, "dsp48": 220}
 
 _LUT_CELLS = ("LUT1", "LUT2", "LUT3", "LUT4", "LUT5", "LUT6")
 _FF_CELLS = ("FDRE", "FDSE", "FDCE", "FDPE")
+#: LUTs of a SLICEM that each distributed-RAM or shift-register primitive occupies
+#: (7-series CLB guide, UG474).
+_LUT_MEMORY_CELLS = {"RAM32M": 4, "RAM64M": 4, "RAM32X1D": 2, "RAM64X1D": 2,
+                     "RAM128X1D": 4, "RAM32X1S": 1, "RAM64X1S": 1, "RAM128X1S": 2,
+                     "RAM256X1S": 4, "SRL16E": 1, "SRLC16E": 1, "SRLC32E": 1}
 
 
 def _yosys_command():
@@ -39,11 +44,18 @@ def _yosys_command():
     return exe
 
 
-def _cell_counts(stat_json):
-    design = stat_json["design"]
-    cells = design.get("num_cells_by_type", {})
+def _cell_counts(cells):
+    """Figures from Yosys's cell counts. ``lut`` is what Vivado's utilization report
+    calls Slice LUTs and what a device's LUT capacity counts: LUTs as logic
+    (``lut_logic``) plus LUTs as distributed RAM and shift registers (``lut_memory``);
+    ``lutram`` is the number of distributed-RAM cells. Yosys's ``INV`` cells are not
+    counted: Vivado pushes inverters into the LUTs they drive."""
+    logic = sum(cells.get(c, 0) for c in _LUT_CELLS)
+    memory = sum(cells.get(c, 0) * n for c, n in _LUT_MEMORY_CELLS.items())
     return {
-        "lut": sum(cells.get(c, 0) for c in _LUT_CELLS),
+        "lut": logic + memory,
+        "lut_logic": logic,
+        "lut_memory": memory,
         "ff": sum(cells.get(c, 0) for c in _FF_CELLS),
         # A RAMB18E1 is half a BRAM36 tile.
         "bram36": cells.get("RAMB36E1", 0) + 0.5 * cells.get("RAMB18E1", 0),
@@ -80,16 +92,18 @@ def synth_verilog(verilog_path, top, work_dir, *, black_boxes=()):
     key = hashlib.sha256((work_dir / source.name).read_bytes() + script.encode()).hexdigest()
     if cache_path.exists():
         cached = json.loads(cache_path.read_text())
-        if cached.get("key") == key:
-            return cached["figures"]
+        if cached.get("key") == key and "cells" in cached:
+            return {**_cell_counts(cached["cells"]), "lut_levels": cached["lut_levels"]}
     result = subprocess.run([_yosys_command(), "-q", "-p", script], capture_output=True,
                             text=True, cwd=work_dir)
     if result.returncode != 0:
         raise RuntimeError(f"yosys synth_xilinx failed for {top}:\n{result.stderr[-2000:]}")
-    figures = _cell_counts(json.loads(stat_path.read_text()))
-    figures["lut_levels"] = lut_levels(json.loads(netlist_path.read_text())["modules"][top])
-    cache_path.write_text(json.dumps({"key": key, "figures": figures}) + "\n")
-    return figures
+    # The cache keeps the cell counts, not the figures: a change to how figures are
+    # counted from cells needs no synthesis again.
+    cells = json.loads(stat_path.read_text())["design"].get("num_cells_by_type", {})
+    levels = lut_levels(json.loads(netlist_path.read_text())["modules"][top])
+    cache_path.write_text(json.dumps({"key": key, "cells": cells, "lut_levels": levels}) + "\n")
+    return {**_cell_counts(cells), "lut_levels": levels}
 
 
 #: Combinational cells a path runs through, with the LUT levels each adds.

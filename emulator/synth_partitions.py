@@ -28,7 +28,7 @@ __all__ = ["split_modules", "instance_modules", "synth_partitioned", "lane_group
            "breakdown_groups"]
 
 #: Figures that add up over partitions.
-ADDITIVE = ("lut", "ff", "bram36", "dsp48", "carry4", "lutram")
+ADDITIVE = ("lut", "lut_logic", "lut_memory", "ff", "bram36", "dsp48", "carry4", "lutram")
 
 _MODULE = re.compile(r"^module\s+\\?(\S+?)\s*\(", re.M)
 

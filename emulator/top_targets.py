@@ -53,8 +53,8 @@ def target(rig):
 
 
 def top_resources(top_target, progress=None):
-    """LUT, FF, BRAM36, DSP48 and LUT levels of the target's closed-loop top, with each
-    resource's share of its device (``*_pct``) and ``fits`` (every one of LUT, BRAM36 and
+    """LUT (logic and memory, :func:`emulator.synth.synth_verilog`), FF, BRAM36, DSP48 and
+    LUT levels of the target's closed-loop top, with each resource's share of its device (``*_pct``) and ``fits`` (every one of LUT, BRAM36 and
     DSP48 at most :data:`FIT_PCT`). Synthesized in ``build/synth/top_closed`` (the board
     rig, flattened) or ``build/synth/top_closed_<rig>`` (partitioned); an unchanged
     Verilog reuses its figures."""
@@ -66,7 +66,8 @@ def top_resources(top_target, progress=None):
     else:
         synth = synth_report(top, "top_closed")
     capacity = DEVICES[top_target.device]
-    figures = {key: synth[key] for key in ("lut", "ff", "bram36", "dsp48", "lut_levels")}
+    figures = {key: synth[key] for key in ("lut", "lut_logic", "lut_memory", "ff", "bram36",
+                                           "dsp48", "lut_levels")}
     for key, value in capacity.items():
         figures[f"{key}_pct"] = round(100 * synth[key] / value, 2)
     figures["fits"] = all(figures[f"{key}_pct"] <= FIT_PCT for key in ("lut", "bram36", "dsp48"))

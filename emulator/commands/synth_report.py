@@ -17,7 +17,7 @@ NAME = "synth-report"
 HELP = "synthesize every block and the top with yosys synth_xilinx; resources vs xc7z020"
 
 #: Figures reported per block, in table order.
-FIGURES = ("lut", "ff", "bram36", "dsp48", "lut_levels")
+FIGURES = ("lut", "lut_memory", "ff", "bram36", "dsp48", "lut_levels")
 #: The catalog block whose figures are the design total: the board rig's closed-loop top,
 #: what the board user loads.
 TOTAL = "top_closed"
