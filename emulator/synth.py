@@ -49,7 +49,8 @@ def _cell_counts(cells):
     calls Slice LUTs and what a device's LUT capacity counts: LUTs as logic
     (``lut_logic``) plus LUTs as distributed RAM and shift registers (``lut_memory``);
     ``lutram`` is the number of distributed-RAM cells. Yosys's ``INV`` cells are not
-    counted: Vivado pushes inverters into the LUTs they drive."""
+    counted: Vivado's ``opt_design`` absorbs inverters into the logic they drive, or
+    pushes them in front of their driver (UG904, "Retargeting")."""
     logic = sum(cells.get(c, 0) for c in _LUT_CELLS)
     memory = sum(cells.get(c, 0) * n for c, n in _LUT_MEMORY_CELLS.items())
     return {
