@@ -34,7 +34,7 @@ import numpy as np
 from golden.checks import check_int
 
 __all__ = ["Rounding", "Overflow", "QFormat", "SQ", "UQ", "check_format",
-           "resize", "add", "mul", "hdl_resize", "hdl_add", "hdl_mul"]
+           "resize", "add", "mul", "hdl_resize", "hdl_add", "hdl_mul", "hdl_mul_constant"]
 
 _INT64_SAFE_WIDTH = 62
 
@@ -306,6 +306,19 @@ def hdl_mul(a, a_fmt, b, b_fmt):
     """Exact product of two raw Amaranth values; returns ``(value, format)``."""
     fmt = mul_format(a_fmt, b_fmt)
     return _as(_as(a, a_fmt) * _as(b, b_fmt), fmt), fmt
+
+
+def hdl_mul_constant(a, a_fmt, q, q_fmt):
+    """Exact product of a raw Amaranth value and the constant raw ``q`` of ``q_fmt``;
+    ``(value, format)`` as :func:`hdl_mul`. A constant ``±2**k`` is a shift (and a
+    negation), not a multiplier: synthesis maps every ``*`` it sees to a DSP48."""
+    from amaranth.hdl import Const
+    q = int(q)
+    if q == 0 or abs(q) & (abs(q) - 1):
+        return hdl_mul(a, a_fmt, Const(q, q_fmt.shape()), q_fmt)
+    fmt = mul_format(a_fmt, q_fmt)
+    shifted = _extend(a, a_fmt, fmt.width + 1) << (abs(q).bit_length() - 1)
+    return _as(-shifted if q < 0 else shifted, fmt), fmt
 
 
 def hdl_resize(value, src, dst, rounding, overflow):

@@ -1,11 +1,11 @@
 """The row-descriptor FIR (:mod:`hdl.row_descriptor`): each row convolved with the
 quantized second derivative of a Gaussian, one sign bit per column."""
 
-from amaranth.hdl import Const, Module, Signal
+from amaranth.hdl import Module, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from hdl.fixed import UQ, hdl_add, hdl_mul
+from hdl.fixed import UQ, hdl_add, hdl_mul_constant
 from hdl.descriptor.layouts import descriptor_layout, framed_layout
 from hdl.descriptor.params import check_lane_params
 
@@ -100,7 +100,7 @@ class DescriptorFIR(wiring.Component):
         # constant products (registered)
         terms = []
         for s, q in pairs:
-            value, fmt = hdl_mul(s, pair_fmt, Const(q, p.coeff_fmt.shape()), p.coeff_fmt)
+            value, fmt = hdl_mul_constant(s, pair_fmt, q, p.coeff_fmt)
             prod = Signal(fmt.shape(), name=f"prod{len(terms)}")
             with m.If(advance):
                 m.d.sync += prod.eq(value)

@@ -12,7 +12,7 @@ from amaranth.sim import Simulator
 from hypothesis import given, settings, strategies as st
 
 from hdl.fixed import (Overflow, QFormat, Rounding, SQ, UQ, add, hdl_add, hdl_mul,
-                       hdl_resize, mul, resize)
+                       hdl_mul_constant, hdl_resize, mul, resize)
 
 
 def formats(max_int=10, max_frac=10):
@@ -71,6 +71,24 @@ def test_add_and_mul_hdl_match_model(data, fa, fb):
         expected, model_fmt = model_op(va, fa, vb, fb)
         assert fmt == model_fmt and out.shape() == fmt.shape()
         assert simulate([a, b], out, list(zip(va, vb))) == [int(x) for x in expected]
+
+
+@settings(max_examples=60, deadline=None)
+@given(data=st.data(), fa=formats(8, 8), fq=formats(8, 8))
+def test_constant_products_match_the_model(data, fa, fq):
+    """``hdl_mul_constant`` equals ``mul`` (value and format) for constants at the
+    format's extremes, 0, ±1 and every ±2**k it holds (those are shifts, the rest
+    multipliers), on operands including the extremes."""
+    va = data.draw(operands(fa, 12))
+    powers = [s * (1 << k) for k in range(fq.width) for s in (1, -1)]
+    constants = {fq.min_raw, fq.max_raw, 0, data.draw(st.integers(fq.min_raw, fq.max_raw)),
+                 *(q for q in powers if fq.min_raw <= q <= fq.max_raw)}
+    a = Signal(fa.shape())
+    for q in sorted(constants):
+        out, fmt = hdl_mul_constant(a, fa, q, fq)
+        expected, model_fmt = mul(va, fa, [q] * len(va), fq)
+        assert fmt == model_fmt and out.shape() == fmt.shape()
+        assert simulate([a], out, [(v,) for v in va]) == [int(x) for x in expected], q
 
 
 @settings(max_examples=200, deadline=None)
