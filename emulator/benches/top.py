@@ -229,7 +229,9 @@ output and register file; no PS7, pins or GP0 bridge.
 
 * Resources (`lut`, `ff`, `bram36`, `dsp48`, `*_pct` of the {top_target.device}:
   {capacity['lut']} LUTs, {capacity['ff']} FFs, {capacity['bram36']} BRAM36,
-  {capacity['dsp48']} DSP48E1) and `lut_levels` (the deepest path): Yosys
+  {capacity['dsp48']} DSP48E1) and `lut_levels` (the deepest path). `lut` counts what
+  the device's LUT capacity counts (Vivado's Slice LUTs): `lut_logic`, LUTs as logic,
+  plus `lut_memory`, LUTs as distributed RAM and shift registers. Yosys
   `synth_xilinx -family xc7`, {how}. `fits`: LUT, BRAM36 and DSP48 each at most
   {FIT_PCT:g} % of the device.
 * {pins}
