@@ -53,9 +53,10 @@ def target(rig):
 
 
 def top_resources(top_target, progress=None):
-    """LUT (logic and memory, :func:`emulator.synth.synth_verilog`), FF, BRAM36, DSP48 and
-    LUT levels of the target's closed-loop top, with each resource's share of its device (``*_pct``) and ``fits`` (every one of LUT, BRAM36 and
-    DSP48 at most :data:`FIT_PCT`). Synthesized in ``build/synth/top_closed`` (the board
+    """LUT (logic and memory, :func:`emulator.synth.synth_verilog`), FF, BRAM36, DSP48
+    and LUT levels of the target's closed-loop top, with each resource's share of its
+    device (``*_pct``) and ``fits`` (every one of LUT, BRAM36 and DSP48 at most
+    :data:`FIT_PCT`). Synthesized in ``build/synth/top_closed`` (the board
     rig, flattened) or ``build/synth/top_closed_<rig>`` (partitioned); an unchanged
     Verilog reuses its figures."""
     from hdl.top import closed_loop_top

@@ -8,8 +8,8 @@ and the benchmark build the same streams from the same seeds.
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-__all__ = ["moving_rows", "periodic_rows", "square_rows", "row_beats", "frame_beats", "inject_faults",
-           "simulator_dataset"]
+__all__ = ["moving_rows", "periodic_rows", "square_rows", "row_beats", "frame_beats",
+           "inject_faults", "simulator_dataset"]
 
 
 def moving_rows(rng, n_frames, height, width, *, max_step=6.0, blur=2.5, noise=1.0,
