@@ -1,5 +1,6 @@
-"""Stimulus for the row-descriptor tests and benches: moving textured rows, camera beats,
-and bad input (short, long, interrupted rows, reason bits, stray beats).
+"""Stimulus for the row-descriptor tests and benches: moving textured rows, square waves
+at the largest cost, camera beats, and bad input (short, long, interrupted rows, reason
+bits, stray beats).
 
 Plain numpy and dicts, no simulator: the Amaranth-simulator tests, the cocotb benches
 and the benchmark build the same streams from the same seeds.
