@@ -174,17 +174,18 @@ def breakdown(rig, depth=2):
 
 def breakdown_table(result):
     """Markdown table of :func:`breakdown`, the largest LUT total first."""
-    rows = ["| block | copies | lut each | lut total | ff total | bram36 total | dsp48 total "
-            "| lut_levels |", "|---|---|---|---|---|---|---|---|"]
+    rows = ["| block | copies | lut each | lut total | lut_memory total | ff total "
+            "| bram36 total | dsp48 total | lut_levels |", "|---|---|---|---|---|---|---|---|---|"]
     copies = result["copies"]
     order = sorted(result["parts"], key=lambda g: -copies[g] * result["parts"][g]["lut"])
     for group in order:
         f, n = result["parts"][group], copies[group]
-        rows.append(f"| {group} | {n} | {f['lut']} | {n * f['lut']} | {n * f['ff']} | "
-                    f"{n * f['bram36']} | {n * f['dsp48']} | {f['lut_levels']} |")
+        rows.append(f"| {group} | {n} | {f['lut']} | {n * f['lut']} | {n * f['lut_memory']} "
+                    f"| {n * f['ff']} | {n * f['bram36']} | {n * f['dsp48']} "
+                    f"| {f['lut_levels']} |")
     t = result["total"]
-    rows.append(f"| sum | | | {t['lut']} | {t['ff']} | {t['bram36']} | {t['dsp48']} | "
-                f"{t['lut_levels']} |")
+    rows.append(f"| sum | | | {t['lut']} | {t['lut_memory']} | {t['ff']} | {t['bram36']} "
+                f"| {t['dsp48']} | {t['lut_levels']} |")
     return "\n".join(rows)
 
 

@@ -120,3 +120,20 @@ def test_groups_can_be_formed_from_the_design_s_own_modules(tmp_path):
                               lambda modules: breakdown_groups(modules, "lanes", depth=1),
                               work_dir=tmp_path)
     assert parts["copies"] == {"lane0": 2, "lane1": 1, "rest": 1}
+
+
+def test_breakdown_table_totals_each_group_over_its_copies():
+    """The breakdown's rows: per-copy LUTs and every total over the copies (the LUTs
+    used as memory too), largest total first, then the sum."""
+    from emulator.commands.synth_report import breakdown_table
+    part = {"lut": 10, "lut_memory": 4, "ff": 7, "bram36": 0.5, "dsp48": 1, "lut_levels": 3}
+    other = {"lut": 25, "lut_memory": 0, "ff": 2, "bram36": 0.0, "dsp48": 0, "lut_levels": 5}
+    total = {"lut": 55, "lut_memory": 12, "ff": 23, "bram36": 1.5, "dsp48": 3,
+             "lut_levels": 5}
+    table = breakdown_table({"parts": {"lane": part, "rest": other},
+                             "copies": {"lane": 3, "rest": 1}, "total": total})
+    lines = table.splitlines()
+    assert "lut_memory total" in lines[0]
+    assert lines[2] == "| lane | 3 | 10 | 30 | 12 | 21 | 1.5 | 3 | 3 |"
+    assert lines[3] == "| rest | 1 | 25 | 25 | 0 | 2 | 0.0 | 0 | 5 |"
+    assert lines[4] == "| sum | | | 55 | 12 | 23 | 1.5 | 3 | 5 |"
