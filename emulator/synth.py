@@ -62,7 +62,7 @@ def _cell_counts(cells):
         "bram36": cells.get("RAMB36E1", 0) + 0.5 * cells.get("RAMB18E1", 0),
         "dsp48": cells.get("DSP48E1", 0),
         "carry4": cells.get("CARRY4", 0),
-        "lutram": sum(v for k, v in cells.items() if k.startswith(("RAM32", "RAM64", "RAM128", "RAM256"))),
+        "lutram": sum(cells.get(c, 0) for c in _LUT_MEMORY_CELLS if c.startswith("RAM")),
     }
 
 

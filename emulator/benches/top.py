@@ -16,10 +16,9 @@ synthesized whole and in partitions); ``link.clocks_per_packet`` and
 """
 
 import time
+from dataclasses import replace
 
 import numpy as np
-
-from dataclasses import replace
 
 from emulator.output import packets
 from emulator.top_targets import DEVICES, FIT_PCT, TARGETS, top_resources
@@ -142,7 +141,8 @@ def _io_pins(top_target, cameras):
 
 
 def measure_target(top_target):
-    """``top.<rig>.*`` of a target's closed-loop top (module docstring)."""
+    """The figures of a target's closed-loop top (module docstring), without the
+    ``<rig>.`` prefix."""
     from golden.rig import preset
     from hdl.top import board_config
     rig = preset(top_target.rig)
@@ -151,21 +151,20 @@ def measure_target(top_target):
     timing = _slice_timing(top_target.rig)
     resources = top_resources(top_target, progress=lambda line: print(f"[synth] {line}",
                                                                       flush=True))
-    figures = {"cameras": len(rig.cameras), **resources,
-               **_io_pins(top_target, len(rig.cameras)),
-               "clk_hz": config.top.clk_hz,
-               "pose_rate_hz": round(cam.fps * cam.height),
-               "capacity_hz": round(timing.clk_hz / timing.clocks_per_row_set),
-               "latency_clocks": timing.latency_clocks,
-               "latency_us": round(1e6 * timing.latency_clocks / timing.clk_hz, 3)}
-    return {f"{top_target.rig}.{key}": value for key, value in figures.items()}
+    return {"cameras": len(rig.cameras), **resources,
+            **_io_pins(top_target, len(rig.cameras)),
+            "clk_hz": config.top.clk_hz,
+            "pose_rate_hz": round(cam.fps * cam.height),
+            "capacity_hz": round(timing.clk_hz / timing.clocks_per_row_set),
+            "latency_clocks": timing.latency_clocks,
+            "latency_us": round(1e6 * timing.latency_clocks / timing.clk_hz, 3)}
 
 
-def partition_check(top_target):
-    """The partitioned synthesis of a target that also synthesizes whole: each figure of
-    both and the difference in per cent (``partition_check.*``), what summing partitions
+def partition_check(top_target, whole):
+    """The partitioned synthesis of a target that also synthesizes whole (``whole``: its
+    :func:`~emulator.top_targets.top_resources`, already measured): each figure of both
+    and the difference in per cent (``partition_check.*``), what summing partitions
     misses."""
-    whole = top_resources(top_target)
     parts = top_resources(replace(top_target, partitioned=True))
     figures = {}
     for key in ("lut", "ff", "bram36", "dsp48", "lut_levels"):
@@ -179,9 +178,12 @@ def measure():
     from hdl.top import board_config
     from golden.rig import preset
     figures = {}
+    measured = {}
     for top_target in TARGETS:
-        figures.update(measure_target(top_target))
-    figures.update(partition_check(TARGETS[0]))
+        measured[top_target.rig] = measure_target(top_target)
+        figures.update({f"{top_target.rig}.{key}": value
+                        for key, value in measured[top_target.rig].items()})
+    figures.update(partition_check(TARGETS[0], measured[TARGETS[0].rig]))
     params = board_config(preset(TARGETS[0].rig)).top
     divisor = params.uart.divisor_raw(params.clk_hz, params.baud)
     clocks = _link_clocks_per_packet(params, divisor)

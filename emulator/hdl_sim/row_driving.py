@@ -30,8 +30,7 @@ def make_stimulus(params, kind, rng, dataset_rows=None):
     with short, long, interrupted, flagged rows and stray beats; ``dataset``: rows of
     the golden simulator (``dataset_rows``, (F, H', W') uint8), cropped to the lane;
     ``square``: square waves whose shifts by a multiple of the period cost whole
-    segments (:func:`~emulator.hdl_sim.row_stimulus.square_rows`), at centres within
-    ``±centre_range``.
+    segments (:func:`~emulator.hdl_sim.row_stimulus.square_rows`).
     """
     h, w = params.height, params.width
     if kind == "dataset":
@@ -44,7 +43,7 @@ def make_stimulus(params, kind, rng, dataset_rows=None):
     if kind == "faults":
         beats = inject_faults(rng, beats, w, 5)
     rows = split_rows(beats)
-    span = params.centre_range + (0 if kind == "square" else 2)   # also the saturation
+    span = params.centre_range + 2                   # also exercise the saturation
     centres = [int(c) for c in rng.integers(-span, span + 1, len(rows))]
     return rows, centres
 
