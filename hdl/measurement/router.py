@@ -18,9 +18,10 @@ checked against, transfer by transfer). Inside:
   cues and valid bits): read when a ticket is fetched, merged into the cue registers
   (a failed segment takes the stored cue) and written back when the ticket is resolved;
   cleared by a sweep of ``height`` clocks after reset, during which no ticket is fetched;
-* per stereo pair a cue mapper (:class:`hdl.measurement.cue_map.CueMapper`), started
+* one cue mapper for all pairs (:class:`hdl.measurement.cue_map.CueMapper`), started
   once the cue registers are final: each temporal segment's cue for camera A and for
-  camera B, interpolated at the segment's centre column;
+  camera B of every pair, interpolated at the segment's centre column (the pairs take
+  turns at its two multipliers);
 * an emitter that walks the marked cameras in order, K measurements each, one transfer
   per clock into an output register.
 
@@ -191,9 +192,10 @@ class MeasurementRouter(wiring.Component):
     @property
     def latency(self):
         """Ticket FIFO, fetch, K_s resynchronizer clocks and their check, the cue
-        mappers' start and walk (:attr:`hdl.measurement.cue_map.CueMapper.latency`),
-        output register."""
-        return 5 + self.params.stereo.segments + CueMapper.latency_of(self.params.cue_map)
+        mapper's start and walk over the pairs
+        (:attr:`hdl.measurement.cue_map.CueMapper.latency`), output register."""
+        p = self.params
+        return 5 + p.stereo.segments + CueMapper.latency_of(p.cue_map, len(p.pairs))
 
     def elaborate(self, platform):
         p = self.params
@@ -206,7 +208,7 @@ class MeasurementRouter(wiring.Component):
                      self.tickets.ready.eq(ticket_fifo.w_rdy)]
         fetch = Signal()            # the ticket FIFO's head becomes the current ticket
         resolving = Signal()
-        mapping = Signal()          # the cue mappers run on the resolved cues
+        mapping = Signal()          # the cue mapper runs on the resolved cues
         emitting = Signal()
         clearing = Signal(init=p.cue_fallback)      # the cue store's sweep after reset
         m.d.comb += [fetch.eq(~resolving & ~mapping & ~emitting & ~clearing
@@ -329,28 +331,28 @@ class MeasurementRouter(wiring.Component):
             m.d.comb += [write.addr.eq(ticket.row), write.data.eq(merged),
                          write.en.eq(resolved & in_range)]
 
-    # --- cue mappers ---------------------------------------------------------------------
+    # --- cue mapper ----------------------------------------------------------------------
 
     def _map(self, m, pairs, ticket, resolved, mapping):
-        """Per stereo pair a cue mapper, started the clock after ``resolved`` of a
-        ticket with cameras (the cue registers then hold the fallback's merge). Returns
-        each camera's ``cue`` and ``usable`` (K each, its role's outputs) and ``done``:
-        the clock the mappers' results are final."""
+        """The cue mapper of all pairs, started the clock after ``resolved`` of a ticket
+        with cameras (the cue registers then hold the fallback's merge). Returns each
+        camera's ``cue`` and ``usable`` (K each, its role's outputs) and ``done``: the
+        clock the mapper's results are final."""
         p = self.params
         start = Signal()
         m.d.sync += start.eq(resolved & ticket.cameras.any())
-        cue, usable, busy = {}, {}, []
+        mapper = m.submodules.cue_map = CueMapper(p.cue_map, len(p.pairs))
+        m.d.comb += mapper.start.eq(start)
+        cue, usable = {}, {}
         for j, (a, b) in enumerate(p.pairs):
-            mapper = m.submodules[f"cue_map{j}"] = CueMapper(p.cue_map)
-            m.d.comb += [mapper.start.eq(start), mapper.usable.eq(Cat(pairs["usable"][j]))]
-            m.d.comb += [mapper.cues[s].eq(pairs["cue"][j][s])
+            m.d.comb += mapper.usable[j].eq(Cat(pairs["usable"][j]))
+            m.d.comb += [mapper.cues[j][s].eq(pairs["cue"][j][s])
                          for s in range(p.stereo.segments)]
-            cue[a], usable[a] = mapper.cue_a, mapper.usable_a
-            cue[b], usable[b] = mapper.cue_b, mapper.usable_b
-            busy.append(mapper.busy)
+            cue[a], usable[a] = mapper.cue_a[j], mapper.usable_a[j]
+            cue[b], usable[b] = mapper.cue_b[j], mapper.usable_b[j]
         return {"cue": [cue[c] for c in range(p.cameras)],
                 "usable": [usable[c] for c in range(p.cameras)],
-                "done": mapping & ~start & ~Cat(busy).any()}
+                "done": mapping & ~start & ~mapper.busy}
 
     # --- temporal lanes: FIFOs ----------------------------------------------------------
 
@@ -382,7 +384,7 @@ class MeasurementRouter(wiring.Component):
 
     def _emit(self, m, ticket, fifos, mapped, emitting, *, start):
         """Walk the marked cameras, K transfers each, into the output register, with
-        the mappers' cues (``mapped``); returns this clock's ``row``, ``empty`` and
+        the mapper's cues (``mapped``); returns this clock's ``row``, ``empty`` and
         ``misaligned`` counter increments."""
         p = self.params
         k_seg = p.temporal.segments

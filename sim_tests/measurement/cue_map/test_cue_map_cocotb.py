@@ -1,13 +1,17 @@
 """Runs the cue mapper's cocotb bench: the cues stereo20's stereo lanes measured on real
-simulated rows (K = K_s = 8, the hardware path's map) and random cues at the formats'
-extremes on Verilator; random ones with K = 4, K_s = 2 on Icarus."""
+simulated rows (K = K_s = 8, the hardware path's map, its ten pairs in one mapper as the
+router builds it) and random cues at the formats' extremes on Verilator (the board
+top's map, K = K_s = 4, four pairs); random ones on Icarus with K = 4, K_s = 2 and one
+pair, and with K = K_s = 2 and two pairs (both with fewer items per pass than pipeline
+stages: a pass waits for the previous pass's results)."""
 
 import dataclasses
 import os
 import pickle
 
+import pytest
 
-from golden.descriptor import STEREO_MATCH
+from golden.descriptor import STEREO_MATCH, MatchParams
 from golden.rig import preset
 from golden.scene import default_scene_spec
 from golden.simulator import simulate
@@ -16,6 +20,7 @@ from hdl.descriptor.params import RowDescriptorParams
 from hdl.fixed import UQ
 from hdl.measurement.cue_map import CueMapper
 from hdl.measurement.cue_map_params import CueMap
+from hdl.top import board_config
 from emulator.hardware_path import hardware_config
 from emulator.hdl_sim.runner import BUILD_ROOT, run_cocotb
 
@@ -49,21 +54,32 @@ def test_cue_map_real_rows_verilator():
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
         pickle.dump(rows, f)
-    run_cocotb(CueMapper(config.router.cue_map), name="cue_map", tag="real",
+    run_cocotb(CueMapper(config.router.cue_map, len(config.router.pairs)), name="cue_map",
+               tag="real",
                sim="verilator", seed=seed, test_module=BENCH,
                extra_env={"CUE_MAP_STIMULUS": str(path)})
 
 
 def test_cue_map_random_verilator():
-    config, _ = _real_config(1)
-    run_cocotb(CueMapper(config.router.cue_map), name="cue_map", tag="random",
+    router = board_config(preset("stereo8-board")).top.engine.router
+    run_cocotb(CueMapper(router.cue_map, len(router.pairs)), name="cue_map", tag="random",
                sim="verilator", test_module=BENCH, extra_env={"CUE_MAP_ROWS": "300"})
 
 
-def test_cue_map_random_icarus():
-    lane = RowDescriptorParams(width=320, height=8)
-    stereo = RowDescriptorParams(width=320, height=8,
-                                 match=dataclasses.replace(STEREO_MATCH, segments=2))
-    run_cocotb(CueMapper(CueMap.for_lanes(lane, stereo, UQ(5, 4))), name="cue_map",
-               tag="small", sim="icarus", test_module=BENCH,
-               extra_env={"CUE_MAP_ROWS": "60"})
+@pytest.mark.parametrize("segments, stereo_segments, pairs", [(4, 2, 1), (2, 2, 2)])
+def test_cue_map_random_icarus(segments, stereo_segments, pairs):
+    lane = RowDescriptorParams(width=320, height=8, match=MatchParams(segments=segments))
+    stereo = RowDescriptorParams(width=320, height=8, match=dataclasses.replace(
+        STEREO_MATCH, segments=stereo_segments))
+    cue_map = CueMap.for_lanes(lane, stereo, UQ(5, 4))
+    assert CueMapper.gap_of(cue_map, pairs) > 0, "each case must leave a gap after a pass"
+    run_cocotb(CueMapper(cue_map, pairs), name="cue_map",
+               tag=f"small{segments}{stereo_segments}{pairs}", sim="icarus",
+               test_module=BENCH, extra_env={"CUE_MAP_ROWS": "60"})
+
+
+@pytest.mark.parametrize("pairs, error", [(0, ValueError), (1.5, TypeError)])
+def test_cue_mapper_rejects_bad_pairs(pairs, error):
+    config, _ = _real_config(1)
+    with pytest.raises(error, match="pairs"):
+        CueMapper(config.router.cue_map, pairs)
