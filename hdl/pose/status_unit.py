@@ -18,7 +18,7 @@ has a window of its own over the *determinable* rows only (the row input's
 with its row count and sum kept the same way.
 """
 
-from amaranth.hdl import Module, Mux, Signal
+from amaranth.hdl import Module, Mux, Signal, Value
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
@@ -32,6 +32,13 @@ __all__ = ["StatusUnit", "default_status_unit"]
 
 COUNTS = ("judged", "outliers", "confident")
 BITS = ("stepped", "formed", "ill")
+
+#: The window rules that compare a sum with a run-time fraction of a count: (the
+#: setting, the operands — left side and count —, the test ``left > fraction·count`` or
+#: ``<``). Judged one a clock through one multiplier: six in parallel took six DSP48.
+RULES = (("lost_update", "update", "<"), ("lost_outlier", "outlier", ">"),
+         ("degraded_update", "update", "<"), ("degraded_outlier", "outlier", ">"),
+         ("degraded_ill", "ill", ">"), ("degraded_measurements", "measurements", "<"))
 
 
 class StatusUnit(wiring.Component):
@@ -64,15 +71,16 @@ class StatusUnit(wiring.Component):
     state : Out(params.state_layout())
 
     Latency: ``o.valid`` rises :attr:`latency` clocks after the clock of a record's
-    transfer (take, sum, decide).
+    transfer (take, sum, judge the rules, decide).
     Throughput: one record per :attr:`interval` clocks when ``o`` is ready (a pose
     record comes once per camera row, hundreds of clocks apart). Backpressure: ``o``
     not ready holds the record and stops taking new ones. Reset: empty history, not
     lost, not drifted, counters 0.
     """
 
-    latency = 3
-    interval = 4
+    #: take, sum, the rules' products and comparisons (:data:`RULES`), decide
+    latency = 3 + len(RULES) + 1
+    interval = latency + 1
 
     def __init__(self, params, solver):
         if not isinstance(params, StatusParams):
@@ -121,6 +129,9 @@ class StatusUnit(wiring.Component):
         empty_windows = [rows.eq(0), u_rows.eq(0), updated.eq(0),
                          *(s.eq(0) for s in sums.values())]
 
+        # the window rules' comparisons, one a clock through one multiplier (_judge)
+        rule = Signal(range(len(RULES) + 1))
+        verdicts = Signal(len(RULES))
         asked = cfg.window
         effective = Mux(asked == 0, 1, Mux(asked > p.max_window, p.max_window, asked))
         with m.If(self.clear):
@@ -175,9 +186,14 @@ class StatusUnit(wiring.Component):
                                  u_position.eq(u_position + 1)]
                 with m.Elif(restart):
                     m.d.sync += [updated.eq(0), u_rows.eq(0)]
-                m.next = "DECIDE"
+                m.d.sync += rule.eq(0)
+                m.next = "JUDGE"
+            with m.State("JUDGE"):
+                self._judge(m, rule, verdicts, sums, (u_rows, updated))
+                with m.If(rule == len(RULES)):
+                    m.next = "DECIDE"
             with m.State("DECIDE"):
-                self._decide(m, record, sums, rows, window, (u_rows, updated),
+                self._decide(m, record, verdicts, sums, rows, window, (u_rows, updated),
                              empty_windows)
                 m.next = "OUT"
             with m.State("OUT"):
@@ -186,33 +202,71 @@ class StatusUnit(wiring.Component):
                     m.next = "TAKE"
         return m
 
-    def _verdicts(self, sums, rows, window, updates):
-        """(lost, degraded) of the window sums, as the model's ``verdicts``;
-        ``updates``: the determinable rows' window, (rows, stepped)."""
+    def _judge(self, m, rule, verdicts, sums, updates):
+        """One clock of the JUDGE state: rule ``rule``'s product ``fraction × count``
+        into a register with its left side, and the previous rule's comparison into
+        ``verdicts`` (bit ``k``: rule ``k``'s test of :data:`RULES` holds). The window
+        sums stand still meanwhile; ``len(RULES) + 1`` clocks in all."""
         cfg, b = self.settings, FRACTION_FMT.frac_bits
-        stepped, outliers, judged = sums["stepped"], sums["outliers"], sums["judged"]
         u_rows, updated = updates
+        operands = {
+            "update": (updated << b, u_rows), "outlier": (sums["outliers"] << b, sums["judged"]),
+            "ill": (sums["ill"] << b, sums["formed"]),
+            "measurements": (sums["confident"] << MEASUREMENTS_FMT.frac_bits,
+                             sums["stepped"]),
+        }
+        factors = {"lost_update": cfg.lost_update_fraction,
+                   "lost_outlier": cfg.lost_outlier_fraction,
+                   "degraded_update": cfg.degraded_update_fraction,
+                   "degraded_outlier": cfg.degraded_outlier_fraction,
+                   "degraded_ill": cfg.degraded_ill_fraction,
+                   "degraded_measurements": cfg.degraded_measurements}
+        width = max(len(Value.cast(left)) for left, _ in operands.values())
+        left = Signal(width)
+        factor = Signal(max(len(f) for f in factors.values()))
+        count = Signal(max(len(c) for _, c in operands.values()))
+        product = Signal(len(factor) + len(count))
+        above = Signal()                    # the rule tests left > product, else <
+        judged = Signal(range(len(RULES)))  # the rule in the registers
+        loaded = Signal()
+        # the operands chosen first: a product per case would be six multipliers again
+        with m.Switch(rule):
+            for k, (name, operand, test) in enumerate(RULES):
+                with m.Case(k):
+                    value, of = operands[operand]
+                    m.d.comb += [factor.eq(factors[name]), count.eq(of)]
+                    m.d.sync += [left.eq(value), above.eq(test == ">")]
+        m.d.sync += product.eq(factor * count)
+        m.d.sync += [judged.eq(rule), loaded.eq(rule != len(RULES)),
+                     rule.eq(Mux(rule == len(RULES), 0, rule + 1))]
+        with m.If(loaded):
+            m.d.sync += verdicts.bit_select(judged, 1).eq(
+                Mux(above, left > product, left < product))
 
-        def few_updates(fraction):
-            return Mux(u_rows == 0, fraction != 0, (updated << b) < fraction * u_rows)
+    def _verdicts(self, verdicts, sums, rows, window, updates):
+        """(lost, degraded) from the window sums and the rules' ``verdicts``, as the
+        model's ``verdicts``; ``updates``: the determinable rows' window, (rows,
+        stepped)."""
+        cfg = self.settings
+        u_rows, _ = updates
+        v = {factor: verdicts[k] for k, (factor, _, _) in enumerate(RULES)}
 
-        lost = (((u_rows == window) & few_updates(cfg.lost_update_fraction))
-                | ((rows == window)
-                   & ((outliers << b) > cfg.lost_outlier_fraction * judged)))
-        m_raw = cfg.degraded_measurements
-        few = Mux(stepped == 0, m_raw != 0,
-                  (sums["confident"] << MEASUREMENTS_FMT.frac_bits) < m_raw * stepped)
-        degraded = (few_updates(cfg.degraded_update_fraction)
-                    | ((outliers << b) > cfg.degraded_outlier_fraction * judged)
-                    | (sums["formed"] == 0)
-                    | ((sums["ill"] << b) > cfg.degraded_ill_fraction * sums["formed"])
-                    | few)
+        def few_updates(name):
+            return Mux(u_rows == 0, getattr(cfg, f"{name}_update_fraction") != 0,
+                       v[f"{name}_update"])
+
+        lost = (((u_rows == window) & few_updates("lost"))
+                | ((rows == window) & v["lost_outlier"]))
+        few = Mux(sums["stepped"] == 0, cfg.degraded_measurements != 0,
+                  v["degraded_measurements"])
+        degraded = (few_updates("degraded") | v["degraded_outlier"]
+                    | (sums["formed"] == 0) | v["degraded_ill"] | few)
         return lost, degraded
 
-    def _decide(self, m, record, sums, rows, window, updates, empty_windows):
+    def _decide(self, m, record, verdicts, sums, rows, window, updates, empty_windows):
         """The status of the row just summed, the latch, the counters and the output."""
         state = self.state
-        lost, degraded = self._verdicts(sums, rows, window, updates)
+        lost, degraded = self._verdicts(verdicts, sums, rows, window, updates)
         full = rows == window
         status = Signal(2)
         with m.If(lost):
