@@ -16,7 +16,7 @@ record it needs (of a slot at most ``slot − 1 − loop_delay_rows``) is outsta
 solver later than the loop delay stalls the rows instead of forecasting from old states.
 """
 
-from amaranth.hdl import Array, Cat, Module, Mux, Signal, unsigned
+from amaranth.hdl import Array, Module, Mux, Signal, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -82,7 +82,8 @@ class MotionFilter(wiring.Component):
         The row slot whose forecast is wanted, once per row slot, in increasing order.
     motion : Out(ArrayLayout(motion_fmt, 6))
         The forecast ``Ŷ`` of the last query, valid from :attr:`query_latency` clocks
-        after its transfer (``motion_valid`` strobes then) until the next query.
+        after its transfer (``motion_valid`` strobes then) until the next query's
+        forecast overwrites it, an axis a clock.
     motion_valid : Out(1)
     alpha, beta : In(unsigned(gain_fmt.width))
         Raw gains (``gain_fmt``); reset values ``params.alpha_raw``/``beta_raw``. A
@@ -91,7 +92,8 @@ class MotionFilter(wiring.Component):
         Level loaded by ``restart``.
     restart : In(1)
         Level ← ``initial``, trend 0, no record outstanding, no state but this one (the
-        model's construction). Reset does the same with ``initial`` = 0.
+        model's construction); a forecast in progress still completes, from the state
+        it selected. Reset does the same with ``initial`` = 0.
     track : Out(stream.Signature(track_layout(params, slot_bits))), with ``track=True``
         Every update, offered once its state is the newest: the row's slot, the state
         before it, the level after it and whether it was solved. The next record waits
@@ -100,16 +102,23 @@ class MotionFilter(wiring.Component):
         A record's update is in progress.
     drained : Out(1)
         Every query's record is taken (none outstanding), its update done and handed
-        to the track: a ``restart`` now drops no record and no update.
+        to the track, and no forecast is in progress: a ``restart`` now drops no record
+        and no update.
+    saturated : Out(1)
+        Strobe: an update in which some value saturated into ``motion_fmt`` (with its
+        state's push), or a forecast (with its ``motion_valid``).
 
     Timing: a record takes :attr:`update_clocks` clocks (one multiplier, shared by the
-    six axes and both gains); queries wait while an update runs.
+    six axes and both gains); queries wait while an update runs. A query's forecast
+    takes :attr:`query_latency` clocks (a second multiplier, shared by the six axes);
+    the next query waits for it, records need not.
     """
 
     #: Clocks per axis: p and d; α·d; L' and e; β·e; B'.
     PHASES = 5
-    #: Clocks from a query's transfer to ``motion_valid``: state selection, L + k·B.
-    query_latency = 2
+    #: Clocks from a query's transfer to ``motion_valid`` and to the next query: state
+    #: selection, then a clock per axis for k·B, and L + k·B of the last axis.
+    query_latency = 1 + 6 + 1
 
     def __init__(self, params, *, slot_bits=DEFAULT_SLOT_BITS, track=False):
         if not isinstance(params, ForecastParams):
@@ -175,6 +184,7 @@ class MotionFilter(wiring.Component):
         # --- acceptance: restart first, then a record, then a query
         running, push = Signal(), Signal()    # an update runs; its state is pushed
         idle = Signal()
+        forecasting = Signal()                # a query's axes are being computed
         take_record, take_query = Signal(), Signal()
         information = p.motion_gain == "information"
         tracked = "track" in self.signature.members
@@ -185,11 +195,11 @@ class MotionFilter(wiring.Component):
             self.records.ready.eq(record_ready & self.gains.valid if information
                                   else record_ready),
             take_record.eq(self.records.valid & self.records.ready),
-            self.query.ready.eq(~self.restart & idle & ~take_record
+            self.query.ready.eq(~self.restart & idle & ~take_record & ~forecasting
                                 & (level != depth) & ((level == 0) | ~head_is_old)),
             take_query.eq(self.query.valid & self.query.ready),
             self.busy.eq(~idle),
-            self.drained.eq((level == 0) & idle & handed),
+            self.drained.eq((level == 0) & idle & handed & ~forecasting),
         ]
         if information:     # a gain waits for its record, and goes with it
             m.d.comb += self.gains.ready.eq(record_ready & self.records.valid)
@@ -200,7 +210,10 @@ class MotionFilter(wiring.Component):
             m.d.sync += [pending[k].eq(pending[k + 1]) for k in range(depth - 1)]
             m.d.sync += level.eq(level - 1)
 
-        # --- query: the newest state of a slot ≤ limit, then L + k·B
+        # --- query: the newest state of a slot ≤ limit, then L + k·B on one multiplier, an
+        # axis a clock: the selected trends shift down an axis per product (sel_trend[0] is
+        # multiplied), the levels a clock later with the registered product (sel_level[0]
+        # is added); the next query waits for the six, a record need not
         chosen = states[0].as_value()
         for s in states[1:]:
             fits = (s.kind == 1) | ((s.kind == 2) & ((limit - s.slot)[bits - 1] == 0))
@@ -209,22 +222,30 @@ class MotionFilter(wiring.Component):
         sel_level = Signal(data.ArrayLayout(fmt.shape(), 6))
         sel_trend = Signal(data.ArrayLayout(fmt.shape(), 6))
         ahead = Signal(count_bits)
-        selected = Signal()
-        m.d.sync += [selected.eq(take_query), self.motion_valid.eq(selected)]
+        multiplying, adding = Signal(), Signal()
+        factor_axis, sum_axis = Signal(range(6)), Signal(range(6))
+        query_clamped = Signal()                   # some axis of this forecast saturated
+        scaled, scaled_fmt = hdl_mul(sel_trend[0], fmt, ahead, UQ(count_bits, 0))
+        scaled_reg = Signal(scaled_fmt.shape())
+        total_fmt = SQ(scaled_fmt.int_bits + 1, fmt.frac_bits)
+        total = Signal(total_fmt.shape(), name="forecast")
+        m.d.comb += [forecasting.eq(multiplying | adding), total.eq(sel_level[0] + scaled_reg)]
+        m.d.sync += [scaled_reg.eq(scaled), adding.eq(multiplying), sum_axis.eq(factor_axis),
+                     self.motion_valid.eq(adding & (sum_axis == 5))]
         with m.If(take_query):
             m.d.sync += [sel_level.eq(chosen.level), sel_trend.eq(chosen.trend),
-                         ahead.eq(queries + 1 - chosen.count)]
-        # L + k·B per axis, saturated into motion_fmt
-        query_clamped = []
-        for i in range(6):
-            scaled, scaled_fmt = hdl_mul(sel_trend[i], fmt, ahead, UQ(count_bits, 0))
-            total_fmt = SQ(scaled_fmt.int_bits + 1, fmt.frac_bits)
-            total = Signal(total_fmt.shape(), name=f"forecast{i}")
-            m.d.comb += total.eq(sel_level[i] + scaled)
-            query_clamped.append(outside(total, fmt))
-            with m.If(selected):
-                m.d.sync += self.motion[i].eq(hdl_resize(total, total_fmt, fmt,
-                                                         Rounding.FLOOR, Overflow.SATURATE))
+                         ahead.eq(queries + 1 - chosen.count), multiplying.eq(1),
+                         factor_axis.eq(0), query_clamped.eq(0)]
+        with m.If(multiplying):
+            m.d.sync += [sel_trend[i].eq(sel_trend[i + 1]) for i in range(5)]
+            m.d.sync += factor_axis.eq(factor_axis + 1)
+            with m.If(factor_axis == 5):
+                m.d.sync += multiplying.eq(0)
+        with m.If(adding):                         # L + k·B saturated into motion_fmt
+            m.d.sync += [sel_level[i].eq(sel_level[i + 1]) for i in range(5)]
+            m.d.sync += [self.motion[sum_axis].eq(hdl_resize(total, total_fmt, fmt,
+                                                             Rounding.FLOOR, Overflow.SATURATE)),
+                         query_clamped.eq(query_clamped | outside(total, fmt))]
 
         # --- update: axis by axis, one multiplier for both gains
         axis = Signal(range(6))
@@ -303,9 +324,10 @@ class MotionFilter(wiring.Component):
                     with m.If(axis == 5):
                         m.d.sync += push.eq(1)
         # one strobe per update and per forecast in which some value saturated (they
-        # never coincide: a forecast follows its query by a clock, an update takes 30)
+        # never coincide: a query waits for the update before it, and the update after it
+        # pushes update_clocks − 1 clocks after its record, later than the forecast)
         m.d.comb += self.saturated.eq((push & update_clamped)
-                                      | (selected & Cat(query_clamped).any()))
+                                      | (self.motion_valid & query_clamped))
 
         # the staged state becomes the newest one clock after its last axis
         with m.If(push):
@@ -324,7 +346,7 @@ class MotionFilter(wiring.Component):
 
         with m.If(self.restart):
             m.d.sync += [level.eq(0), running.eq(0), push.eq(0), updates.eq(0),
-                         queries.eq(0), selected.eq(0)]
+                         queries.eq(0)]
             if tracked:
                 m.d.sync += self.track.valid.eq(0)
             m.d.sync += [states[k].kind.eq(0) for k in range(depth - 1)]

@@ -1,7 +1,8 @@
 """hdl.pose.forecast (the motion forecast's gateware) against emulator.pose.forecast in
 the Amaranth simulator: every output transfer and every forecast Ŷ in order, bit for
 bit, with and without random valid gaps and ready backpressure; the latency; run-time
-gains and restart; saturation flags at the extremes; parameter errors.
+gains and restart; saturation flags at the extremes; the motion filter alone, its
+queries and records back to back; parameter errors.
 
 Set SEED to replay the randomized tests; the seed in use is printed.
 """
@@ -17,8 +18,10 @@ from amaranth.hdl import UnusedElaboratable
 from amaranth.sim import Simulator
 
 from hdl.pose.forecast import Forecast
+from hdl.pose.forecast_filter import MotionFilter
 
 from hdl.pose.params import PoseFlag, PoseSolverParams
+from emulator.pose.forecast import ForecastModel
 
 from sim_tests.pose.forecast.stimulus import (expected_outputs, polynomial_params,
                                               random_case, record, run_model, saturations,
@@ -152,9 +155,9 @@ def test_polynomial_stores_match_the_model(gaps):
 
 
 @pytest.mark.parametrize("params, latency", [
-    (small_params(), 2 + 1 + 6 * 2 - 1 + 7),
+    (small_params(), MotionFilter.query_latency + 1 + 6 * 2 - 1 + 7),
     # the slower store (degree 2: read, two Horner steps, rounding) sets the latency
-    (polynomial_params(), 2 + 1 + 6 * 2 - 1 + 4 + 6),
+    (polynomial_params(), MotionFilter.query_latency + 1 + 6 * 2 - 1 + 4 + 6),
 ])
 def test_latency_and_row_time_are_the_properties(params, latency):
     """At full rate a request finds the block idle: its first output comes ``latency``
@@ -167,7 +170,8 @@ def test_latency_and_row_time_are_the_properties(params, latency):
     firsts, lasts = cycles[::cameras], cycles[cameras - 1::cameras]
     assert {f - s for f, s in zip(firsts, starts)} == {dut.latency}
     assert {last - s for last, s in zip(lasts, starts)} == {dut.row_clocks}
-    assert (dut.latency, dut.row_clocks) == (latency, latency + 6 * 2 + latency - 14)
+    drain = latency - MotionFilter.query_latency - 6 * 2      # a camera's last term → output
+    assert (dut.latency, dut.row_clocks) == (latency, latency + 6 * 2 + drain)
 
 
 @pytest.mark.parametrize("delay", [0, 2, 3])
@@ -193,6 +197,99 @@ def test_late_records_hold_the_requests_that_need_them():
     assert early and len(early) < len(slots)
     assert all(slots[n] <= slots[0] + delay for n in early)
     assert slots[len(early)] > slots[0] + delay
+
+
+def filter_steps(params, rng, rows):
+    """Per row (step raw (6,), flags): half about a centimetre, a fifth flagged, then
+    half at the end of the range with alternating signs, so that (with large gains) the
+    level and the trend run into ``motion_fmt``'s bounds and forecasts saturate, several
+    axes at once."""
+    fmt = params.solver.step_fmt
+    calm = [(fmt.quantize(rng.normal(scale=0.01, size=6)), int(rng.random() < 0.2))
+            for _ in range(rows // 2)]
+    wild = fmt.quantize(0.99 * np.array([1, -1, 1, -1, 1, -1]))
+    return calm + [(wild, 0)] * (rows - rows // 2)
+
+
+@pytest.mark.parametrize("delay", [1, 2])
+def test_filter_forecasts_with_records_back_to_back(delay):
+    """The filter alone: queries offered back to back, each record offered the clock
+    after its query's transfer or later (random). Every query's six axes equal the
+    model's, ``motion_valid`` pulses once per query, ``query_latency`` clocks after its
+    transfer, and a query waits for the forecast before it; a saturated update or
+    forecast strobes ``saturated`` once (the model's count)."""
+    print(f"SEED={SEED}")
+    params = small_params(loop_delay_rows=delay, alpha=0.5, beta=0.5)
+    fmt = params.motion_fmt
+    rng = random.Random(SEED + delay)
+    rows = filter_steps(params, np.random.default_rng(SEED + delay), 48)
+    initial = np.array([-1, 1, -1, 1, -1, 1]) * fmt.max_raw // 2
+    model = ForecastModel(params, None, None, initial)
+    bound = {fmt.min_raw, fmt.max_raw}
+    want, saturated_forecasts, several = [], 0, 0      # forecasts saturated, on 2+ axes
+    for slot, (step, flags) in enumerate(rows):
+        before = model.saturated
+        want.append([int(v) for v in model.motion(slot)])
+        if model.saturated > before:
+            saturated_forecasts += 1
+            several += sum(v in bound for v in want[-1]) > 1
+        model.take(slot, None if flags else step)
+
+    dut = MotionFilter(params)
+    queried, recorded, forecasts, cycles = [], [], [], []
+    strobes = 0
+
+    async def bench(ctx):
+        nonlocal strobes
+        ctx.set(dut.initial, [int(v) for v in initial])
+        ctx.set(dut.restart, 1)
+        await ctx.tick()
+        ctx.set(dut.restart, 0)
+        ctx.set(dut.query.valid, 1)
+        wait = 0
+        for cycle in range(20000):
+            _, _, query_taken, record_taken, valid, strobe, drained, *motion = \
+                await ctx.tick().sample(
+                    dut.query.valid & dut.query.ready, dut.records.valid & dut.records.ready,
+                    dut.motion_valid, dut.saturated, dut.drained,
+                    *[dut.motion[i] for i in range(6)])
+            strobes += strobe
+            if valid:
+                forecasts.append(list(motion))
+                cycles.append(cycle)
+            if len(recorded) == len(rows) and drained:
+                break
+            if query_taken:
+                queried.append(cycle)
+                ctx.set(dut.query.payload, len(queried))
+                ctx.set(dut.query.valid, len(queried) < len(rows))
+            if record_taken:
+                recorded.append(cycle)
+                ctx.set(dut.records.valid, 0)
+                wait = 0 if rng.random() < 0.5 else rng.randrange(1, 40)
+            elif len(recorded) < len(queried) and not ctx.get(dut.records.valid):
+                if wait:
+                    wait -= 1
+                else:
+                    step, flags = rows[len(recorded)]
+                    ctx.set(dut.records.payload, record(params, step, flags=flags))
+                    ctx.set(dut.records.valid, 1)
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    assert forecasts == want
+    latency = MotionFilter.query_latency
+    assert [c - q for c, q in zip(cycles, queried)] == [latency] * len(rows)
+    spacing = [b - a for a, b in zip(queried, queried[1:])]
+    assert min(spacing) == latency, "no query was offered during a forecast"
+    assert sum(r == q + 1 for r, q in zip(recorded, queried)) > 5, \
+        "too few records taken during their query's forecast"
+    print(f"saturated: {model.saturated} updates and forecasts, {saturated_forecasts} "
+          f"forecasts ({several} on several axes)")
+    assert strobes == model.saturated
+    assert 0 < saturated_forecasts < len(rows) and several > 0
 
 
 def test_the_slot_counter_may_wrap():
