@@ -205,10 +205,10 @@ class PoseEngine(wiring.Component):
 
         # --- register banks --------------------------------------------------------------
         depth_in = 1 << (len(prog.inputs) - 1).bit_length()
-        depth_work = 1 << (prog.work_depth - 1).bit_length()
+        depth_work = words.work_depth
         work_init = [0] * depth_work
         for operand, value in prog.constants.values():
-            work_init[operand.index] = int(operand.fmt.quantize(value))
+            work_init[words.address(operand)] = int(operand.fmt.quantize(value))
         # LUT RAM: block RAM is the scarcer resource (reference rows, coefficients)
         distributed = {"ram_style": "distributed"}
         bank_in = Memory(shape=raw, depth=depth_in, init=[], attrs=distributed)

@@ -14,8 +14,10 @@ list, so the engine and the model share one description of the algorithm.
 Operands live in
 * ``input``: the scaled system N̂ (21, upper triangle row by row), b̂ (6) and the scales
   ``2**-e`` (6), written by the normalizer at one per clock from the program's start;
-* ``work``: everything the program computes, one register per value (no reuse), plus
-  the constants at the top (memory initial contents);
+* ``work``: everything the program computes, plus the constants (memory initial
+  contents); a value is named once (``Operand.index`` numbers the values), and the
+  scheduled program keeps it in a register only from its write to its last read
+  (:func:`allocate_work`: registers are reused, the bank holds the values live at once);
 * ``state``: the pose of the row's slot (q_w, q_x, q_y, q_z, p_x, p_y, p_z), registers
   loaded from the engine's pose ring when the row starts and written only by *commit*
   ops, which take effect only when the row raised no flag.
@@ -26,7 +28,7 @@ from dataclasses import dataclass, field, replace
 from hdl.fixed import QFormat
 
 __all__ = ["Operand", "Op", "RowProgram", "build_row_program", "build_gain_program",
-           "cholesky_solve", "Schedule", "schedule",
+           "cholesky_solve", "Schedule", "schedule", "allocate_work",
            "UPPER", "MAC_LATENCY", "SEED_LATENCY", "NORMALIZER_LATENCY", "STATE_NAMES"]
 
 #: (i, j) entries of the upper triangle of N̂, in normalizer order.
@@ -406,3 +408,48 @@ def schedule(program):
         cycle += 1
     return Schedule(issue=issue, writeback=writeback, length=max(writeback) + 1,
                     input_ready={name: ready[("input", name)] for name in program.inputs})
+
+
+def _work_lifetimes(program, schedule):
+    """(write cycle, last read cycle) of every computed work value, in write order; a
+    value never read lives for its write cycle only."""
+    ops = program.ops
+    last = {}
+    for op, start in zip(ops, schedule.issue):
+        reads = [(op.source, start)] if op.kind == "seed" else [
+            (value, start + t) for t, (_, a, b) in enumerate(op.terms) for value in (a, b)]
+        if op.init is not None:
+            reads.append((op.init, start))      # read with the first term
+        for value, cycle in reads:
+            if value.bank == "work":
+                last[value.name] = max(last.get(value.name, cycle), cycle)
+    written = sorted((wb, op.dst.name) for op, wb in zip(ops, schedule.writeback)
+                     if op.dst.bank == "work")
+    return [(name, wb, max(last.get(name, wb), wb)) for wb, name in written]
+
+
+def allocate_work(program, schedule):
+    """Work-bank registers of ``program`` as scheduled: ``(register, depth)``, register a
+    dict name -> index. The constants keep registers ``0 … C − 1`` (initial contents,
+    never written); a computed value takes a free register from its write-back to its
+    last read, and a register is free again from the clock after that read (a write in
+    the clock of a read would be seen by it: the bank's reads are transparent). Linear
+    scan in write order: as many registers as values are live at once, the least an
+    interval allocation can do. One register per value took 283 for the board's
+    program with the information gain, where 64 are ever live (issue 17: the bank is
+    distributed RAM, copied per read port)."""
+    register = {name: k for k, name in enumerate(program.constants)}
+    free, busy = [], []                     # free registers; (free from, register)
+    depth = len(register)
+    for name, write, last in _work_lifetimes(program, schedule):
+        busy.sort()
+        while busy and busy[0][0] <= write:
+            free.append(busy.pop(0)[1])
+        if free:
+            free.sort()
+            index = free.pop(0)
+        else:
+            index, depth = depth, depth + 1
+        register[name] = index
+        busy.append((last + 1, index))
+    return register, depth

@@ -4,7 +4,7 @@ per clock (:class:`ProgramRom`), and the seed unit's interpolation table."""
 from amaranth.lib import data
 
 from hdl.pose.params import SEED_TABLE_FMT, seed_tables
-from hdl.pose.program import STATE_NAMES, build_row_program, schedule
+from hdl.pose.program import STATE_NAMES, allocate_work, build_row_program, schedule
 
 __all__ = ["BANKS", "ProgramRom", "seed_table_contents"]
 
@@ -25,6 +25,8 @@ class ProgramRom:
     def __init__(self, params, information=False):
         self.program = build_row_program(params, information)
         self.schedule = schedule(self.program)
+        #: work-bank register of each work value, and the bank's depth (:func:`allocate_work`)
+        self.work_register, self.work_depth = allocate_work(self.program, self.schedule)
         ops = self.program.ops
         self.init_shifts = sorted({op.init_shift for op in ops if op.kind == "mac" and op.init})
         self.out_shifts = sorted({op.out_shift for op in ops if op.kind == "mac"})
@@ -34,7 +36,7 @@ class ProgramRom:
              (self.out_shifts.index(op.out_shift), op.out_shift))
             for op in ops if op.kind == "mac" and op.init})
         self.max_terms = max(op.slots for op in ops)
-        self.index_bits = max(len(self.program.inputs), self.program.work_depth,
+        self.index_bits = max(len(self.program.inputs), self.work_depth,
                               len(STATE_NAMES)).bit_length()
         # capture codes: 1-6 the step, 7-12 the information gain's moves
         step_names = {v.name: k for k, v in
@@ -53,23 +55,27 @@ class ProgramRom:
         for op, start in zip(ops, self.schedule.issue):
             if op.kind == "seed":
                 words[start] = {"issue": 1, "seed": 1, "first": 1, "last": 1,
-                                "a_bank": BANKS[op.source.bank], "a": op.source.index,
-                                "dst": op.dst.index, "gain": int(op.group == "gain")}
+                                "a_bank": BANKS[op.source.bank], "a": self.address(op.source),
+                                "dst": self.address(op.dst), "gain": int(op.group == "gain")}
                 continue
             for t, (sign, a, bb) in enumerate(op.terms):
                 word = {"issue": 1, "negate": int(sign < 0), "first": int(t == 0),
                         "last": int(t == len(op.terms) - 1),
-                        "a_bank": BANKS[a.bank], "a": a.index,
-                        "b_bank": BANKS[bb.bank], "b": bb.index,
+                        "a_bank": BANKS[a.bank], "a": self.address(a),
+                        "b_bank": BANKS[bb.bank], "b": self.address(bb),
                         "out_code": self.out_shifts.index(op.out_shift),
-                        "dst_state": int(op.commit), "dst": op.dst.index,
+                        "dst_state": int(op.commit), "dst": self.address(op.dst),
                         "checked": int(op.checked), "gain": int(op.group == "gain"),
                         "capture": step_names.get(op.dst.name, -1) + 1}
                 if t == 0 and op.init is not None:
-                    word.update(has_init=1, c_bank=BANKS[op.init.bank], c=op.init.index,
+                    word.update(has_init=1, c_bank=BANKS[op.init.bank], c=self.address(op.init),
                                 init_code=self.init_shifts.index(op.init_shift))
                 words[start + t] = word
         self.words = [self._pack(w) for w in words]
+
+    def address(self, operand):
+        """``operand``'s address in its bank: the allocated register of a work value."""
+        return self.work_register[operand.name] if operand.bank == "work" else operand.index
 
     def _pack(self, word):
         value = 0

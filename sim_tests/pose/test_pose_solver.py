@@ -10,13 +10,16 @@ from amaranth.hdl import Module, Signal
 from amaranth.sim import Simulator
 
 from emulator import pose_solver as E
+from golden.rig import preset
 from emulator.pose.program import split_program
 from hdl.fixed import SQ, UQ
 from hdl.pose.accumulator import leading_one
 from hdl.pose.params import PoseSolverParams, coefficient_formats, quantize_coefficients
 from hdl.pose.program import (MAC_LATENCY, NORMALIZER_LATENCY, SEED_LATENCY, build_row_program,
                               schedule)
+from hdl.pose.rom import ProgramRom
 from hdl.pose_solver import PoseSolver
+from hdl.top import board_config
 from sim_tests.pose.pose_solver.stimulus import build_case, mixed_rows, random_rows
 
 SEED = int(os.environ.get("SEED", "8"))
@@ -122,6 +125,37 @@ def test_schedule_respects_every_dependency():
                     assert plan.issue[r] + reader.slots - 1 <= plan.writeback[k]
 
 
+@pytest.mark.parametrize("information", [False, True])
+def test_work_registers_are_shared_only_between_values_not_live_together(information):
+    """``allocate_work``: a register's values are live (write-back to last read, the read
+    of a term at its issue clock) one after the other, a write strictly after the last
+    read of the value before; the constants keep their own; the bank is no deeper than
+    the most values live in one clock."""
+    rom = ProgramRom(board_config(preset("stereo8-board")).top.solver, information)
+    program, plan, register = rom.program, rom.schedule, rom.work_register
+    live = {op.dst.name: [plan.writeback[k]] * 2 for k, op in enumerate(program.ops)
+            if op.dst.bank == "work"}
+    for op, start in zip(program.ops, plan.issue):
+        terms = [(op.source, start)] if op.kind == "seed" else [
+            (v, start + t) for t, (_, a, b) in enumerate(op.terms) for v in (a, b)]
+        for value, cycle in terms + ([(op.init, start)] if op.init is not None else []):
+            if value.name in live:
+                live[value.name][1] = max(live[value.name][1], cycle)
+    constants = {register[name] for name in program.constants}
+    assert len(constants) == len(program.constants)
+    by_register = {}
+    for name, (write, last) in live.items():
+        assert register[name] not in constants, name
+        by_register.setdefault(register[name], []).append((write, last, name))
+    for values in by_register.values():
+        values.sort()
+        for (_, last, before), (write, _, after) in zip(values, values[1:]):
+            assert write > last, (before, after)
+    most = max(sum(w <= c <= l for w, l in live.values())
+               for c in range(plan.length + 1))
+    assert rom.work_depth == len(constants) + most < len(program.work)
+
+
 def test_trace_names_every_solve_value_of_the_program():
     """The model's trace holds every value of the program's solve under its name and
     format, aliases included (the trace test and the benchmark's ranges rely on it)."""
@@ -161,8 +195,8 @@ def _simulate(dut, transfers, count, ready=lambda cycle: True, limit=20000, prob
     the solver's ``gated`` input with it; ``pivot_log2``: per row the register, set
     before the row starts, at reset and as the previous row's record is taken, its
     ``pivot_log2_error`` checked against the model's); returns [(cycle, record)], the
-    cycles of the ``last`` transfers, and what ``probe(ctx)`` returned at the first
-    record."""
+    cycles of the ``last`` transfers, and what ``probe(ctx)`` returned in every cycle up
+    to the first record."""
     out, ends, probed = [], [], []
 
     def set_gate(ctx, row):
@@ -183,11 +217,11 @@ def _simulate(dut, transfers, count, ready=lambda cycle: True, limit=20000, prob
                 ctx.set(dut.gated, verdicts[len(verdicts) - len(queue)])
             ctx.set(dut.o.ready, int(ready(cycle)))
             taken = ctx.get(dut.i.valid) and ctx.get(dut.i.ready)
+            if probe is not None and not out:
+                probed.append(probe(ctx))
             if ctx.get(dut.o.valid) and ctx.get(dut.o.ready):
                 out.append((cycle, ctx.get(dut.o.payload)))
                 set_gate(ctx, len(out))
-                if probe is not None and not probed:
-                    probed.append(probe(ctx))
             await ctx.tick()
             if taken:
                 ends.extend([cycle] if queue.pop(0)["last"] else [])
@@ -197,7 +231,7 @@ def _simulate(dut, transfers, count, ready=lambda cycle: True, limit=20000, prob
     sim.add_clock(1e-8)
     sim.add_testbench(bench)
     sim.run()
-    return out, ends, probed[0] if probed else None
+    return out, ends, probed
 
 
 def _as_lists(record):
@@ -307,22 +341,42 @@ def test_row_slots_carry_poses_across_frames():
     assert out[0][0] == dut.clear_clocks + dut._engine.length + 1
 
 
+def _collapse(values):
+    """``values`` without repeats of the value before."""
+    return [v for k, v in enumerate(values) if k == 0 or v != values[k - 1]]
+
+
+def _is_subsequence(part, whole):
+    rest = iter(whole)
+    return all(any(v == w for w in rest) for v in part)
+
+
 def test_engine_registers_match_the_model_trace():
-    """Every solve intermediate of a row, read out of the engine's register bank."""
+    """Every solve intermediate of a row, read out of the engine's register bank while the
+    row runs: the values sharing a register (``allocate_work``) pass through it in the
+    order they are written, each the model's."""
     params, coefficients, _ = build_case("random")
     rows = mixed_rows("random", params, None, np.random.default_rng(SEED), 1)
     trace = E.solve_trace(params, coefficients, rows)
     dut = PoseSolver(params, coefficients)
     engine = dut._engine
-    names = [n for n in trace if n in engine.program.work]
-
-    def probe(ctx):
-        work = engine._banks[1]
-        return {name: ctx.get(work.data[engine.program.work[name].index]) for name in names}
-
-    _, _, registers = _simulate(dut, rows.transfers(), 1, probe=probe)
-    expected = {name: int(np.asarray(trace[name].raw, dtype=object)[0]) for name in names}
-    assert registers == expected
+    register = engine._words.work_register
+    names = [n for n in trace if n in engine.program.work and n not in engine.program.constants]
+    depth = engine._words.work_depth
+    _, _, history = _simulate(dut, rows.transfers(), 1,     # the banks exist once elaborated
+                              probe=lambda ctx: [ctx.get(engine._banks[1].data[r])
+                                                 for r in range(depth)])
+    writes = dict(zip((op.dst.name for op in engine.program.ops),
+                      engine._words.schedule.writeback))
+    missing = []
+    for r in sorted({register[n] for n in names}):
+        held = sorted((writes[n], n) for n in names if register[n] == r)
+        expected = _collapse([int(np.asarray(trace[n].raw, dtype=object)[0]) for _, n in held])
+        seen = _collapse([cycle[r] for cycle in history])
+        if not _is_subsequence(expected, seen):
+            missing.append((r, [n for _, n in held]))
+    assert len({register[n] for n in names}) < len(names), "registers must be shared"
+    assert not missing, f"registers whose values differ from the model's: {missing[:3]}"
 
 
 def test_backpressure_holds_the_record_and_the_next_row():
