@@ -250,7 +250,7 @@ def solve_trace(params, coef_raw, rows):
     scaled, scaled_rhs, scales, _, _ = scale_system(params, normal, rhs)
     values, program, _, _ = _solve(params, scaled, scaled_rhs, scales)
     trace = {name: value for (bank, name), value in values.items()
-             if bank == "input" or name not in program.constants}
+             if bank != "constant"}
     trace.update({name: values[operand_key(v)] for name, v in program.aliases.items()})
     return trace
 

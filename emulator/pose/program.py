@@ -162,7 +162,7 @@ def execute(params, program, batches, values, n, pivot_log2=None):
     the state they replace: the engine's reads of the state see the row's starting pose,
     so their results are returned apart. Returns (committed: state name -> Value, ILL
     mask, saturated mask)."""
-    values.update({("work", name): constant(value, operand.fmt, n)
+    values.update({(operand.bank, name): constant(value, operand.fmt, n)
                    for name, (operand, value) in program.constants.items()})
     threshold = np.broadcast_to(params.pivot_thresholds(pivot_log2)[0], (n,)).astype(object)
     ill, saturated = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)

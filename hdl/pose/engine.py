@@ -205,14 +205,12 @@ class PoseEngine(wiring.Component):
 
         # --- register banks --------------------------------------------------------------
         depth_in = 1 << (len(prog.inputs) - 1).bit_length()
-        depth_work = words.work_depth
-        work_init = [0] * depth_work
-        for operand, value in prog.constants.values():
-            work_init[words.address(operand)] = int(operand.fmt.quantize(value))
         # LUT RAM: block RAM is the scarcer resource (reference rows, coefficients)
         distributed = {"ram_style": "distributed"}
         bank_in = Memory(shape=raw, depth=depth_in, init=[], attrs=distributed)
-        bank_work = Memory(shape=raw, depth=depth_work, init=work_init, attrs=distributed)
+        bank_work = Memory(shape=raw, depth=words.work_depth, init=[], attrs=distributed)
+        constants = [Const(int(operand.fmt.quantize(value)), raw)
+                     for operand, value in prog.constants.values()]
         m.submodules.bank_in, m.submodules.bank_work = bank_in, bank_work
         self._banks = (bank_in, bank_work)  # for inspection by tests
         w_in, w_work = bank_in.write_port(), bank_work.write_port()
@@ -227,11 +225,14 @@ class PoseEngine(wiring.Component):
             r_work = bank_work.read_port(transparent_for=(w_work,))
             m.d.comb += [r_in.addr.eq(index_field), r_work.addr.eq(index_field)]
             bank = Signal(2, name=f"{name}_bank")
-            state_value = Signal(raw, name=f"{name}_state")
-            m.d.sync += [bank.eq(bank_field), state_value.eq(Array(old)[index_field[:3]])]
+            held = Signal(raw, name=f"{name}_held")       # a state value or a constant
+            m.d.sync += [bank.eq(bank_field),
+                         held.eq(Mux(bank_field == BANKS["constant"],
+                                     Array(constants)[index_field[:len(constants).bit_length()]],
+                                     Array(old)[index_field[:3]]))]
             value = Signal(raw, name=name)
             m.d.comb += value.eq(Mux(bank == BANKS["input"], r_in.data,
-                                     Mux(bank == BANKS["work"], r_work.data, state_value)))
+                                     Mux(bank == BANKS["work"], r_work.data, held)))
             return value
 
         op_a = operand(word.a_bank, word.a, "op_a")

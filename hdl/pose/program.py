@@ -14,10 +14,11 @@ list, so the engine and the model share one description of the algorithm.
 Operands live in
 * ``input``: the scaled system N̂ (21, upper triangle row by row), b̂ (6) and the scales
   ``2**-e`` (6), written by the normalizer at one per clock from the program's start;
-* ``work``: everything the program computes, plus the constants (memory initial
-  contents); a value is named once (``Operand.index`` numbers the values), and the
-  scheduled program keeps it in a register only from its write to its last read
-  (:func:`allocate_work`: registers are reused, the bank holds the values live at once);
+* ``work``: everything the program computes; a value is named once (``Operand.index``
+  numbers the values), and the scheduled program keeps it in a register only from its
+  write to its last read (:func:`allocate_work`: registers are reused, the bank holds
+  the values live at once);
+* ``constant``: the program's few constants, a table in the engine;
 * ``state``: the pose of the row's slot (q_w, q_x, q_y, q_z, p_x, p_y, p_z), registers
   loaded from the engine's pose ring when the row starts and written only by *commit*
   ops, which take effect only when the row raised no flag.
@@ -115,7 +116,7 @@ class RowProgram:
         In dependency order.
     inputs, work, state : dict name -> Operand
     constants : dict name -> (Operand, float)
-        Work registers with fixed initial contents.
+        The constants (bank "constant") and their values.
     step : tuple of Operand
         The six step values (captured into the pose record).
     gain_step : tuple of Operand
@@ -142,6 +143,14 @@ class RowProgram:
 
     def work_value(self, name, fmt):
         return self._new(self.work, "work", name, fmt)
+
+    def constant(self, name, fmt, value):
+        """A constant operand of value ``value`` (quantized into ``fmt`` by its users)."""
+        if name in self.constants:
+            raise ValueError(f"constant {name} is defined twice")
+        operand = Operand(name, "constant", len(self.constants), fmt)
+        self.constants[name] = (operand, value)
+        return operand
 
     def mac(self, name, fmt, init=None, terms=(), scale_log2=0, checked=False, dst=None):
         """Append ``dst = round(init + 2**scale_log2 · Σ ±a·b)``; a term-less op of an
@@ -176,7 +185,7 @@ def build_row_program(params, information=False):
     for name, value, fmt in (("three_halves", 1.5, params.unit_fmt),
                              ("three_halves_q", 1.5, qf), ("one", 1.0, qf),
                              ("third", 1 / 3, qf)):
-        prog.constants[name] = (prog.work_value(name, fmt), value)
+        prog.constant(name, fmt, value)
 
     x = cholesky_solve(prog, params, lambda i, j: n[f"N{i}{j}"], rhs)
     step = [prog.mac(f"Y{j}", sf, terms=[(1, x[j], scales[j])], checked=True) for j in range(6)]
@@ -242,7 +251,7 @@ def build_gain_program(params):
     to the row's (the engine's ROM); the model runs them apart."""
     prog = RowProgram()
     n, rhs, _ = _system_inputs(prog, params)
-    prog.constants["three_halves"] = (prog.work_value("three_halves", params.unit_fmt), 1.5)
+    prog.constant("three_halves", params.unit_fmt, 1.5)
     prog.step = _gain_ops(prog, params, n, rhs)
     return prog
 
@@ -372,7 +381,7 @@ def schedule(program):
     checks are its own)."""
     ops = program.ops
     ready = {("input", name): k + NORMALIZER_LATENCY for k, name in enumerate(program.inputs)}
-    ready.update({("work", name): 0 for name in program.constants})
+    ready.update({("constant", name): 0 for name in program.constants})
     ready.update({("state", name): 0 for name in program.state})
     priority = _critical_path(ops)
     readers = {name: [k for k, op in enumerate(ops) if op.dst.name != name and any(
@@ -430,17 +439,16 @@ def _work_lifetimes(program, schedule):
 
 def allocate_work(program, schedule):
     """Work-bank registers of ``program`` as scheduled: ``(register, depth)``, register a
-    dict name -> index. The constants keep registers ``0 … C − 1`` (initial contents,
-    never written); a computed value takes a free register from its write-back to its
-    last read, and a register is free again from the clock after that read (a write in
-    the clock of a read would be seen by it: the bank's reads are transparent). Linear
-    scan in write order: as many registers as values are live at once, the least an
-    interval allocation can do. One register per value took 283 for the board's
-    program with the information gain, where 64 are ever live (issue 17: the bank is
-    distributed RAM, copied per read port)."""
-    register = {name: k for k, name in enumerate(program.constants)}
+    dict name -> index. A computed value takes a free register from its write-back to
+    its last read, and a register is free again from the clock after that read (a write
+    in the clock of a read would be seen by it: the bank's reads are transparent).
+    Linear scan in write order: as many registers as values are live at once, the least
+    an interval allocation can do. One register per value took 283 (with the constants)
+    for the board's program with the information gain, where 64 are ever live (issue
+    17: the bank is distributed RAM, copied per read port)."""
+    register = {}
     free, busy = [], []                     # free registers; (free from, register)
-    depth = len(register)
+    depth = 0
     for name, write, last in _work_lifetimes(program, schedule):
         busy.sort()
         while busy and busy[0][0] <= write:

@@ -9,7 +9,7 @@ from hdl.pose.program import STATE_NAMES, allocate_work, build_row_program, sche
 __all__ = ["BANKS", "ProgramRom", "seed_table_contents"]
 
 #: Register-bank codes of an instruction word's operands.
-BANKS = {"input": 0, "work": 1, "state": 2}
+BANKS = {"input": 0, "work": 1, "state": 2, "constant": 3}
 
 
 def seed_table_contents(params):
@@ -37,7 +37,7 @@ class ProgramRom:
             for op in ops if op.kind == "mac" and op.init})
         self.max_terms = max(op.slots for op in ops)
         self.index_bits = max(len(self.program.inputs), self.work_depth,
-                              len(STATE_NAMES)).bit_length()
+                              len(STATE_NAMES), len(self.program.constants)).bit_length()
         # capture codes: 1-6 the step, 7-12 the information gain's moves
         step_names = {v.name: k for k, v in
                       enumerate(self.program.step + self.program.gain_step)}

@@ -101,7 +101,7 @@ def test_schedule_respects_every_dependency():
     plan = schedule(program)
     ops = program.ops
     written = {("input", name): k + NORMALIZER_LATENCY for k, name in enumerate(program.inputs)}
-    written.update({("work", name): 0 for name in program.constants})
+    written.update({("constant", name): 0 for name in program.constants})
     for k, op in enumerate(ops):
         if not op.commit:
             written[(op.dst.bank, op.dst.name)] = plan.writeback[k]
@@ -129,8 +129,8 @@ def test_schedule_respects_every_dependency():
 def test_work_registers_are_shared_only_between_values_not_live_together(information):
     """``allocate_work``: a register's values are live (write-back to last read, the read
     of a term at its issue clock) one after the other, a write strictly after the last
-    read of the value before; the constants keep their own; the bank is no deeper than
-    the most values live in one clock."""
+    read of the value before; the bank is no deeper than the most values live in one
+    clock."""
     rom = ProgramRom(board_config(preset("stereo8-board")).top.solver, information)
     program, plan, register = rom.program, rom.schedule, rom.work_register
     live = {op.dst.name: [plan.writeback[k]] * 2 for k, op in enumerate(program.ops)
@@ -141,11 +141,8 @@ def test_work_registers_are_shared_only_between_values_not_live_together(informa
         for value, cycle in terms + ([(op.init, start)] if op.init is not None else []):
             if value.name in live:
                 live[value.name][1] = max(live[value.name][1], cycle)
-    constants = {register[name] for name in program.constants}
-    assert len(constants) == len(program.constants)
     by_register = {}
     for name, (write, last) in live.items():
-        assert register[name] not in constants, name
         by_register.setdefault(register[name], []).append((write, last, name))
     for values in by_register.values():
         values.sort()
@@ -153,7 +150,7 @@ def test_work_registers_are_shared_only_between_values_not_live_together(informa
             assert write > last, (before, after)
     most = max(sum(w <= c <= l for w, l in live.values())
                for c in range(plan.length + 1))
-    assert rom.work_depth == len(constants) + most < len(program.work)
+    assert rom.work_depth == most < len(program.work)
 
 
 def test_trace_names_every_solve_value_of_the_program():
@@ -163,9 +160,8 @@ def test_trace_names_every_solve_value_of_the_program():
     rows = mixed_rows("random", params, None, np.random.default_rng(SEED), 2)
     trace = E.solve_trace(params, coefficients, rows)
     program = build_row_program(params)
-    solve = {name for name in program.work if name not in program.constants
-             and not name.startswith(("R", "theta2", "cubic", "q1", "gain",
-                                      "px", "py", "pz"))}
+    solve = {name for name in program.work
+             if not name.startswith(("R", "theta2", "cubic", "q1", "gain", "px", "py", "pz"))}
     # term-less ops of an operand into its own format are that operand (no register)
     aliases = {"D0", "c0"} | {f"W{i}0" for i in range(1, 6)}
     assert set(program.aliases) == aliases
@@ -361,7 +357,7 @@ def test_engine_registers_match_the_model_trace():
     dut = PoseSolver(params, coefficients)
     engine = dut._engine
     register = engine._words.work_register
-    names = [n for n in trace if n in engine.program.work and n not in engine.program.constants]
+    names = [n for n in trace if n in engine.program.work]
     depth = engine._words.work_depth
     _, _, history = _simulate(dut, rows.transfers(), 1,     # the banks exist once elaborated
                               probe=lambda ctx: [ctx.get(engine._banks[1].data[r])
