@@ -228,7 +228,7 @@ class PoseEngine(wiring.Component):
             held = Signal(raw, name=f"{name}_held")       # a state value or a constant
             m.d.sync += [bank.eq(bank_field),
                          held.eq(Mux(bank_field == BANKS["constant"],
-                                     Array(constants)[index_field[:len(constants).bit_length()]],
+                                     Array(constants)[index_field[:(len(constants) - 1).bit_length()]],
                                      Array(old)[index_field[:3]]))]
             value = Signal(raw, name=name)
             m.d.comb += value.eq(Mux(bank == BANKS["input"], r_in.data,

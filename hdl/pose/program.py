@@ -24,6 +24,7 @@ Operands live in
   ops, which take effect only when the row raised no flag.
 """
 
+import heapq
 from dataclasses import dataclass, field, replace
 
 from hdl.fixed import QFormat
@@ -447,17 +448,15 @@ def allocate_work(program, schedule):
     for the board's program with the information gain, where 64 are ever live (issue
     17: the bank is distributed RAM, copied per read port)."""
     register = {}
-    free, busy = [], []                     # free registers; (free from, register)
+    free, busy = [], []                     # heaps: free registers; (free from, register)
     depth = 0
     for name, write, last in _work_lifetimes(program, schedule):
-        busy.sort()
         while busy and busy[0][0] <= write:
-            free.append(busy.pop(0)[1])
+            heapq.heappush(free, heapq.heappop(busy)[1])
         if free:
-            free.sort()
-            index = free.pop(0)
+            index = heapq.heappop(free)
         else:
             index, depth = depth, depth + 1
         register[name] = index
-        busy.append((last + 1, index))
+        heapq.heappush(busy, (last + 1, index))
     return register, depth

@@ -34,11 +34,12 @@ COUNTS = ("judged", "outliers", "confident")
 BITS = ("stepped", "formed", "ill")
 
 #: The window rules that compare a sum with a run-time fraction of a count: (the
-#: setting, the operands — left side and count —, the test ``left > fraction·count`` or
+#: setting's name in ``settings``, the operands — left side and count —, the test ``left > fraction·count`` or
 #: ``<``). Judged one a clock through one multiplier: six in parallel took six DSP48.
-RULES = (("lost_update", "update", "<"), ("lost_outlier", "outlier", ">"),
-         ("degraded_update", "update", "<"), ("degraded_outlier", "outlier", ">"),
-         ("degraded_ill", "ill", ">"), ("degraded_measurements", "measurements", "<"))
+RULES = (("lost_update_fraction", "update", "<"), ("lost_outlier_fraction", "outlier", ">"),
+         ("degraded_update_fraction", "update", "<"),
+         ("degraded_outlier_fraction", "outlier", ">"),
+         ("degraded_ill_fraction", "ill", ">"), ("degraded_measurements", "measurements", "<"))
 
 
 class StatusUnit(wiring.Component):
@@ -215,15 +216,9 @@ class StatusUnit(wiring.Component):
             "measurements": (sums["confident"] << MEASUREMENTS_FMT.frac_bits,
                              sums["stepped"]),
         }
-        factors = {"lost_update": cfg.lost_update_fraction,
-                   "lost_outlier": cfg.lost_outlier_fraction,
-                   "degraded_update": cfg.degraded_update_fraction,
-                   "degraded_outlier": cfg.degraded_outlier_fraction,
-                   "degraded_ill": cfg.degraded_ill_fraction,
-                   "degraded_measurements": cfg.degraded_measurements}
         width = max(len(Value.cast(left)) for left, _ in operands.values())
         left = Signal(width)
-        factor = Signal(max(len(f) for f in factors.values()))
+        factor = Signal(max(len(getattr(cfg, name)) for name, _, _ in RULES))
         count = Signal(max(len(c) for _, c in operands.values()))
         product = Signal(len(factor) + len(count))
         above = Signal()                    # the rule tests left > product, else <
@@ -234,7 +229,7 @@ class StatusUnit(wiring.Component):
             for k, (name, operand, test) in enumerate(RULES):
                 with m.Case(k):
                     value, of = operands[operand]
-                    m.d.comb += [factor.eq(factors[name]), count.eq(of)]
+                    m.d.comb += [factor.eq(getattr(cfg, name)), count.eq(of)]
                     m.d.sync += [left.eq(value), above.eq(test == ">")]
         m.d.sync += product.eq(factor * count)
         m.d.sync += [judged.eq(rule), loaded.eq(rule != len(RULES)),
@@ -249,18 +244,17 @@ class StatusUnit(wiring.Component):
         stepped)."""
         cfg = self.settings
         u_rows, _ = updates
-        v = {factor: verdicts[k] for k, (factor, _, _) in enumerate(RULES)}
+        v = {name: verdicts[k] for k, (name, _, _) in enumerate(RULES)}
 
         def few_updates(name):
-            return Mux(u_rows == 0, getattr(cfg, f"{name}_update_fraction") != 0,
-                       v[f"{name}_update"])
+            return Mux(u_rows == 0, getattr(cfg, name) != 0, v[name])
 
-        lost = (((u_rows == window) & few_updates("lost"))
-                | ((rows == window) & v["lost_outlier"]))
+        lost = (((u_rows == window) & few_updates("lost_update_fraction"))
+                | ((rows == window) & v["lost_outlier_fraction"]))
         few = Mux(sums["stepped"] == 0, cfg.degraded_measurements != 0,
                   v["degraded_measurements"])
-        degraded = (few_updates("degraded") | v["degraded_outlier"]
-                    | (sums["formed"] == 0) | v["degraded_ill"] | few)
+        degraded = (few_updates("degraded_update_fraction") | v["degraded_outlier_fraction"]
+                    | (sums["formed"] == 0) | v["degraded_ill_fraction"] | few)
         return lost, degraded
 
     def _decide(self, m, record, verdicts, sums, rows, window, updates, empty_windows):
