@@ -194,8 +194,10 @@ class StereoRowDescriptor(wiring.Component):
            In(stream.Signature(descriptor_layout(params, 1)))
         Beats, or descriptor bits, of the two cameras.
     centre : In(params.centre_fmt.shape())
-        Window centre, sampled with the first column of each row of ``a`` the lane
-        pairs with ``b``'s (:class:`hdl.descriptor.framer.StereoJoin`).
+        Window centre, sampled with each row's first beat of ``a`` (by ``a``'s framer);
+        with ``shared``, with the first column of each row of ``a`` the lane pairs with
+        ``b``'s (:class:`hdl.descriptor.framer.StereoJoin`: the bits carry the temporal
+        lane's centre, and the port is the pair's register).
     o : Out(stream.Signature(params.measurement_layout()))
         Measurements with ``a``'s row key and ``t_first``; ``bad`` if either row was
         bad; ``no_reference`` is always 0.
@@ -212,7 +214,7 @@ class StereoRowDescriptor(wiring.Component):
         self.shared = shared
         self.fronts = [] if shared else [(RowFramer(params), DescriptorFIR(params))
                                          for _ in "ab"]
-        self.join = StereoJoin(params)
+        self.join = StereoJoin(params, centre_port=shared)
         self.matcher = ShiftMatcher(params)
         beat = descriptor_layout(params, 1) if shared else params.input_layout()
         super().__init__({
@@ -241,9 +243,12 @@ class StereoRowDescriptor(wiring.Component):
             wiring.connect(m, wiring.flipped(port), framer.i)
             wiring.connect(m, framer.o, fir.i)
             wiring.connect(m, fir.o, to)
-            # the join samples the lane's centre; the stereo window has no run-time width
-            m.d.comb += [framer.centre.eq(0), framer.half_width.eq(0)]
-        m.d.comb += join.centre.eq(self.centre)
+            # a's framer samples the centre with the row's first beat, and the rows carry
+            # it to the join; the stereo window has no run-time width
+            m.d.comb += [framer.centre.eq(self.centre if name == "a" else 0),
+                         framer.half_width.eq(0)]
+        if self.shared:
+            m.d.comb += join.centre.eq(self.centre)
         _connect_pair(m, join, self.matcher)
         wiring.connect(m, self.matcher.o, wiring.flipped(self.o))
         return m

@@ -147,16 +147,18 @@ class StereoJoin(wiring.Component):
     index) is dropped whole, so one lost row does not misalign the pair for good.
 
     The output's metadata is the stereo lane's own: ``camera``, ``frame``, ``row``,
-    ``t_first`` from ``a``, ``bad`` from either, the ``centre`` port sampled with the
-    first column pair of each row (saturated to ``±centre_range``) and the built
-    maximum half-width (the stereo lane searches its whole window); whatever centre,
-    half-width or source row the inputs carry (a temporal lane's, the forecast's in the
-    closed loop) is not used.
+    ``t_first`` from ``a``, ``bad`` from either, the centre and the built maximum
+    half-width (the stereo lane searches its whole window). The centre is, with
+    ``centre_port``, the ``centre`` port sampled with the first column pair of each row
+    (saturated to ``±centre_range``): the rows are a temporal lane's, whose centre is the
+    forecast's, and the port is a pair's register. Without, it is the one ``a``'s rows
+    carry (their framer sampled the lane's centre with the row's first beat, however
+    late ``b``'s row comes). The half-width and source row the inputs carry are not used.
 
     Members
     -------
     a, b : In(stream.Signature(descriptor_layout(params, 1)))
-    centre : In(params.centre_fmt.shape())
+    centre : In(params.centre_fmt.shape()), with ``centre_port`` only
     o : Out(stream.Signature(descriptor_layout(params, 2)))
 
     Latency 1 (output register); one column pair per clock; two different head rows
@@ -165,14 +167,17 @@ class StereoJoin(wiring.Component):
 
     latency = 1
 
-    def __init__(self, params):
+    def __init__(self, params, centre_port=True):
         self.params = check_lane_params(params)
-        super().__init__({
+        self.centre_port = centre_port
+        members = {
             "a": In(stream.Signature(descriptor_layout(params, 1))),
             "b": In(stream.Signature(descriptor_layout(params, 1))),
-            "centre": In(params.centre_fmt.shape()),
             "o": Out(stream.Signature(descriptor_layout(params, 2))),
-        })
+        }
+        if centre_port:
+            members["centre"] = In(params.centre_fmt.shape())
+        super().__init__(members)
 
     def elaborate(self, platform):
         p = self.params
@@ -203,10 +208,14 @@ class StereoJoin(wiring.Component):
             self.a.ready.eq((pairing & self.b.valid & advance) | drop_a),
             self.b.ready.eq((pairing & self.a.valid & advance) | drop_b),
         ]
-        centre = Signal.like(self.o.payload.meta.centre)     # of the row being paired
-        sampled = saturate_centre(p, self.centre)
-        with m.If(paired & a.first):
-            m.d.sync += centre.eq(sampled)
+        if self.centre_port:
+            centre = Signal.like(self.o.payload.meta.centre)     # of the row being paired
+            sampled = saturate_centre(p, self.centre)
+            with m.If(paired & a.first):
+                m.d.sync += centre.eq(sampled)
+            row_centre = Mux(a.first, sampled, centre)
+        else:
+            row_centre = a.meta.centre
         out = self.o.payload
         with m.If(advance):
             m.d.sync += [
@@ -217,7 +226,7 @@ class StereoJoin(wiring.Component):
                 out.meta.camera.eq(a.meta.camera), out.meta.frame.eq(a.meta.frame),
                 out.meta.row.eq(a.meta.row), out.meta.t_first.eq(a.meta.t_first),
                 out.meta.bad.eq(a.meta.bad | b.meta.bad),
-                out.meta.centre.eq(Mux(a.first, sampled, centre)),
+                out.meta.centre.eq(row_centre),
                 out.meta.half_width.eq(p.max_half_width),
             ]
         with m.If(paired):

@@ -333,6 +333,28 @@ def test_stereo_lane_matches_model():
     assert [m for _, m in outputs] == expected, f"SEED={SEED}"
 
 
+def test_stereo_lane_samples_the_centre_with_the_rows_first_beat():
+    """Camera a's row 1 breaks off after three beats (no ``last``; the next row's first
+    beat, with its own centre on the port, follows at once) while its first columns
+    are still in the filter: the lane matches that row at the centre the port held at
+    its first beat, as the model does, not at the one it holds when the pair's first
+    columns reach the join (a CI failure, SEED=169708397, before the fix)."""
+    p = SMALL_STEREO
+    rng = np.random.default_rng(SEED)
+    frames, _ = moving_rows(rng, 1, p.height, p.width + 60)
+    left = frame_beats(frames[:, :, 20:p.width + 20])
+    right = frame_beats(frames[:, :, 60:])                  # disparity 40
+    left = left[:p.width + 3] + left[2 * p.width:]
+    row_centres = [-4, 3, -2, 4]
+    centres = [row_centres[beat["row"]] for beat in left]
+    expected = StereoLaneModel(p).run(left, centres, right)
+    at_pairing = [row_centres[2] if beat["row"] == 1 else c for beat, c in zip(left, centres)]
+    assert StereoLaneModel(p).run(left, at_pairing, right) != expected
+    outputs, _ = simulate(StereoRowDescriptor(p), {"a": left, "b": right}, centres,
+                          len(expected), seed=SEED)
+    assert [m for _, m in outputs] == expected, f"SEED={SEED}"
+
+
 class SharedPair(wiring.Component):
     """The measurement engine's pair: two paired temporal lanes at their own centre
     ``TEMPORAL_CENTRE`` and narrowest half-width, their bits into a shared stereo lane
