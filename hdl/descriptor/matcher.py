@@ -17,6 +17,7 @@ from amaranth.lib.wiring import In, Out
 from hdl.fixed import UQ, Overflow, Rounding, hdl_resize
 from hdl.descriptor.layouts import meta_layout, pair_layout
 from hdl.descriptor.params import RowDescriptorParams
+from hdl.slot_register import SlotRegister
 
 __all__ = ["SerialDivider", "ShiftMatcher"]
 
@@ -55,6 +56,14 @@ class SerialDivider(Elaboratable):
         return m
 
 
+def _slot_shape(ports):
+    """A port index, one bit at least: with a zero-width index (one port) the Amaranth
+    simulator passed the lanes' tests, but the Verilog lost the engine's dividers in
+    synthesis and failed the temporal lane's Verilator bench (the construct at fault
+    was not isolated)."""
+    return range(max(ports, 2))
+
+
 def _first_min(items):
     """Lowest value and its index among ``(value, index)`` in index order (ties: first)."""
     while len(items) > 1:
@@ -88,25 +97,47 @@ class ShiftMatcher(wiring.Component):
     the run-time window's first or last shift is ``edge_hit`` (no sub-pixel), as on the
     built window's. At ``max_half_width`` nothing changes (bit for bit).
 
+    With ``ports`` > 1 one matcher serves that many column streams (cameras) in turn
+    (issue 17 item 3): port ``k`` is read in every ``ports``-th clock (a clock with
+    nothing offered there is a bubble), and the front's per-row state (delay lines,
+    stepper, cost counters) is kept per port in rings that turn with the ports
+    (:class:`hdl.slot_register.SlotRegister`), so the adders and comparators are built
+    once. The engine is shared: a segment that ends while it works on another port's
+    stalls every port (segments of different ports that end together queue for it),
+    and a row's results wait in their port's own bank. Each port's measurements are
+    those of a matcher of its own, bit for bit; the ports' rows interleave on ``o``
+    (``camera`` tells them apart).
+
+    Parameters
+    ----------
+    params : RowDescriptorParams
+    ports : int
+        Column streams served (default 1: one stream, the lane's own matcher).
+
     Members
     -------
-    i : In(stream.Signature(pair_layout(params)))
+    i : In(stream.Signature(pair_layout(params))), ``.array(ports)`` with ``ports`` > 1
     o : Out(stream.Signature(params.measurement_layout()))
         K measurements per row, segment order, Q formats in the layout's docstring.
 
     Latency :attr:`latency` clocks from the row's last column to its segment-0
-    measurement, then one measurement per clock. Throughput one column per clock.
-    Backpressure: ``o`` holds; the engine waits to store its next result while the
-    previous row's measurements are leaving, and input stalls behind it.
-    Reset empties the pipeline and the engine; the costs restart with each segment.
+    measurement, then one measurement per clock, when the engine is free. Throughput
+    one column per clock (per port, one per ``ports`` clocks). Backpressure: ``o``
+    holds; the engine waits to store its next result while the previous row's
+    measurements are leaving, and input stalls behind it. Reset empties the pipeline
+    and the engine; the costs restart with each segment.
     """
 
-    def __init__(self, params):
+    def __init__(self, params, ports=1):
         if not isinstance(params, RowDescriptorParams):
             raise TypeError(f"params must be a RowDescriptorParams, not {params!r}")
+        if not isinstance(ports, int) or isinstance(ports, bool) or not 1 <= ports <= 16:
+            raise ValueError(f"ports must be an integer between 1 and 16, not {ports!r}")
         self.params = params
+        self.ports = ports
+        column = In(stream.Signature(pair_layout(params)))
         super().__init__({
-            "i": In(stream.Signature(pair_layout(params))),
+            "i": column if ports == 1 else column.array(ports),
             "o": Out(stream.Signature(params.measurement_layout())),
         })
 
@@ -125,108 +156,115 @@ class ShiftMatcher(wiring.Component):
     # --- front: delay lines, segment stepper, cost counters ------------------------------
 
     def _front(self, m):
-        p = self.params
+        p, ports = self.params, self.ports
         n, k_seg, r, width = p.n_shifts, p.segments, p.radius, p.width
         cost_shape = p.cost_fmt.shape()
+        dc_max, dr_max = p.max_delays
+        geometry = {"d_cur": max(dc_max, 1).bit_length(),       # at least one bit (Verilog)
+                    "d_ref": max(dr_max, 1).bit_length(),
+                    "start_pos": range(2 * width), "length": range(width + 1)}
 
         engine_busy = Signal()
         s2_valid = Signal()
         s2 = Signal(data.StructLayout({
             "cur": 1, "ref": 1, "strong": 1, "in_range": 1, "seg_first": 1, "seg_end": 1,
-            "seg": p.segment_bits, "meta": meta_layout(p), "no_reference": 1}))
+            "seg": p.segment_bits, "meta": meta_layout(p), "no_reference": 1,
+            "slot": _slot_shape(ports)}))
         stall = s2_valid & s2.in_range & s2.seg_end & engine_busy
         advance = ~stall
 
-        # skid register: i.ready is a flip-flop, so a stall does not ripple through the
-        # store and the FIR back to the camera input within one clock
+        # the port served this step (round robin; one slot per step, beat or bubble)
+        slot = Signal(_slot_shape(ports))
+        inputs = list(self.i) if ports > 1 else [self.i]
+        with m.If(advance):
+            m.d.sync += slot.eq(Mux(slot == ports - 1, 0, slot + 1))
+        offered = Array(port.valid for port in inputs)[slot]
+        payload = Array(port.payload.as_value() for port in inputs)[slot]
+
+        # skid register: ready is a flip-flop (with ports, and the slot's decode), so a
+        # stall does not ripple through the store and the FIR back to the camera input
+        # within one clock
         skid_valid = Signal()
         skid = Signal(pair_layout(p))
         item = Signal(pair_layout(p))
-        item_valid = skid_valid | self.i.valid
-        m.d.comb += [self.i.ready.eq(~skid_valid),
-                     item.eq(Mux(skid_valid, skid.as_value(), self.i.payload.as_value()))]
+        item_valid = skid_valid | offered
+        m.d.comb += item.eq(Mux(skid_valid, skid.as_value(), payload))
+        m.d.comb += [port.ready.eq(~skid_valid & (slot == k)) for k, port in enumerate(inputs)]
         with m.If(skid_valid & advance):
             m.d.sync += skid_valid.eq(0)
-        with m.Elif(~skid_valid & self.i.valid & ~advance):
-            m.d.sync += [skid_valid.eq(1), skid.eq(self.i.payload)]
+        with m.Elif(~skid_valid & offered & ~advance):
+            m.d.sync += [skid_valid.eq(1), skid.eq(payload)]
         accept = item_valid & advance
 
-        # stage 0: delay lines (bit 0 newest), the row's centre
-        dc_max, dr_max = p.max_delays
-        cur_line = Signal(dc_max + 1)
-        strong_line = Signal(dc_max + 1)
-        ref_line = Signal(dr_max + 1)
-        centre = Signal(p.centre_fmt.shape())
-        s1_valid = Signal()
-        s1 = Signal(pair_layout(p))
+        def state(shape, name):
+            return SlotRegister(m, shape, slots=ports, step=advance, name=name)
+
+        # stage 0: delay lines (bit 0 newest), the row's geometry from its centre (every
+        # item carries it)
+        cur_line, strong_line = state(dc_max + 1, "cur_line"), state(dc_max + 1, "strong_line")
+        ref_line = state(dr_max + 1, "ref_line")
         with m.If(accept):
-            m.d.sync += [cur_line.eq(Cat(item.cur, cur_line[:-1])),
-                         strong_line.eq(Cat(item.strong, strong_line[:-1])),
-                         ref_line.eq(Cat(item.ref, ref_line[:-1]))]
-            with m.If(item.first):
-                m.d.sync += centre.eq(item.meta.centre)
-        with m.If(advance):
-            m.d.sync += [s1_valid.eq(item_valid), s1.eq(item)]
-
-        # the row's geometry from its centre (registered; settles within two columns,
-        # long before the first compared column at pos ≥ 2R)
-        a = centre + p.match.shift_min
+            m.d.comb += [cur_line.next.eq(Cat(item.cur, cur_line.head[:-1])),
+                         strong_line.next.eq(Cat(item.strong, strong_line.head[:-1])),
+                         ref_line.next.eq(Cat(item.ref, ref_line.head[:-1]))]
+        a = item.meta.centre + p.match.shift_min
         a_top = a + (n - 1)
-        lo = Signal(range(width + 1))
-        d_cur = Signal(max(dc_max, 1).bit_length())      # at least one bit (Verilog)
-        d_ref = Signal(max(dr_max, 1).bit_length())
-        start_pos = Signal(range(2 * width))
-        length = Signal(range(width + 1))
-        lo_value = r + Mux(a_top > 0, a_top, 0)
-        hi_value = width - r + Mux(a < 0, a, 0)
-        m.d.sync += [lo.eq(lo_value), length.eq(hi_value - lo_value),
-                     d_cur.eq(Mux(a < 0, -a, 0)), d_ref.eq(Mux(a > 0, a, 0)),
-                     start_pos.eq(lo + d_cur + r)]
+        d_cur = Mux(a < 0, -a, 0)
+        lo = r + Mux(a_top > 0, a_top, 0)
+        hi = width - r + Mux(a < 0, a, 0)
+        s1_valid = Signal()
+        s1 = Signal(data.StructLayout({"item": pair_layout(p), "slot": _slot_shape(ports),
+                                       **geometry}))
+        with m.If(advance):
+            m.d.sync += [s1_valid.eq(item_valid), s1.item.eq(item), s1.slot.eq(slot),
+                         s1.d_cur.eq(d_cur), s1.d_ref.eq(Mux(a > 0, a, 0)),
+                         s1.start_pos.eq(lo + d_cur + r), s1.length.eq(hi - lo)]
 
-        # stage 1: taps, compared range, segment stepper t(p) = K(p+1) − 1 − len·s(p)
-        acc = Signal(range(width + k_seg))
-        seg = Signal(p.segment_bits)
-        prev_end = Signal()
-        in_range = s1.pos >= start_pos
-        seg_end = acc + k_seg >= length
-        seg_first = (s1.pos == start_pos) | prev_end
-        with m.If(advance & s1_valid):
-            with m.If(s1.first):
-                m.d.sync += [acc.eq(k_seg - 1), seg.eq(0), prev_end.eq(0)]
+        # stage 1: taps (the lines as stage 0 left them), compared range, segment stepper
+        # t(p) = K(p+1) − 1 − len·s(p)
+        acc, seg = state(range(width + k_seg), "acc"), state(p.segment_bits, "seg")
+        prev_end = state(1, "prev_end")
+        in_range = s1.item.pos >= s1.start_pos
+        seg_end = acc.head + k_seg >= s1.length
+        seg_first = (s1.item.pos == s1.start_pos) | prev_end.head
+        with m.If(s1_valid):
+            with m.If(s1.item.first):
+                m.d.comb += [acc.next.eq(k_seg - 1), seg.next.eq(0), prev_end.next.eq(0)]
             with m.Elif(in_range):
-                m.d.sync += [acc.eq(Mux(seg_end, acc + k_seg - length, acc + k_seg)),
-                             seg.eq(seg + seg_end), prev_end.eq(seg_end)]
+                m.d.comb += [acc.next.eq(Mux(seg_end, acc.head + k_seg - s1.length,
+                                             acc.head + k_seg)),
+                             seg.next.eq(seg.head + seg_end), prev_end.next.eq(seg_end)]
         with m.If(advance):
             m.d.sync += [
                 s2_valid.eq(s1_valid),
-                s2.cur.eq(cur_line.bit_select(d_cur, 1)),
-                s2.strong.eq(strong_line.bit_select(d_cur, 1)),
-                s2.ref.eq(ref_line.bit_select(d_ref, 1)),
+                s2.cur.eq(cur_line.tail.bit_select(s1.d_cur, 1)),
+                s2.strong.eq(strong_line.tail.bit_select(s1.d_cur, 1)),
+                s2.ref.eq(ref_line.tail.bit_select(s1.d_ref, 1)),
                 s2.in_range.eq(in_range), s2.seg_first.eq(seg_first),
-                s2.seg_end.eq(seg_end), s2.seg.eq(seg),
-                s2.meta.eq(s1.meta), s2.no_reference.eq(s1.no_reference),
+                s2.seg_end.eq(seg_end), s2.seg.eq(seg.head),
+                s2.meta.eq(s1.item.meta), s2.no_reference.eq(s1.item.no_reference),
+                s2.slot.eq(s1.slot),
             ]
 
         # stage 2: reference window, n cost counters, bit-change and strong counters
-        window = Signal(n)
-        new_window = Cat(s2.ref, window[:n - 1])
-        counters = [Signal(cost_shape, name=f"cost{k}") for k in range(n)]
-        nxt = [Mux(s2.seg_first, 0, counters[k]) + (s2.cur ^ new_window[k])
-               for k in range(n)]
+        window = state(n, "window")
+        new_window = Cat(s2.ref, window.head[:n - 1])
+        counters = [state(cost_shape, f"cost{k}") for k in range(n)]
+        nxt = [Mux(s2.seg_first, 0, c.head) + (s2.cur ^ new_window[k])
+               for k, c in enumerate(counters)]
         min_t = p.match.min_transitions
-        trans = Signal(p.transition_bits)
-        prev_cur = Signal()
-        trans_sum = trans + (s2.cur ^ prev_cur)
+        trans, prev_cur = state(p.transition_bits, "trans"), state(1, "prev_cur")
+        trans_sum = trans.head + (s2.cur ^ prev_cur.head)
         trans_next = Mux(s2.seg_first, 0, Mux(trans_sum > min_t, min_t, trans_sum))
         min_s = p.match.min_strong
-        strong = Signal(p.strong_bits)
-        strong_sum = Mux(s2.seg_first, 0, strong) + s2.strong
+        strong = state(p.strong_bits, "strong")
+        strong_sum = Mux(s2.seg_first, 0, strong.head) + s2.strong
         strong_next = Mux(strong_sum > min_s, min_s, strong_sum)
-        with m.If(advance & s2_valid):
-            m.d.sync += [window.eq(new_window), prev_cur.eq(s2.cur)]
+        with m.If(s2_valid):
+            m.d.comb += [window.next.eq(new_window), prev_cur.next.eq(s2.cur)]
             with m.If(s2.in_range):
-                m.d.sync += [c.eq(v) for c, v in zip(counters, nxt)]
-                m.d.sync += [trans.eq(trans_next), strong.eq(strong_next)]
+                m.d.comb += [c.next.eq(v) for c, v in zip(counters, nxt)]
+                m.d.comb += [trans.next.eq(trans_next), strong.next.eq(strong_next)]
 
         snapshot = advance & s2_valid & s2.in_range & s2.seg_end
         flat = (trans_next < min_t) | (strong_next < min_s)
@@ -249,7 +287,7 @@ class ShiftMatcher(wiring.Component):
         shadow = [Signal(cost_shape, name=f"frozen{k}") for k in range(n)]
         snap = Signal(data.StructLayout({
             "textureless": 1, "seg": p.segment_bits,
-            "meta": meta_layout(p), "no_reference": 1}))
+            "meta": meta_layout(p), "no_reference": 1, "slot": _slot_shape(self.ports)}))
         step = Signal(range(p.engine_result_step + 1))
         m.d.comb += front["busy"].eq(step != 0)
         # the run-time window's first and last cost index (p.window_indices)
@@ -263,7 +301,7 @@ class ShiftMatcher(wiring.Component):
             m.d.sync += [sh.eq(v) for sh, v in zip(shadow, front["costs"])]
             m.d.sync += [snap.textureless.eq(front["textureless"]), snap.seg.eq(s2.seg),
                          snap.meta.eq(s2.meta), snap.no_reference.eq(s2.no_reference),
-                         first.eq(Mux(below > 0, below, 0)),
+                         snap.slot.eq(s2.slot), first.eq(Mux(below > 0, below, 0)),
                          last.eq(Mux(above < n - 1, above, n - 1)), step.eq(1)]
 
         def during(first, last):
@@ -366,15 +404,18 @@ class ShiftMatcher(wiring.Component):
         result_layout = data.StructLayout({
             "shift": p.shift_fmt.shape(), "subpixel": p.subpixel_fmt.shape(),
             "confidence": cf.shape(), "textureless": 1, "edge_hit": 1})
-        bank = Array(Signal(result_layout, name=f"result{k}") for k in range(p.segments))
+        # a row's results wait for its last segment, each port's in its own bank
+        bank = Array(Array(Signal(result_layout, name=f"result{s}_{k}")
+                           for k in range(p.segments)) for s in range(self.ports))
         seq_busy = Signal()
         seq_idx = Signal(p.segment_bits)
-        seq_row = Signal(data.StructLayout({"meta": meta_layout(p), "no_reference": 1}))
+        seq_row = Signal(data.StructLayout({"meta": meta_layout(p), "no_reference": 1,
+                                            "slot": _slot_shape(self.ports)}))
         result_step = step == p.engine_result_step
         with m.If((step != 0) & ~result_step):
             m.d.sync += step.eq(step + 1)
         with m.If(result_step & ~seq_busy):
-            entry = bank[snap.seg]
+            entry = bank[snap.slot][snap.seg]
             m.d.sync += [
                 entry.shift.eq(snap.meta.centre + p.match.shift_min + i1),
                 entry.subpixel.eq(Mux(edge, 0, Mux(cm < cp, -magnitude, magnitude))),
@@ -384,14 +425,15 @@ class ShiftMatcher(wiring.Component):
             ]
             with m.If(snap.seg == p.segments - 1):
                 m.d.sync += [seq_busy.eq(1), seq_idx.eq(0), seq_row.meta.eq(snap.meta),
-                             seq_row.no_reference.eq(snap.no_reference)]
+                             seq_row.no_reference.eq(snap.no_reference),
+                             seq_row.slot.eq(snap.slot)]
 
         # output sequence: the row's K results with its final verdict
         out = self.o.payload
         with m.If(~self.o.valid | self.o.ready):
             m.d.sync += self.o.valid.eq(seq_busy)
             with m.If(seq_busy):
-                entry = bank[seq_idx]
+                entry = bank[seq_row.slot][seq_idx]
                 meta = seq_row.meta
                 zero = entry.textureless | meta.bad | seq_row.no_reference
                 m.d.sync += [
