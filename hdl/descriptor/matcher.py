@@ -105,8 +105,7 @@ class ShiftMatcher(wiring.Component):
     once. The engine is shared: a segment that ends while it works on another port's
     stalls every port (segments of different ports that end together queue for it),
     and a row's results wait in their port's own bank. Each port's measurements are
-    those of a matcher of its own, bit for bit; the ports' rows interleave on ``o``
-    (``camera`` tells them apart).
+    those of a matcher of its own, bit for bit, on its own output.
 
     Parameters
     ----------
@@ -117,11 +116,15 @@ class ShiftMatcher(wiring.Component):
     Members
     -------
     i : In(stream.Signature(pair_layout(params))), ``.array(ports)`` with ``ports`` > 1
-    o : Out(stream.Signature(params.measurement_layout()))
-        K measurements per row, segment order, Q formats in the layout's docstring.
+    o : Out(stream.Signature(params.measurement_layout())), ``.array(ports)`` with ``ports`` > 1
+        K measurements per row, segment order, Q formats in the layout's docstring; with
+        ports, each port's rows on its own output (one row at a time leaves the
+        matcher: a port whose output stalls holds the others').
 
     Latency :attr:`latency` clocks from the row's last column to its segment-0
-    measurement, then one measurement per clock, when the engine is free. Throughput
+    measurement, then one measurement per clock, when the engine is free (with ports,
+    one engine job, ``engine_result_step`` clocks, more per other port's segment that
+    queued for it ahead of the row's last: at most ``ports − 1``). Throughput
     one column per clock (per port, one per ``ports`` clocks). Backpressure: ``o``
     holds; the engine waits to store its next result while the previous row's
     measurements are leaving, and input stalls behind it. Reset empties the pipeline
@@ -136,9 +139,10 @@ class ShiftMatcher(wiring.Component):
         self.params = params
         self.ports = ports
         column = In(stream.Signature(pair_layout(params)))
+        measurements = Out(stream.Signature(params.measurement_layout()))
         super().__init__({
             "i": column if ports == 1 else column.array(ports),
-            "o": Out(stream.Signature(params.measurement_layout())),
+            "o": measurements if ports == 1 else measurements.array(ports),
         })
 
     @property
@@ -428,10 +432,20 @@ class ShiftMatcher(wiring.Component):
                              seq_row.no_reference.eq(snap.no_reference),
                              seq_row.slot.eq(snap.slot)]
 
-        # output sequence: the row's K results with its final verdict
-        out = self.o.payload
-        with m.If(~self.o.valid | self.o.ready):
-            m.d.sync += self.o.valid.eq(seq_busy)
+        # output sequence: the row's K results with its final verdict, on its port's
+        # output (one register for all ports)
+        if self.ports == 1:
+            out, out_valid, taken = self.o.payload, self.o.valid, self.o.ready
+        else:
+            out, out_valid = Signal(p.measurement_layout()), Signal()
+            out_port = Signal(_slot_shape(self.ports))
+            taken = Array(port.ready for port in self.o)[out_port]
+            for k, port in enumerate(self.o):
+                m.d.comb += [port.payload.eq(out), port.valid.eq(out_valid & (out_port == k))]
+            with m.If(seq_busy & (~out_valid | taken)):
+                m.d.sync += out_port.eq(seq_row.slot)
+        with m.If(~out_valid | taken):
+            m.d.sync += out_valid.eq(seq_busy)
             with m.If(seq_busy):
                 entry = bank[seq_row.slot][seq_idx]
                 meta = seq_row.meta

@@ -1,6 +1,6 @@
 """cocotb bench for hdl.descriptor.matcher.ShiftMatcher(params, ports=P): P cameras of
-the golden simulator's dataset on the matcher's ports at once, every camera's
-measurements against the model's of that camera alone
+the golden simulator's dataset on the matcher's ports at once, each port's
+measurements (on its own output) against the model's of that camera alone
 (emulator.descriptor.matcher.measure_rows), bit for bit, with every port offering a
 column in each of its slots and with gaps and backpressure."""
 
@@ -35,8 +35,8 @@ async def shared_matcher_matches_model(dut, traffic):
     clock = start_clock(dut)
     sources = [StreamSource(dut, f"i__{k}", pair_layout(params), clock, rng=rng,
                             valid_prob=1.0 if full else 0.6) for k in range(ports)]
-    sink = StreamSink(dut, "o", params.measurement_layout(), clock, rng=rng,
-                      ready_prob=1.0 if full else 0.5)
+    sinks = [StreamSink(dut, f"o__{k}", params.measurement_layout(), clock, rng=rng,
+                        ready_prob=1.0 if full else 0.5) for k in range(ports)]
     await reset(dut)
     cameras = [camera_columns(params, np_rng, k, dataset_pixels(params, k))
                for k in range(ports)]
@@ -44,20 +44,20 @@ async def shared_matcher_matches_model(dut, traffic):
     sends = [cocotb.start_soon(src.send(columns)) for src, (columns, _) in zip(sources, cameras)]
     await Combine(*sends)
     total = sum(map(len, expected))
-    await sink.wait_for(total, timeout_cycles=20 * total + 2000)
-    got = [m for _, m in sink.received]
-    for k in range(ports):
-        mine = [m for m in got if m["camera"] == k]
-        assert len(mine) == len(expected[k]), (k, len(mine), len(expected[k]))
-        for i, (g, e) in enumerate(zip(mine, expected[k])):
-            assert g == e, f"camera {k}, measurement {i}: hardware {g} != model {e}"
+    for sink, mine in zip(sinks, expected):
+        await sink.wait_for(len(mine), timeout_cycles=20 * total + 2000)
+    for k, (sink, mine) in enumerate(zip(sinks, expected)):
+        got = [m for _, m in sink.received]
+        assert len(got) == len(mine), (k, len(got), len(mine))
+        for i, (g, e) in enumerate(zip(got, mine)):
+            assert g == e, f"port {k}, measurement {i}: hardware {g} != model {e}"
     if full:
         # a row's results leave the matcher's latency after its last column, plus one
         # engine job per other port's segment queued ahead of its last one
         latency, job = load_sidecar()["latency"], params.engine_result_step
         waits = []
-        for k, src in enumerate(sources):
+        for src, sink in zip(sources, sinks):
             lasts = [c for c, beat in src.sent if beat["last"]]
-            firsts = [c for c, m in sink.received if m["camera"] == k and m["segment"] == 0]
+            firsts = [c for c, m in sink.received if m["segment"] == 0]
             waits += [first - last - latency for last, first in zip(lasts, firsts)]
         assert min(waits) == 0 and max(waits) <= (ports - 1) * job, waits
