@@ -175,10 +175,15 @@ def lane_groups(params):
     """The groups of :class:`hdl.top.RowtrackTop` built with ``params`` (a
     :class:`hdl.top_params.TopParams`) that :func:`synth_partitioned` cuts out: its
     temporal lanes and its stereo lanes (the measurement engine's ``temporal<k>`` and
-    ``stereo<j>``)."""
+    ``stereo<j>``), and their shift matchers (``temporal_matcher<g>``,
+    ``stereo_matcher<g>``), grouped by the lanes each serves."""
     groups = {"temporal_lane": [f"engine.temporal{k}" for k in range(params.camera.n_cameras)]}
     if params.pairs:
         groups["stereo_lane"] = [f"engine.stereo{j}" for j in range(len(params.pairs))]
+    for kind, lanes in (("temporal", params.camera.n_cameras), ("stereo", len(params.pairs))):
+        for g, group in enumerate(params.engine.matcher_groups(lanes)):
+            groups.setdefault(f"{kind}_matcher_{len(group)}_ports", []).append(
+                f"engine.{kind}_matcher{g}")
     return groups
 
 

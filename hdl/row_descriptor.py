@@ -28,7 +28,7 @@ from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from hdl.descriptor.layouts import descriptor_layout
+from hdl.descriptor.layouts import descriptor_layout, pair_layout
 from hdl.descriptor.matcher import ShiftMatcher
 from hdl.descriptor.params import STEREO_640X480, RowDescriptorParams, check_lane_params
 from hdl.descriptor.store import COUNT_BITS, ReferenceStore
@@ -53,10 +53,26 @@ def connect_shared_bits(m, src, dst):
                  for name in ("camera", "frame", "row", "t_first", "bad")]
 
 
-def _connect_pair(m, join, matcher):
+def _lane_output(params, own_matcher):
+    """A lane's output member: its matcher's measurements, or the matcher's input."""
+    if own_matcher:
+        return {"o": Out(stream.Signature(params.measurement_layout()))}
+    return {"columns": Out(stream.Signature(pair_layout(params)))}
+
+
+def _end_lane(m, lane, columns):
+    """The lane's columns into its own matcher and out on ``o``, or out on ``columns``."""
+    if lane.matcher is None:
+        wiring.connect(m, columns, wiring.flipped(lane.columns))
+        return
+    m.submodules.matcher = lane.matcher
+    wiring.connect(m, columns, lane.matcher.i)
+    wiring.connect(m, lane.matcher.o, wiring.flipped(lane.o))
+
+
+def _connect_pair(m, src, dst):
     """The joined bits as the matcher's current (camera a) and reference (camera b)
     bits."""
-    src, dst = join.o, matcher.i
     m.d.comb += [
         dst.valid.eq(src.valid), src.ready.eq(dst.ready),
         dst.payload.cur.eq(src.payload.bits[0]), dst.payload.ref.eq(src.payload.bits[1]),
@@ -85,6 +101,10 @@ class RowDescriptor(wiring.Component):
         the rows whose first beat carries ``paired`` (both cameras of the pair are in
         the row set); a :class:`hdl.stream_fork.StreamFork` gives every column to the
         reference store and, of those rows, to ``bits``.
+    own_matcher : bool
+        The lane ends in its own :class:`hdl.descriptor.matcher.ShiftMatcher` (``o``);
+        without, it hands the store's columns on (``columns``) to a matcher that serves
+        several lanes (``ShiftMatcher(ports=P)``, the measurement engine's way).
 
     Members
     -------
@@ -99,8 +119,11 @@ class RowDescriptor(wiring.Component):
         Run-time half-width ``w`` of the shift window: shifts ``centre ± w`` within the
         built window, sampled with each row's first pixel; outside ``min_half_width …
         max_half_width`` (0 included) the built maximum (the engine flags it).
-    o : Out(stream.Signature(params.measurement_layout()))
+    o : Out(stream.Signature(params.measurement_layout())), with ``own_matcher`` only
         Measurements (formats in ``hdl.descriptor.params.row_measurement_layout``).
+    columns : Out(stream.Signature(pair_layout(params))), without ``own_matcher`` only
+        The matcher's input: each column's current and reference bits,
+        :attr:`columns_latency` clocks after its pixel.
     out_of_range : Out(hdl.descriptor.store.COUNT_BITS), with ``follow`` only
         Rows whose source row was outside the range the ring serves (saturating).
     bits : Out(stream.Signature(descriptor_layout(params, 1))), with ``paired`` only
@@ -115,17 +138,18 @@ class RowDescriptor(wiring.Component):
     start invalid).
     """
 
-    def __init__(self, params=RowDescriptorParams(), follow=False, paired=False):
+    def __init__(self, params=RowDescriptorParams(), follow=False, paired=False,
+                 own_matcher=True):
         self.params = check_lane_params(params)
         self.store = ReferenceStore(params, follow)
         self.follow, self.paired = follow, paired
         self.framer = RowFramer(params, follow, paired)
         self.fir = DescriptorFIR(params)
         self.tap = StreamFork(descriptor_layout(params, 1), 2) if paired else None
-        self.matcher = ShiftMatcher(params)
+        self.matcher = ShiftMatcher(params) if own_matcher else None
         members = {"i": In(stream.Signature(params.input_layout(follow, paired))),
                    "half_width": In(params.half_width_fmt.shape()),
-                   "o": Out(stream.Signature(params.measurement_layout()))}
+                   **_lane_output(params, own_matcher)}
         if follow:
             members["out_of_range"] = Out(COUNT_BITS)
         else:
@@ -140,15 +164,20 @@ class RowDescriptor(wiring.Component):
         return self.framer.latency + self.fir.latency
 
     @property
+    def columns_latency(self):
+        """Clocks from a pixel to its column at the matcher's input."""
+        return self.bits_latency + self.store.latency
+
+    @property
     def latency(self):
-        return self.bits_latency + self.store.latency + self.matcher.latency
+        """Clocks from a row's last pixel to its segment-0 measurement (own matcher)."""
+        return self.columns_latency + self.matcher.latency
 
     def elaborate(self, platform):
         m = Module()
         m.submodules.framer = self.framer
         m.submodules.fir = self.fir
         m.submodules.store = self.store
-        m.submodules.matcher = self.matcher
         wiring.connect(m, wiring.flipped(self.i), self.framer.i)
         m.d.comb += self.framer.half_width.eq(self.half_width)
         if self.follow:
@@ -168,8 +197,7 @@ class RowDescriptor(wiring.Component):
                          shared.ready.eq(self.bits.ready | ~paired)]
         else:
             wiring.connect(m, self.fir.o, self.store.i)
-        wiring.connect(m, self.store.o, self.matcher.i)
-        wiring.connect(m, self.matcher.o, wiring.flipped(self.o))
+        _end_lane(m, self, self.store.o)
         return m
 
 
@@ -187,6 +215,9 @@ class StereoRowDescriptor(wiring.Component):
         measurement engine's way: their parameters' descriptor must be these) instead
         of framing and filtering camera beats in the lane (a framer and a FIR per
         camera).
+    own_matcher : bool
+        As :class:`RowDescriptor`'s: without, the joined columns go out on ``columns``
+        to a matcher several stereo lanes share.
 
     Members
     -------
@@ -198,9 +229,12 @@ class StereoRowDescriptor(wiring.Component):
         with ``shared``, with the first column of each row of ``a`` the lane pairs with
         ``b``'s (:class:`hdl.descriptor.framer.StereoJoin`: the bits carry the temporal
         lane's centre, and the port is the pair's register).
-    o : Out(stream.Signature(params.measurement_layout()))
+    o : Out(stream.Signature(params.measurement_layout())), with ``own_matcher`` only
         Measurements with ``a``'s row key and ``t_first``; ``bad`` if either row was
         bad; ``no_reference`` is always 0.
+    columns : Out(stream.Signature(pair_layout(params))), without ``own_matcher`` only
+        The joined columns as the matcher's input (``a``'s bits current, ``b``'s
+        reference).
 
     The stereo lane searches its whole built window (no run-time half-width).
 
@@ -209,30 +243,35 @@ class StereoRowDescriptor(wiring.Component):
     itself.
     """
 
-    def __init__(self, params=STEREO_640X480, shared=False):
+    def __init__(self, params=STEREO_640X480, shared=False, own_matcher=True):
         self.params = check_lane_params(params)
         self.shared = shared
         self.fronts = [] if shared else [(RowFramer(params), DescriptorFIR(params))
                                          for _ in "ab"]
         self.join = StereoJoin(params, centre_port=shared)
-        self.matcher = ShiftMatcher(params)
+        self.matcher = ShiftMatcher(params) if own_matcher else None
         beat = descriptor_layout(params, 1) if shared else params.input_layout()
         super().__init__({
             "a": In(stream.Signature(beat)),
             "b": In(stream.Signature(beat)),
             "centre": In(params.centre_fmt.shape()),
-            "o": Out(stream.Signature(params.measurement_layout())),
+            **_lane_output(params, own_matcher),
         })
 
     @property
-    def latency(self):
+    def columns_latency(self):
+        """Clocks from the later of a column pair's pixels (with ``shared``: descriptor
+        columns) to the joined column at the matcher's input."""
         front = sum(block.latency for block in self.fronts[0]) if self.fronts else 0
-        return front + self.join.latency + self.matcher.latency
+        return front + self.join.latency
+
+    @property
+    def latency(self):
+        return self.columns_latency + self.matcher.latency
 
     def elaborate(self, platform):
         m = Module()
         m.submodules.join = join = self.join
-        m.submodules.matcher = self.matcher
         if self.shared:
             wiring.connect(m, wiring.flipped(self.a), join.a)
             wiring.connect(m, wiring.flipped(self.b), join.b)
@@ -249,6 +288,7 @@ class StereoRowDescriptor(wiring.Component):
                          framer.half_width.eq(0)]
         if self.shared:
             m.d.comb += join.centre.eq(self.centre)
-        _connect_pair(m, join, self.matcher)
-        wiring.connect(m, self.matcher.o, wiring.flipped(self.o))
+        joined = stream.Signature(pair_layout(self.params)).create()
+        _connect_pair(m, join.o, joined)
+        _end_lane(m, self, joined)
         return m

@@ -45,6 +45,10 @@ class TopParams:
     stereo_segments : int
         Stereo-lane segments per row (K_s, each its own disparity; temporal segment k
         takes stereo segment ``k·K_s // K``).
+    matcher_ports : int
+        Lanes per shift matcher in the measurement engine
+        (:class:`hdl.measurement.engine_params.EngineParams`; default 1, a matcher per
+        lane).
     stereo_window : StereoWindow
         The stereo lanes' disparity window and which of their results give a depth
         (default the fixed [10, 70]; ``PipelineConfig.for_rig`` derives it from the rig).
@@ -81,6 +85,7 @@ class TopParams:
     segments: int = DEFAULT_SEGMENTS
     stereo_segments: int = 1
     stereo_window: StereoWindow = StereoWindow()
+    matcher_ports: int = 1
     solver: PoseSolverParams = PoseSolverParams(slots=DEFAULT_CAMERAS * DEFAULT_SEGMENTS)
     pose_output: PoseOutputParams = PoseOutputParams(source=solver_source(PoseSolverParams()))
     uart: UartParams = UartParams()
@@ -119,7 +124,7 @@ class TopParams:
             self.camera, self.solver, self.pairs, segments=self.segments,
             stereo_segments=self.stereo_segments, stereo_window=self.stereo_window,
             follow=self.closed_loop,
-            cue_fallback=self.closed_loop))
+            cue_fallback=self.closed_loop, matcher_ports=self.matcher_ports))
 
     def _check_loop(self):
         for name, cls in (("forecast", ForecastParams), ("consistency", ConsistencyParams)):

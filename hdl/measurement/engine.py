@@ -20,6 +20,10 @@ delivers row ``y`` of every camera as one stream) and the pose solver
   camera A's row against camera B's) on the bits of its pair's two temporal lanes
   (``shared=True``: the descriptor filter is built once per camera), fed only the rows
   of sets in which both cameras are;
+* the lanes' shift matchers (:class:`hdl.descriptor.matcher.ShiftMatcher`), one per
+  lane or, with ``EngineParams.matcher_ports`` P > 1, one per P lanes of consecutive
+  cameras (temporal) or pairs (stereo), each lane's measurements on their own output
+  (issue 17 item 3);
 * the measurement router (:class:`hdl.measurement.router.MeasurementRouter`): each
   ticket's measurements to the solver's slots, with the pair's disparity as depth cue.
 
@@ -41,6 +45,7 @@ from amaranth.lib.wiring import In, Out
 
 from hdl.descriptor.framer import saturate_half_width
 from hdl.descriptor.layouts import descriptor_layout
+from hdl.descriptor.matcher import ShiftMatcher
 from hdl.front_end.params import CameraParams
 from hdl.measurement.engine_params import (EngineParams, engine_config_layout,
                                            engine_status_layout)
@@ -71,6 +76,13 @@ def default_follow_engine():
     solver = PoseSolverParams(slots=8, rows=camera.max_height)
     return MeasurementEngine(EngineParams.for_cameras(
         camera, solver, ((0, 1),), stereo_segments=4, follow=True, cue_fallback=True))
+
+
+def _matcher_latency(matchers):
+    """A matcher's latency when the lanes it serves end their rows together: its row
+    waits for one engine job per other port's segment queued ahead of it."""
+    ports = max(matcher.ports for matcher in matchers)
+    return matchers[0].latency + (ports - 1) * matchers[0].params.engine_result_step
 
 
 class MeasurementEngine(wiring.Component):
@@ -122,7 +134,8 @@ class MeasurementEngine(wiring.Component):
             raise TypeError(f"params must be an EngineParams, not {params!r}")
         self.params = params
         self.fork = RowSetFork(params)
-        self.temporal_lanes = [RowDescriptor(params.temporal, params.follow, paired=True)
+        self.temporal_lanes = [RowDescriptor(params.temporal, params.follow, paired=True,
+                                             own_matcher=False)
                                for _ in range(params.cameras)]
         self.temporal_slices = [RegisterSlice(params.temporal.input_layout(params.follow,
                                                                            paired=True))
@@ -130,8 +143,13 @@ class MeasurementEngine(wiring.Component):
         self.forecast_rows = ForecastRows(params) if params.follow else None
         follow = {"forecast": In(stream.Signature(params.forecast_layout()))} \
             if params.follow else {}
-        self.stereo_lanes = [StereoRowDescriptor(params.stereo, shared=True)
+        self.stereo_lanes = [StereoRowDescriptor(params.stereo, shared=True, own_matcher=False)
                              for _ in params.pairs]
+        # lanes share shift matchers, ``matcher_ports`` at a time
+        self.temporal_matchers = [ShiftMatcher(params.temporal, ports=len(group)) for group
+                                  in params.matcher_groups(params.cameras)]
+        self.stereo_matchers = [ShiftMatcher(params.stereo, ports=len(group)) for group
+                                in params.matcher_groups(len(params.pairs))]
         # the stereo join's ``ready`` waits for both cameras' columns: registered, it does
         # not run on into the other temporal lane's FIR and framer (issue 17, 14 LUT
         # levels in the board top without them)
@@ -155,13 +173,17 @@ class MeasurementEngine(wiring.Component):
         from a ticket includes the clock a measurement takes into its lane FIFO and the
         K_s clocks that take the stereo measurements, all but the last overlapping their
         arrival (66 clocks with K_s = 1, 67 with K_s = 2 on 256-pixel rows, measured in
-        the cocotb benches)."""
+        the cocotb benches). With shared matchers (``matcher_ports`` P > 1) a row's
+        results wait for up to P − 1 engine jobs of the other lanes' last segments, and
+        the figure holds only while columns come no faster than the matchers take them
+        (one per P clocks, less their stalls); faster, the lanes back up (the cocotb
+        bench at one column per clock: 156–157 clocks against 146 on 256-pixel rows)."""
         t, s = self.params.temporal, self.params.stereo
         lane = self.temporal_lanes[0]
         lanes = self.temporal_slices[0].latency + max(
-            lane.latency + t.segments - 1,
-            lane.bits_latency + RegisterSlice.latency + self.stereo_lanes[0].latency
-            + s.segments - 1)
+            lane.columns_latency + _matcher_latency(self.temporal_matchers) + t.segments - 1,
+            lane.bits_latency + RegisterSlice.latency + self.stereo_lanes[0].columns_latency
+            + _matcher_latency(self.stereo_matchers) + s.segments - 1)
         return self.fork.latency + lanes + self.router.latency - s.segments
 
     def elaborate(self, platform):
@@ -175,7 +197,6 @@ class MeasurementEngine(wiring.Component):
             m.submodules[f"temporal{k}_slice"] = lane_slice = self.temporal_slices[k]
             wiring.connect(m, fork.temporal[k], lane_slice.i)
             wiring.connect(m, lane_slice.o, lane.i)
-            wiring.connect(m, lane.o, router.temporal[k])
             m.d.comb += lane.half_width.eq(self.cfg.half_width)
             if self.params.follow:
                 m.d.comb += self.status.out_of_range[k].eq(lane.out_of_range)
@@ -187,8 +208,18 @@ class MeasurementEngine(wiring.Component):
                 m.submodules[f"stereo{j}_slice_{side}"] = lane_slice
                 connect_shared_bits(m, self.temporal_lanes[camera].bits, lane_slice.i)
                 wiring.connect(m, lane_slice.o, getattr(lane, side))
-            wiring.connect(m, lane.o, router.stereo[j])
             m.d.comb += lane.centre.eq(self.cfg.stereo[j])
+        for kind, lanes, matchers, outputs in (
+                ("temporal", self.temporal_lanes, self.temporal_matchers, router.temporal),
+                ("stereo", self.stereo_lanes, self.stereo_matchers, router.stereo)):
+            groups = self.params.matcher_groups(len(lanes))
+            for g, (matcher, group) in enumerate(zip(matchers, groups)):
+                m.submodules[f"{kind}_matcher{g}"] = matcher
+                inputs, results = ((matcher.i, matcher.o) if matcher.ports > 1
+                                   else ([matcher.i], [matcher.o]))
+                for k, port, result in zip(group, inputs, results):
+                    wiring.connect(m, lanes[k].columns, port)
+                    wiring.connect(m, result, outputs[k])
         if self.params.follow:
             m.submodules.forecast_rows = forecast_rows = self.forecast_rows
             wiring.connect(m, wiring.flipped(self.forecast), forecast_rows.i)

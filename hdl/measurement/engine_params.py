@@ -55,6 +55,15 @@ class EngineParams:
         joined with one forecast row (``forecast`` input, :meth:`forecast_layout`) that
         gives every temporal lane its window centre and source row. Default off: the
         open-loop engine, bit for bit.
+    matcher_ports : int
+        Lanes one shift matcher serves (issue 17 item 3,
+        ``hdl.descriptor.matcher.ShiftMatcher(ports=P)``): temporal lanes of consecutive
+        cameras, and stereo lanes of consecutive pairs, share a matcher ``P`` at a time.
+        The measurements are the same bit for bit; the engine then takes a column of
+        each row set at most every ``P`` clocks (the clock must be at least ``P`` times
+        the cameras' pixel rate, with room for the matchers' stalls when segments of
+        several lanes end together), and a row's results may wait up to ``P − 1`` more
+        matcher jobs. Default 1: a matcher per lane.
 
     Raises
     ------
@@ -64,11 +73,13 @@ class EngineParams:
     router: RouterParams
     count_bits: int = 16
     follow: bool = False
+    matcher_ports: int = 1
 
     def __post_init__(self):
         if not isinstance(self.router, RouterParams):
             raise TypeError(f"router must be a RouterParams, not {self.router!r}")
         check_int("count_bits", self.count_bits, 1, 32)
+        check_int("matcher_ports", self.matcher_ports, 1, 16)
         if not isinstance(self.follow, bool):
             raise TypeError(f"follow must be a bool, not {self.follow!r}")
         if self.follow and self.router.temporal.radius < 3:
@@ -89,7 +100,7 @@ class EngineParams:
     @classmethod
     def for_cameras(cls, camera, solver, pairs, *, segments=DEFAULT_SEGMENTS,
                     stereo_segments=1, stereo_window=StereoWindow(), follow=False,
-                    cue_fallback=False):
+                    cue_fallback=False, matcher_ports=1):
         """The engine behind a camera front end with parameters ``camera``.
 
         Lanes are ``camera.max_width × camera.max_height`` with the camera beat's widths;
@@ -98,7 +109,8 @@ class EngineParams:
         (``golden.descriptor.STEREO_MATCH``'s disparity range). ``pairs``: ``(A, B)``
         camera indices per rectified pair, every camera in exactly one. ``follow``: the
         closed-loop engine; ``cue_fallback``: the router's cue store
-        (:class:`~hdl.measurement.router_params.RouterParams`).
+        (:class:`~hdl.measurement.router_params.RouterParams`); ``matcher_ports``: lanes
+        per shift matcher.
 
         Raises
         ------
@@ -135,7 +147,8 @@ class EngineParams:
         router = RouterParams(cameras=camera.n_cameras, pairs=pairs, solver=solver,
                               cue_fallback=cue_fallback, stereo_window=stereo_window,
                               **lanes)
-        return cls(router=router, count_bits=camera.count_bits, follow=follow)
+        return cls(router=router, count_bits=camera.count_bits, follow=follow,
+                   matcher_ports=matcher_ports)
 
     # --- shortcuts -----------------------------------------------------------------------
 
@@ -154,6 +167,13 @@ class EngineParams:
     @property
     def stereo(self):
         return self.router.stereo
+
+    def matcher_groups(self, lanes):
+        """Indices of ``lanes`` lanes (cameras or pairs) grouped by the matcher that
+        serves them: consecutive, ``matcher_ports`` at a time (the last group may be
+        smaller)."""
+        p = self.matcher_ports
+        return [list(range(k, min(k + p, lanes))) for k in range(0, lanes, p)]
 
     # --- stream layouts (Amaranth imported only when asked for) -------------------------
 

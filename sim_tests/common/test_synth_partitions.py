@@ -107,6 +107,22 @@ def test_lane_groups_name_every_lane_of_the_top():
     assert groups["temporal_lane"] == [f"engine.temporal{k}"
                                        for k in range(params.camera.n_cameras)]
     assert groups["stereo_lane"] == [f"engine.stereo{j}" for j in range(len(params.pairs))]
+    assert groups["temporal_matcher_1_ports"] == [f"engine.temporal_matcher{k}"
+                                                  for k in range(params.camera.n_cameras)]
+    assert groups["stereo_matcher_1_ports"] == ["engine.stereo_matcher0",
+                                                "engine.stereo_matcher1"]
+
+
+def test_lane_groups_group_shared_matchers_by_their_ports():
+    """Eight cameras, three lanes per matcher: temporal matchers of 3, 3 and 2 ports (the
+    last differs, so it is a group of its own), one stereo matcher of 3 pairs and one of 1."""
+    params = TopParams.for_pairs(((0, 1), (2, 3), (4, 5), (6, 7)), matcher_ports=3)
+    groups = lane_groups(params)
+    assert groups["temporal_matcher_3_ports"] == ["engine.temporal_matcher0",
+                                                  "engine.temporal_matcher1"]
+    assert groups["temporal_matcher_2_ports"] == ["engine.temporal_matcher2"]
+    assert groups["stereo_matcher_3_ports"] == ["engine.stereo_matcher0"]
+    assert groups["stereo_matcher_1_ports"] == ["engine.stereo_matcher1"]
 
 
 def test_breakdown_groups_find_the_identical_instances():

@@ -40,3 +40,11 @@ def test_engine_icarus(rig, dataset_path):
                tag="stereo4", sim="icarus", test_module=BENCH,
                extra_env={"ROWTRACK_ME_DATASET": str(dataset_path)},
                testcase=["engine_matches_model/traffic=1/faults=True"])
+
+
+def test_engine_shared_matchers_verilator(rig, dataset_path):
+    """Two lanes per shift matcher (two temporal matchers, one stereo matcher): the
+    same transfers as the model, bit for bit."""
+    run_cocotb(MeasurementEngine(engine_params(rig).replace(matcher_ports=2)),
+               name="measurement_engine", tag="stereo4-shared", sim="verilator",
+               test_module=BENCH, extra_env={"ROWTRACK_ME_DATASET": str(dataset_path)})
