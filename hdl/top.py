@@ -47,11 +47,21 @@ def register_file(params=TopParams()):
     return RegisterFile(params.regmap())
 
 
+#: Lanes per shift matcher in a board's top (issue 17 item 3). Two: a 640-column row
+#: then takes 2 × 640 clocks plus the matchers' stalls (38 clocks each time two lanes'
+#: segments end together, K = 4 a row) at the 100 MHz design clock, within the 1,736
+#: clocks of a row period at 57,600 row sets per second; three would need about 2,150
+#: clocks a row, i.e. the 150 MHz clock.
+BOARD_MATCHER_PORTS = 2
+
+
 def board_config(rig, **changes):
     """The closed-loop pipeline a board carries for ``rig`` (a :class:`golden.rig.Rig`):
-    its cameras, pairs and coefficient stores, K = K_s = :data:`DEFAULT_SEGMENTS`;
-    ``changes`` go to :meth:`PipelineConfig.for_rig` (e.g. ``clk_hz``, ``baud``)."""
+    its cameras, pairs and coefficient stores, K = K_s = :data:`DEFAULT_SEGMENTS`,
+    :data:`BOARD_MATCHER_PORTS` lanes per shift matcher; ``changes`` go to
+    :meth:`PipelineConfig.for_rig` (e.g. ``clk_hz``, ``baud``, ``matcher_ports``)."""
     from hdl.pipeline_config import PipelineConfig
+    changes.setdefault("matcher_ports", BOARD_MATCHER_PORTS)
     return PipelineConfig.for_rig(rig, closed_loop=True, stereo_segments=DEFAULT_SEGMENTS,
                                   **changes)
 
