@@ -48,10 +48,9 @@ def register_file(params=TopParams()):
 
 
 #: Lanes per shift matcher in a board's top (issue 17 item 3). Two: a 640-column row
-#: then takes 2 × 640 clocks plus the matchers' stalls (38 clocks each time two lanes'
-#: segments end together, K = 4 a row) at the 100 MHz design clock, within the 1,736
-#: clocks of a row period at 57,600 row sets per second; three would need about 2,150
-#: clocks a row, i.e. the 150 MHz clock.
+#: then takes 2 × 640 clocks at the 100 MHz design clock, within the 1,390 clocks of the
+#: board cameras' row period during readout (120 fps, 80 % readout); three would take
+#: 1,920, i.e. need the 150 MHz clock.
 BOARD_MATCHER_PORTS = 2
 
 

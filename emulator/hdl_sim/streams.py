@@ -44,18 +44,23 @@ class StreamSource(_StreamPort):
     """Drives payloads into a stream port, holding each until it is transferred.
 
     ``valid_prob`` < 1 inserts random idle cycles (``rng`` is a seeded
-    ``random.Random``). ``valid`` never waits for ``ready``. ``sent`` records
-    ``(cycle, payload)`` of every transfer.
+    ``random.Random``); ``interval`` > 1 offers a payload at most every ``interval``
+    cycles (a source as slow as the block's rate). ``valid`` never waits for ``ready``.
+    ``sent`` records ``(cycle, payload)`` of every transfer.
     """
 
-    def __init__(self, dut, port, layout, clock, *, rng=None, valid_prob=1.0):
+    def __init__(self, dut, port, layout, clock, *, rng=None, valid_prob=1.0, interval=1):
         super().__init__(dut, port, layout, clock, rng)
         self.valid_prob = valid_prob
+        self.interval = interval
         self.sent = []
         self.valid.value = 0
 
     async def send(self, payloads):
         for item in payloads:
+            for _ in range(self.interval - 1 if self.sent else 0):
+                self.valid.value = 0
+                await RisingEdge(self.clock.clk)
             while self.rng is not None and self.rng.random() >= self.valid_prob:
                 self.valid.value = 0
                 await RisingEdge(self.clock.clk)

@@ -103,8 +103,9 @@ class ShiftMatcher(wiring.Component):
     stepper, cost counters) is kept per port in rings that turn with the ports
     (:class:`hdl.slot_register.SlotRegister`), so the adders and comparators are built
     once. The engine is shared: a segment that ends while it works on another port's
-    stalls every port (segments of different ports that end together queue for it),
-    and a row's results wait in their port's own bank. Each port's measurements are
+    waits in a queue of ``ports − 1`` jobs (costs and facts), so the segments of every
+    port that end together stall nothing, and a row's results wait in their port's own
+    bank. Each port's measurements are
     those of a matcher of its own, bit for bit, on its own output.
 
     Parameters
@@ -123,8 +124,8 @@ class ShiftMatcher(wiring.Component):
 
     Latency :attr:`latency` clocks from the row's last column to its segment-0
     measurement, then one measurement per clock, when the engine is free (with ports,
-    one engine job, ``engine_result_step`` clocks, more per other port's segment that
-    queued for it ahead of the row's last: at most ``ports − 1``). Throughput
+    one engine job and a clock to start it, ``engine_result_step + 1`` clocks, more per
+    other port's segment queued ahead of the row's last: at most ``ports − 1``). Throughput
     one column per clock (per port, one per ``ports`` clocks). Backpressure: ``o``
     holds; the engine waits to store its next result while the previous row's
     measurements are leaving, and input stalls behind it. Reset empties the pipeline
@@ -277,6 +278,42 @@ class ShiftMatcher(wiring.Component):
 
     # --- engine: two scans, two divisions, result bank, output sequence ------------------
 
+    def _job_queue(self, m, front, incoming, step, shadow, snap, first, last):
+        """Start the engine on each segment's job (``step`` 1); with ports, up to
+        ``ports − 1`` jobs that come while it works wait in a queue, in order, so the
+        segments of every port that end together stall nothing. The front stalls only
+        when the queue is full (with one port: while the engine works)."""
+        queue = [Signal(incoming.shape(), name=f"queued{k}") for k in range(self.ports - 1)]
+        queued = [Signal(name=f"queued{k}_valid") for k in range(self.ports - 1)]
+        idle = step == 0
+        waiting = Cat(queued).any() if queue else Const(0)
+        take = idle & waiting                       # the oldest queued job starts
+        put = front["snapshot"]
+        direct = put & idle & ~waiting
+        m.d.comb += front["busy"].eq(~idle & Cat(queued).all() if queue else ~idle)
+
+        def start(job):
+            m.d.sync += [sh.eq(v) for sh, v in zip(shadow, job.costs)]
+            m.d.sync += [snap.eq(job.facts), first.eq(job.first), last.eq(job.last),
+                         step.eq(1)]
+        with m.If(direct):
+            start(incoming)
+        if queue:
+            with m.If(take):
+                start(queue[0])
+        # the queue moves up one place when its oldest job starts; a new one goes to
+        # the first place then free
+        enqueue = put & ~direct
+        for k, (job, valid) in enumerate(zip(queue, queued)):
+            after_job = Mux(take, queue[k + 1].as_value(), job.as_value()) \
+                if k + 1 < len(queue) else job.as_value()
+            after_valid = Mux(take, queued[k + 1], valid) if k + 1 < len(queue) \
+                else valid & ~take
+            before_free = 1 if k == 0 else Mux(take, queued[k], queued[k - 1])
+            lands = enqueue & ~after_valid & before_free
+            m.d.sync += [job.eq(Mux(lands, incoming.as_value(), after_job)),
+                         valid.eq(after_valid | lands)]
+
     def _engine(self, m, front):
         p = self.params
         n, lanes, groups = p.n_shifts, p.scan_lanes, p.scan_groups
@@ -287,26 +324,32 @@ class ShiftMatcher(wiring.Component):
         quotient = max(p.ratio_quotient_bits, p.subpixel_quotient_bits)
         load_step = 2 * groups + 5
 
-        # frozen costs and the segment's facts
-        shadow = [Signal(cost_shape, name=f"frozen{k}") for k in range(n)]
-        snap = Signal(data.StructLayout({
+        # the job: a segment's frozen costs, its facts and the run-time window's first
+        # and last cost index (p.window_indices)
+        facts_layout = data.StructLayout({
             "textureless": 1, "seg": p.segment_bits,
-            "meta": meta_layout(p), "no_reference": 1, "slot": _slot_shape(self.ports)}))
-        step = Signal(range(p.engine_result_step + 1))
-        m.d.comb += front["busy"].eq(step != 0)
-        # the run-time window's first and last cost index (p.window_indices)
+            "meta": meta_layout(p), "no_reference": 1, "slot": _slot_shape(self.ports)})
+        job_layout = data.StructLayout({"costs": data.ArrayLayout(cost_shape, n),
+                                        "facts": facts_layout, "first": range(n),
+                                        "last": range(n)})
+        shadow = [Signal(cost_shape, name=f"frozen{k}") for k in range(n)]
+        snap = Signal(facts_layout)
         first, last = Signal(range(n), name="win_first"), Signal(range(n), name="win_last")
+        step = Signal(range(p.engine_result_step + 1))
+        incoming = Signal(job_layout)
         half_width = Signal(signed(p.half_width_fmt.width + 1))
-        m.d.comb += half_width.eq(front["s2"].meta.half_width)
-        with m.If(front["snapshot"]):
-            s2 = front["s2"]
-            below = -p.match.shift_min - half_width
-            above = half_width - p.match.shift_min
-            m.d.sync += [sh.eq(v) for sh, v in zip(shadow, front["costs"])]
-            m.d.sync += [snap.textureless.eq(front["textureless"]), snap.seg.eq(s2.seg),
-                         snap.meta.eq(s2.meta), snap.no_reference.eq(s2.no_reference),
-                         snap.slot.eq(s2.slot), first.eq(Mux(below > 0, below, 0)),
-                         last.eq(Mux(above < n - 1, above, n - 1)), step.eq(1)]
+        s2 = front["s2"]
+        below = -p.match.shift_min - half_width
+        above = half_width - p.match.shift_min
+        m.d.comb += [half_width.eq(s2.meta.half_width),
+                     incoming.facts.textureless.eq(front["textureless"]),
+                     incoming.facts.seg.eq(s2.seg), incoming.facts.meta.eq(s2.meta),
+                     incoming.facts.no_reference.eq(s2.no_reference),
+                     incoming.facts.slot.eq(s2.slot),
+                     incoming.first.eq(Mux(below > 0, below, 0)),
+                     incoming.last.eq(Mux(above < n - 1, above, n - 1))]
+        m.d.comb += [incoming.costs[k].eq(v) for k, v in enumerate(front["costs"])]
+        self._job_queue(m, front, incoming, step, shadow, snap, first, last)
 
         def during(first, last):
             return (step >= first) & (step <= last)

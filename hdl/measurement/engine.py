@@ -79,10 +79,12 @@ def default_follow_engine():
 
 
 def _matcher_latency(matchers):
-    """A matcher's latency when the lanes it serves end their rows together: its row
-    waits for one engine job per other port's segment queued ahead of it."""
+    """A matcher's latency for the lanes it serves, which end their rows together: the
+    last port's row waits for one engine job per other port's segment queued ahead of
+    it, a clock to start each, and its column for its slot (one clock per port ahead;
+    the engine's cocotb bench checks the sum)."""
     ports = max(matcher.ports for matcher in matchers)
-    return matchers[0].latency + (ports - 1) * matchers[0].params.engine_result_step
+    return matchers[0].latency + (ports - 1) * (matchers[0].params.engine_result_step + 2)
 
 
 class MeasurementEngine(wiring.Component):
@@ -120,7 +122,8 @@ class MeasurementEngine(wiring.Component):
 
     Latency :attr:`latency` clocks from a row set's last column to its first solver
     transfer (66 with K_s = 1, 67 with K_s = 2 on 256-pixel rows; checked in the cocotb
-    benches). Throughput: one column per clock while the lanes and ``o`` keep up (the
+    benches). Throughput: one column per clock (with shared matchers one per
+    ``matcher_ports`` clocks) while the lanes and ``o`` keep up (the
     router needs K · cameras + a few clocks per row, far fewer than the row width).
     Backpressure on ``o`` fills the router's lane FIFOs, then stalls the lanes, the
     fork and ``rows``. With ``follow`` a row set's first column also waits for its
@@ -174,10 +177,9 @@ class MeasurementEngine(wiring.Component):
         K_s clocks that take the stereo measurements, all but the last overlapping their
         arrival (66 clocks with K_s = 1, 67 with K_s = 2 on 256-pixel rows, measured in
         the cocotb benches). With shared matchers (``matcher_ports`` P > 1) a row's
-        results wait for up to P − 1 engine jobs of the other lanes' last segments, and
-        the figure holds only while columns come no faster than the matchers take them
-        (one per P clocks, less their stalls); faster, the lanes back up (the cocotb
-        bench at one column per clock: 156–157 clocks against 146 on 256-pixel rows)."""
+        results wait for up to P − 1 engine jobs of the other lanes' last segments (148
+        clocks with P = 2 on 256-pixel rows), with columns coming every P clocks, the rate
+        the matchers take them at; faster, the lanes back up and the latency grows."""
         t, s = self.params.temporal, self.params.stereo
         lane = self.temporal_lanes[0]
         lanes = self.temporal_slices[0].latency + max(
