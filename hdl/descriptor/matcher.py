@@ -180,12 +180,12 @@ class ShiftMatcher(wiring.Component):
         advance = ~stall
 
         # the port served this step (round robin; one slot per step, beat or bubble)
-        slot = Signal(_slot_shape(ports))
+        slot = Signal(_slot_shape(ports), name="slot") if ports > 1 else Const(0)  # one port: none
         inputs = list(self.i) if ports > 1 else [self.i]
         with m.If(advance):
-            m.d.sync += slot.eq(Mux(slot == ports - 1, 0, slot + 1))
-        offered = Array(port.valid for port in inputs)[slot]
-        payload = Array(port.payload.as_value() for port in inputs)[slot]
+            m.d.sync += [slot.eq(Mux(slot == ports - 1, 0, slot + 1))] if ports > 1 else []
+        offered = Array(port.valid for port in inputs)[slot] if ports > 1 else self.i.valid
+        payload = Array(i.payload.as_value() for i in inputs)[slot] if ports > 1 else self.i.payload.as_value()
 
         # skid register: ready is a flip-flop (with ports, and the slot's decode), so a
         # stall does not ripple through the store and the FIR back to the camera input
