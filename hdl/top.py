@@ -47,20 +47,32 @@ def register_file(params=TopParams()):
     return RegisterFile(params.regmap())
 
 
-#: Lanes per shift matcher in a board's top (issue 17 item 3). Two: a 640-column row
-#: then takes 2 × 640 clocks at the 100 MHz design clock, within the 1,390 clocks of the
-#: board cameras' row period during readout (120 fps, 80 % readout); three would take
-#: 1,920, i.e. need the 150 MHz clock.
+#: Lanes per shift matcher in the top of a rig a supported board carries (issue 17 item
+#: 3). Two: a 640-column row then takes 2 × 640 clocks at the 100 MHz design clock,
+#: within the 1,390 clocks of the board cameras' row period during readout (120 fps,
+#: 80 % readout); three would take 1,920, i.e. need the 150 MHz clock.
 BOARD_MATCHER_PORTS = 2
+
+
+def matcher_ports(rig):
+    """Lanes per shift matcher for ``rig``: :data:`BOARD_MATCHER_PORTS` when a supported
+    board carries its cameras (the board top needs the LUTs), one otherwise. stereo20
+    (20 cameras, no board; it fits its xc7z045 with a matcher per lane) overflowed its
+    camera buffers in the co-simulation with two: its cameras, at the bench's 80.6 MHz
+    pixel clock and with up to 15 rows of skew for the aligner to wait out, outran an
+    engine taking a column every second clock."""
+    from hdl.board import board, names
+    carried = len(rig.cameras) <= max(board(name).n_cameras for name in names())
+    return BOARD_MATCHER_PORTS if carried else 1
 
 
 def board_config(rig, **changes):
     """The closed-loop pipeline a board carries for ``rig`` (a :class:`golden.rig.Rig`):
     its cameras, pairs and coefficient stores, K = K_s = :data:`DEFAULT_SEGMENTS`,
-    :data:`BOARD_MATCHER_PORTS` lanes per shift matcher; ``changes`` go to
+    :func:`matcher_ports` lanes per shift matcher; ``changes`` go to
     :meth:`PipelineConfig.for_rig` (e.g. ``clk_hz``, ``baud``, ``matcher_ports``)."""
     from hdl.pipeline_config import PipelineConfig
-    changes.setdefault("matcher_ports", BOARD_MATCHER_PORTS)
+    changes.setdefault("matcher_ports", matcher_ports(rig))
     return PipelineConfig.for_rig(rig, closed_loop=True, stereo_segments=DEFAULT_SEGMENTS,
                                   **changes)
 
