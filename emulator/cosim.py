@@ -62,7 +62,7 @@ class CosimResult:
         Clocks from the first to the last column of a row set entering the measurement
         engine, mean over the sets. The aligner streams columns as the slowest camera
         delivers them, so the slice's PCLKs bound it (``width`` pixels at the slowest
-        PCLK); the engine itself takes a column per clock.
+        PCLK); the engine itself takes a column every ``matcher_ports`` clocks.
     latency_clocks : int
         Largest time, over the records, from the last pixel of a row set at the DVP pins
         to its pose record in the PS FIFO, in system clocks; -1 when the HDL did not
