@@ -153,6 +153,14 @@ class ShiftMatcher(wiring.Component):
         measurement."""
         return 2 + (self.ports > 1) + self.params.engine_result_step + 2
 
+    @property
+    def last_port_latency(self):
+        """:attr:`latency` of the last port's row when every port's rows end together
+        and columns come every ``ports`` clocks: one engine job per other port's segment
+        queued ahead of it, a clock to start each, and a clock per port ahead for its
+        column's slot (the engine's cocotb bench checks it)."""
+        return self.latency + (self.ports - 1) * (self.params.engine_result_step + 2)
+
     def elaborate(self, platform):
         m = Module()
         front = self._front(m)
@@ -293,30 +301,29 @@ class ShiftMatcher(wiring.Component):
         queue = [Signal(incoming.shape(), name=f"queued{k}") for k in range(self.ports - 1)]
         queued = [Signal(name=f"queued{k}_valid") for k in range(self.ports - 1)]
         idle = step == 0
-        take = idle & queued[0] if queue else Const(0)     # the oldest queued job starts
         put = front["snapshot"]
-        direct = Const(0) if queue else put
         m.d.comb += front["busy"].eq(~idle & Cat(queued).all() if queue else ~idle)
 
         def start(job):
             m.d.sync += [sh.eq(v) for sh, v in zip(shadow, job.costs)]
             m.d.sync += [snap.eq(job.facts), first.eq(job.first), last.eq(job.last),
                          step.eq(1)]
-        with m.If(direct):
-            start(incoming)
-        if queue:
-            with m.If(take):
-                start(queue[0])
+        if not queue:
+            with m.If(put):
+                start(incoming)
+            return
+        take = idle & queued[0]                     # the oldest queued job starts
+        with m.If(take):
+            start(queue[0])
         # the queue moves up one place when its oldest job starts; a new one goes to
         # the first place then free
-        enqueue = put & ~direct
         for k, (job, valid) in enumerate(zip(queue, queued)):
             after_job = Mux(take, queue[k + 1].as_value(), job.as_value()) \
                 if k + 1 < len(queue) else job.as_value()
             after_valid = Mux(take, queued[k + 1], valid) if k + 1 < len(queue) \
                 else valid & ~take
             before_free = 1 if k == 0 else Mux(take, queued[k], queued[k - 1])
-            lands = enqueue & ~after_valid & before_free
+            lands = put & ~after_valid & before_free
             m.d.sync += [job.eq(Mux(lands, incoming.as_value(), after_job)),
                          valid.eq(after_valid | lands)]
 

@@ -78,15 +78,6 @@ def default_follow_engine():
         camera, solver, ((0, 1),), stereo_segments=4, follow=True, cue_fallback=True))
 
 
-def _matcher_latency(matchers):
-    """A matcher's latency for the lanes it serves, which end their rows together: the
-    last port's row waits for one engine job per other port's segment queued ahead of
-    it, a clock to start each, and its column for its slot (one clock per port ahead;
-    the engine's cocotb bench checks the sum)."""
-    ports = max(matcher.ports for matcher in matchers)
-    return matchers[0].latency + (ports - 1) * (matchers[0].params.engine_result_step + 2)
-
-
 class MeasurementEngine(wiring.Component):
     """Row-descriptor lanes of a camera cluster with their fork and router.
 
@@ -182,10 +173,12 @@ class MeasurementEngine(wiring.Component):
         the matchers take them at; faster, the lanes back up and the latency grows."""
         t, s = self.params.temporal, self.params.stereo
         lane = self.temporal_lanes[0]
+        temporal = max(matcher.last_port_latency for matcher in self.temporal_matchers)
+        stereo = max(matcher.last_port_latency for matcher in self.stereo_matchers)
         lanes = self.temporal_slices[0].latency + max(
-            lane.columns_latency + _matcher_latency(self.temporal_matchers) + t.segments - 1,
+            lane.columns_latency + temporal + t.segments - 1,
             lane.bits_latency + RegisterSlice.latency + self.stereo_lanes[0].columns_latency
-            + _matcher_latency(self.stereo_matchers) + s.segments - 1)
+            + stereo + s.segments - 1)
         return self.fork.latency + lanes + self.router.latency - s.segments
 
     def elaborate(self, platform):
